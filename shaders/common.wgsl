@@ -1,0 +1,24 @@
+// common.wgsl: helpers shared by every kernel; prepended to each kernel's source.
+// Mirrored on the CPU in src/cpu/common.rs: keep the arithmetic (order of operations) identical,
+// so the twins agree bit for bit where the driver does not fuse multiply-adds.
+
+// Flat index of voxel (i, j, k) in an x-fastest volume of size dims.
+fn voxel_index(i: u32, j: u32, k: u32, dims: vec3<u32>) -> u32 {
+    return i + dims.x * (j + dims.y * k);
+}
+
+// One row of a 3x4 affine applied to a point: row.xyz . p + row.w, summed left to right.
+fn affine_row(row: vec4<f32>, p: vec3<f32>) -> f32 {
+    return row.x * p.x + row.y * p.y + row.z * p.z + row.w;
+}
+
+// One row of a 3x3 linear map applied to a vector (row.w ignored).
+fn linear_row(row: vec4<f32>, v: vec3<f32>) -> f32 {
+    return row.x * v.x + row.y * v.y + row.z * v.z;
+}
+
+// First index of cell c when n voxels are split into `cells` cells: voxel i belongs to cell
+// floor(i * cells / n), so cell c starts at ceil(c * n / cells).
+fn cell_start(c: u32, n: u32, cells: u32) -> u32 {
+    return (c * n + cells - 1u) / cells;
+}

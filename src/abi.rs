@@ -1,0 +1,96 @@
+//! Parameter structs shared with the WGSL kernels, byte for byte.
+//!
+//! Each struct is `#[repr(C)]` Pod with u32/f32/[f32; 4] fields and explicit padding (never a
+//! vec3, whose 16-byte alignment differs between Rust and WGSL). Each is mirrored by a struct of
+//! the same name in its shader; `tests/shaders.rs` checks the sizes through naga reflection.
+//! The constructors do the f64 host-side geometry once, so both backends receive identical f32s.
+
+use crate::volume::{Affine, Grid};
+use bytemuck::{Pod, Zeroable};
+
+/// Keep in sync with `ResampleParams` in shaders/resample.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ResampleParams {
+    /// Target nx, ny, nz, and the first slice of this slab.
+    pub target_dims: [u32; 4],
+    /// Source nx, ny, nz, and the number of slices in this slab.
+    pub source_dims: [u32; 4],
+    /// Rows of (source world→index) · (target index→world): target voxel → source index.
+    pub index_to_source: [[f32; 4]; 3],
+    /// Rows of the linear part of source world→index: a displacement in mm → index delta.
+    pub mm_to_source: [[f32; 4]; 3],
+    /// Value for points outside the source.
+    pub background: f32,
+    /// Padding to a multiple of 16 bytes.
+    pub pad: [f32; 3],
+}
+
+/// Removes the 1e-16-sized noise an f64 inverse leaves on entries that are whole numbers, so a
+/// target grid equal to the source grid maps every voxel exactly onto itself.
+fn snap_to_integers(m: &Affine) -> Affine {
+    m.map(|v| if (v - v.round()).abs() < 1e-9 { v.round() } else { v })
+}
+
+impl ResampleParams {
+    /// Parameters to resample a volume on `source` onto `target` through a displacement field.
+    pub fn new(source: &Grid, target: &Grid, background: f32) -> Self {
+        let to_source = source.world_to_voxel_affine();
+        let combined = snap_to_integers(&(to_source * target.affine));
+        let linear = snap_to_integers(&to_source);
+        let row = |m: &Affine, r: usize, with_offset: bool| {
+            [
+                m[(r, 0)] as f32,
+                m[(r, 1)] as f32,
+                m[(r, 2)] as f32,
+                if with_offset { m[(r, 3)] as f32 } else { 0.0 },
+            ]
+        };
+        ResampleParams {
+            target_dims: [
+                target.dims[0] as u32,
+                target.dims[1] as u32,
+                target.dims[2] as u32,
+                0,
+            ],
+            source_dims: [
+                source.dims[0] as u32,
+                source.dims[1] as u32,
+                source.dims[2] as u32,
+                target.dims[2] as u32,
+            ],
+            index_to_source: std::array::from_fn(|r| row(&combined, r, true)),
+            mm_to_source: std::array::from_fn(|r| row(&linear, r, false)),
+            background,
+            pad: [0.0; 3],
+        }
+    }
+
+    /// The same parameters restricted to slices z0 .. z0 + depth of the target.
+    pub fn slab(&self, z0: u32, depth: u32) -> Self {
+        let mut p = *self;
+        p.target_dims[3] = z0;
+        p.source_dims[3] = depth;
+        p
+    }
+}
+
+/// Keep in sync with `SsdParams` in shaders/ssd_cells.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SsdParams {
+    /// nx, ny, slices in this slab, unused.
+    pub dims: [u32; 4],
+    /// Cells along x, y, z, unused.
+    pub cells: [u32; 4],
+}
+
+impl SsdParams {
+    /// Parameters for a slab of `depth` slices of an (nx, ny, ·) volume split into `cells`.
+    pub fn new(dims: [usize; 3], cells: [usize; 3], depth: usize) -> Self {
+        SsdParams {
+            dims: [dims[0] as u32, dims[1] as u32, depth as u32, 0],
+            cells: [cells[0] as u32, cells[1] as u32, cells[2] as u32, 0],
+        }
+    }
+}

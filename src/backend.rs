@@ -1,0 +1,32 @@
+//! The `Backend` trait: one method per kernel, implemented by the GPU path (wgpu compute
+//! shaders) and its CPU twin (rayon). Host code (registration loops, commands) is written
+//! against this trait only, so every stage runs on either and the two can be compared.
+
+use crate::error::Result;
+use crate::metric::CellSsd;
+use crate::volume::{Field, Volume};
+
+/// A place kernels run.
+pub trait Backend {
+    /// One line saying what this backend is (e.g. "gpu: NVIDIA H100 (Vulkan)", "cpu: 2 threads").
+    fn describe(&self) -> String;
+
+    /// Trilinear resampling of `source` at x + u(x) for every voxel x of `field`'s grid (the
+    /// target grid); `background` where that point is outside the source.
+    fn resample(&self, source: &Volume, field: &Field, background: f32) -> Result<Volume>;
+
+    /// Sum of squared differences between `a` and `b` (same grid) per cell of `cells`.
+    fn ssd_cells(&self, a: &Volume, b: &Volume, cells: [usize; 3]) -> Result<CellSsd>;
+}
+
+/// Checks two volumes compared voxel by voxel share a grid.
+pub fn check_pair(a: &Volume, b: &Volume) -> Result<()> {
+    if a.grid.same_as(&b.grid, 1e-4) {
+        Ok(())
+    } else {
+        Err(crate::error::Error::InvalidInput(format!(
+            "volumes are on different grids ({:?} vs {:?} voxels, or different affines)",
+            a.grid.dims, b.grid.dims
+        )))
+    }
+}

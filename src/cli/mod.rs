@@ -1,0 +1,36 @@
+//! The command-line verbs: each parses its arguments, calls the library, and prints.
+
+pub mod info;
+pub mod resample;
+
+use clap::{Parser, Subcommand};
+use posereg::device::DeviceChoice;
+
+/// Register 3-D MRI of an articulated body across poses (GPU, with a CPU twin).
+#[derive(Parser, Debug)]
+#[command(name = "posereg", version, about)]
+pub struct Cli {
+    /// Where kernels run: auto picks a hardware GPU when present, else the CPU backend.
+    #[arg(long, value_enum, global = true, default_value_t = DeviceChoice::Auto)]
+    pub device: DeviceChoice,
+    /// The verb.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The verbs.
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Print a NIfTI file's grid, world affine, orientation and intensity range.
+    Info(info::InfoArgs),
+    /// Resample an image through a displacement field (ITK convention) onto a target grid.
+    Resample(resample::ResampleArgs),
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Info(args) => info::run(&args),
+        Command::Resample(args) => resample::run(&args, cli.device),
+    }
+}

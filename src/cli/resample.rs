@@ -1,0 +1,57 @@
+//! `posereg resample SOURCE --field FIELD --like TARGET -o OUT`.
+
+use clap::Args;
+use posereg::device::{open_backend, DeviceChoice};
+use posereg::io::field::load_field;
+use posereg::io::nifti::{load_volume, read_raw, save_volume, DataType};
+use posereg::Error;
+use std::path::PathBuf;
+
+/// Arguments of `posereg resample`.
+#[derive(Args, Debug)]
+pub struct ResampleArgs {
+    /// The image to move (.nii/.nii.gz).
+    pub source: PathBuf,
+    /// Displacement field on the target grid, ITK convention (LPS mm, target → source).
+    #[arg(long)]
+    pub field: PathBuf,
+    /// The target image: the output takes its grid and affine.
+    #[arg(long)]
+    pub like: PathBuf,
+    /// Output file (.nii or .nii.gz).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Value for points that fall outside the source.
+    #[arg(long, default_value_t = 0.0)]
+    pub background: f32,
+    /// Voxel type of the output.
+    #[arg(long, value_enum, default_value_t = DataType::F32)]
+    pub dtype: DataType,
+}
+
+/// Applies the field and writes the resampled image.
+pub fn run(args: &ResampleArgs, device: DeviceChoice) -> anyhow::Result<()> {
+    let source = load_volume(&args.source)?;
+    let field = load_field(&args.field)?;
+    let like = read_raw(&args.like)?;
+    let like_dims: Vec<usize> = like.info.dims.iter().take(3).copied().collect();
+    let same_dims = like_dims == field.grid.dims;
+    let affine_gap = (like.info.affine - field.grid.affine).abs().max();
+    if !same_dims || affine_gap > 1e-3 {
+        return Err(Error::bad_file(
+            &args.field,
+            format!(
+                "field grid {:?} does not match the grid of {} ({like_dims:?}, affines differ \
+                 by up to {affine_gap:.4} mm)",
+                field.grid.dims,
+                args.like.display()
+            ),
+        )
+        .into());
+    }
+    let (backend, line) = open_backend(device)?;
+    eprintln!("{line}");
+    let warped = backend.resample(&source, &field, args.background)?;
+    save_volume(&args.output, &warped, args.dtype)?;
+    Ok(())
+}

@@ -1,0 +1,33 @@
+//! CPU twin of shaders/sample.wgsl (trilinear interpolation by hand).
+
+use super::common::voxel_index;
+
+/// Trilinear value of `source` at continuous index q; `background` outside
+/// [-0.5, n - 0.5] on any axis (NaN coordinates count as outside).
+pub fn trilinear(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -> f32 {
+    let inside = (0..3).all(|a| q[a] >= -0.5 && q[a] <= dims[a] as f32 - 0.5);
+    if !inside {
+        return background;
+    }
+    let base = q.map(f32::floor);
+    let t = [q[0] - base[0], q[1] - base[1], q[2] - base[2]];
+    let top = dims.map(|d| d as i32 - 1);
+    let i0: [u32; 3] = std::array::from_fn(|a| (base[a] as i32).clamp(0, top[a]) as u32);
+    let i1: [u32; 3] = std::array::from_fn(|a| (base[a] as i32 + 1).clamp(0, top[a]) as u32);
+    let v = |x: u32, y: u32, z: u32| source[voxel_index(x, y, z, dims) as usize];
+    let v000 = v(i0[0], i0[1], i0[2]);
+    let v100 = v(i1[0], i0[1], i0[2]);
+    let v010 = v(i0[0], i1[1], i0[2]);
+    let v110 = v(i1[0], i1[1], i0[2]);
+    let v001 = v(i0[0], i0[1], i1[2]);
+    let v101 = v(i1[0], i0[1], i1[2]);
+    let v011 = v(i0[0], i1[1], i1[2]);
+    let v111 = v(i1[0], i1[1], i1[2]);
+    let c00 = (1.0 - t[0]) * v000 + t[0] * v100;
+    let c10 = (1.0 - t[0]) * v010 + t[0] * v110;
+    let c01 = (1.0 - t[0]) * v001 + t[0] * v101;
+    let c11 = (1.0 - t[0]) * v011 + t[0] * v111;
+    let c0 = (1.0 - t[1]) * c00 + t[1] * c10;
+    let c1 = (1.0 - t[1]) * c01 + t[1] * c11;
+    (1.0 - t[2]) * c0 + t[2] * c1
+}

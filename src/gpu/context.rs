@@ -1,0 +1,131 @@
+//! The headless wgpu device: adapter choice, real limits, error capture.
+
+use crate::error::{Error, Result};
+use std::sync::Arc;
+
+/// A wgpu device and queue on a chosen adapter, with that adapter's real limits.
+pub struct GpuContext {
+    /// The logical device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// What the adapter is (name, driver, type).
+    pub info: wgpu::AdapterInfo,
+    /// The limits the device was created with (the adapter's own, not wgpu's defaults, so a
+    /// 136×256×256 volume and its packed 3-vector field can be bound).
+    pub limits: wgpu::Limits,
+}
+
+fn type_rank(t: wgpu::DeviceType) -> u8 {
+    match t {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    }
+}
+
+impl GpuContext {
+    /// Opens the best adapter: the one whose name contains $WGPU_ADAPTER_NAME when set, else a
+    /// discrete GPU before an integrated one before a software rasteriser. $WGPU_BACKEND limits
+    /// the backends searched (this build has Vulkan).
+    pub fn new() -> Result<Self> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all());
+        let mut adapters = pollster::block_on(instance.enumerate_adapters(backends));
+        if adapters.is_empty() {
+            return Err(Error::NoAdapter(
+                "no Vulkan device found; for the software driver (lavapipe) on Debian/Ubuntu \
+                 run `apt-get install mesa-vulkan-drivers`, or install your GPU's Vulkan driver"
+                    .into(),
+            ));
+        }
+        if let Ok(wanted) = std::env::var("WGPU_ADAPTER_NAME") {
+            let wanted = wanted.to_lowercase();
+            let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+            adapters.retain(|a| a.get_info().name.to_lowercase().contains(&wanted));
+            if adapters.is_empty() {
+                return Err(Error::NoAdapter(format!(
+                    "WGPU_ADAPTER_NAME={wanted:?} matches none of {names:?}"
+                )));
+            }
+        }
+        adapters.sort_by_key(|a| type_rank(a.get_info().device_type));
+        let adapter = adapters.remove(0);
+        let info = adapter.get_info();
+        let limits = adapter.limits();
+        let (device, queue) =
+            pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                label: Some("posereg"),
+                required_features: wgpu::Features::empty(),
+                required_limits: limits.clone(),
+                experimental_features: wgpu::ExperimentalFeatures::default(),
+                memory_hints: wgpu::MemoryHints::Performance,
+                trace: wgpu::Trace::Off,
+            }))
+            .map_err(|e| Error::NoAdapter(format!("{}: cannot open device: {e}", info.name)))?;
+        // Errors are captured by error scopes around every operation; anything escaping them is
+        // reported rather than aborting the process (wgpu's default handler panics).
+        device.on_uncaptured_error(Arc::new(|e| {
+            eprintln!("posereg: GPU error outside an error scope: {e}")
+        }));
+        Ok(GpuContext {
+            device,
+            queue,
+            info,
+            limits,
+        })
+    }
+
+    /// True for software rasterisers (lavapipe/llvmpipe, SwiftShader): correct but slower than
+    /// the CPU backend.
+    pub fn is_software(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
+    }
+
+    /// "NAME (BACKEND, TYPE)".
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({:?}, {:?})",
+            self.info.name, self.info.backend, self.info.device_type
+        )
+    }
+
+    /// Runs `f`, turning any validation or out-of-memory error it raises into an [`Error::Gpu`]
+    /// naming `what`.
+    pub fn scoped<T>(&self, what: &str, f: impl FnOnce() -> T) -> Result<T> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let out = f();
+        let v = pollster::block_on(validation.pop());
+        let o = pollster::block_on(oom.pop());
+        match v.or(o) {
+            Some(e) => Err(Error::Gpu(format!("{what}: {e}"))),
+            None => Ok(out),
+        }
+    }
+
+    /// Checks that a storage binding of `bytes` fits the device.
+    pub fn check_storage(&self, what: &str, bytes: u64) -> Result<()> {
+        let checks = [
+            (
+                self.limits.max_storage_buffer_binding_size,
+                "max_storage_buffer_binding_size",
+            ),
+            (self.limits.max_buffer_size, "max_buffer_size"),
+        ];
+        for (limit, limit_name) in checks {
+            if bytes > limit {
+                return Err(Error::DeviceLimit {
+                    what: what.to_string(),
+                    needed: bytes,
+                    limit,
+                    limit_name,
+                });
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,137 @@
+//! The GPU backend: wgpu compute shaders, one host file per kernel.
+//!
+//! Large volumes are processed in slabs of whole z-slices, each slab's per-voxel buffers bound
+//! on their own, so no binding exceeds `max_storage_buffer_binding_size` and no dispatch
+//! exceeds 65535 workgroups per dimension. Volumes that must be bound whole (the source of a
+//! resample) and do not fit get a clear error naming the size and the limit.
+
+pub mod buffer;
+pub mod context;
+pub mod kernel;
+pub mod resample;
+pub mod ssd_cells;
+
+use crate::abi::ResampleParams;
+use crate::backend::{check_pair, Backend};
+use crate::error::{Error, Result};
+use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
+use crate::volume::{Field, Image, Volume};
+use context::GpuContext;
+use kernel::Kernel;
+
+/// A run of whole slices z0 .. z0 + depth processed in one dispatch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Slab {
+    /// First slice.
+    pub z0: usize,
+    /// Number of slices.
+    pub depth: usize,
+}
+
+/// The GPU backend with its compiled kernels.
+pub struct GpuBackend {
+    ctx: GpuContext,
+    resample: Kernel,
+    ssd_cells: Kernel,
+    max_slab_voxels: Option<usize>,
+}
+
+impl GpuBackend {
+    /// Opens the adapter (see [`GpuContext::new`]) and compiles every kernel.
+    pub fn new() -> Result<Self> {
+        Self::with_context(GpuContext::new()?)
+    }
+
+    /// Compiles every kernel on an opened context.
+    pub fn with_context(ctx: GpuContext) -> Result<Self> {
+        Ok(GpuBackend {
+            resample: Kernel::new(&ctx, "resample", resample::BINDINGS)?,
+            ssd_cells: Kernel::new(&ctx, "ssd_cells", ssd_cells::BINDINGS)?,
+            ctx,
+            max_slab_voxels: None,
+        })
+    }
+
+    /// Caps the voxels per slab below what the device limits allow (for tests of the slab
+    /// path, and to bound peak device memory).
+    pub fn with_max_slab_voxels(mut self, voxels: usize) -> Self {
+        self.max_slab_voxels = Some(voxels.max(1));
+        self
+    }
+
+    /// The device this backend runs on.
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    /// Splits `dims` into slabs whose per-voxel buffers (`bytes_per_voxel` for the largest)
+    /// fit the device's binding limits, the optional cap, and the workgroup count limit.
+    pub fn plan_slabs(&self, dims: [usize; 3], bytes_per_voxel: usize) -> Result<Vec<Slab>> {
+        let slice = dims[0] * dims[1];
+        let limit = self
+            .ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(self.ctx.limits.max_buffer_size);
+        let fits = (limit / bytes_per_voxel as u64) as usize;
+        if slice > fits {
+            return Err(Error::DeviceLimit {
+                what: format!("one {}×{} slice", dims[0], dims[1]),
+                needed: (slice * bytes_per_voxel) as u64,
+                limit,
+                limit_name: "max_storage_buffer_binding_size",
+            });
+        }
+        let cap = self.max_slab_voxels.unwrap_or(usize::MAX).min(fits);
+        let max_depth = (cap / slice)
+            .max(1)
+            .min(self.ctx.limits.max_compute_workgroups_per_dimension as usize);
+        Ok((0..dims[2])
+            .step_by(max_depth)
+            .map(|z0| Slab {
+                z0,
+                depth: max_depth.min(dims[2] - z0),
+            })
+            .collect())
+    }
+}
+
+impl Backend for GpuBackend {
+    fn describe(&self) -> String {
+        format!("gpu: {}", self.ctx.describe())
+    }
+
+    fn resample(&self, source: &Volume, field: &Field, background: f32) -> Result<Volume> {
+        let params = ResampleParams::new(&source.grid, &field.grid, background);
+        let slabs = self.plan_slabs(field.grid.dims, resample::FIELD_BYTES_PER_VOXEL)?;
+        let warped = resample::resample(
+            &self.ctx,
+            &self.resample,
+            &params,
+            &source.data,
+            bytemuck::cast_slice(&field.data),
+            &slabs,
+        )?;
+        Ok(Image {
+            grid: field.grid.clone(),
+            data: warped,
+        })
+    }
+
+    fn ssd_cells(&self, a: &Volume, b: &Volume, cells: [usize; 3]) -> Result<CellSsd> {
+        check_pair(a, b)?;
+        let dims = a.grid.dims;
+        check_cells(dims, cells)?;
+        let slabs = self.plan_slabs(dims, ssd_cells::BYTES_PER_VOXEL)?;
+        let partial = ssd_cells::ssd_partials(
+            &self.ctx,
+            &self.ssd_cells,
+            dims,
+            cells,
+            &a.data,
+            &b.data,
+            &slabs,
+        )?;
+        Ok(fold_ssd_partials(dims, cells, &partial))
+    }
+}

@@ -1,0 +1,54 @@
+//! WGSL sources, compiled into the binary. A kernel's source is its file with the shared
+//! helpers prepended; [`locate`] maps a line of the assembled source back to its file.
+
+const COMMON: (&str, &str) = ("common.wgsl", include_str!("../shaders/common.wgsl"));
+const SAMPLE: (&str, &str) = ("sample.wgsl", include_str!("../shaders/sample.wgsl"));
+
+/// Every kernel: its name and the files it is assembled from, in order.
+pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
+    (
+        "resample",
+        &[
+            COMMON,
+            SAMPLE,
+            ("resample.wgsl", include_str!("../shaders/resample.wgsl")),
+        ],
+    ),
+    (
+        "ssd_cells",
+        &[
+            COMMON,
+            ("ssd_cells.wgsl", include_str!("../shaders/ssd_cells.wgsl")),
+        ],
+    ),
+];
+
+fn parts(kernel: &str) -> &'static [(&'static str, &'static str)] {
+    KERNELS
+        .iter()
+        .find(|(name, _)| *name == kernel)
+        .map(|(_, parts)| *parts)
+        .unwrap_or_else(|| panic!("no kernel named {kernel}"))
+}
+
+/// The assembled WGSL of a kernel.
+pub fn source(kernel: &str) -> String {
+    parts(kernel)
+        .iter()
+        .map(|(_, text)| *text)
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// Which file and line (1-based) line `line` (1-based) of the assembled source comes from.
+pub fn locate(kernel: &str, line: usize) -> (&'static str, usize) {
+    let mut first = 1;
+    for (file, text) in parts(kernel) {
+        let lines = text.lines().count() + 1; // + the joining newline
+        if line < first + lines {
+            return (file, line - first + 1);
+        }
+        first += lines;
+    }
+    ("?", line)
+}

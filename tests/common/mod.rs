@@ -1,0 +1,96 @@
+//! Helpers shared by the integration tests: seeded smooth data and the GPU backend.
+#![allow(dead_code)] // each test binary uses a different subset
+
+use posereg::gpu::GpuBackend;
+use posereg::volume::{Affine, Field, Grid, Image, Volume};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::sync::OnceLock;
+
+/// The GPU backend shared by a test binary, or None when there is no adapter. With
+/// REQUIRE_GPU=1 (CI sets it) a missing adapter fails the test instead of skipping it.
+pub fn gpu() -> Option<&'static GpuBackend> {
+    static GPU: OnceLock<Option<GpuBackend>> = OnceLock::new();
+    GPU.get_or_init(|| match GpuBackend::new() {
+        Ok(b) => Some(b),
+        Err(e) => {
+            if std::env::var("REQUIRE_GPU").as_deref() == Ok("1") {
+                panic!("REQUIRE_GPU=1 but the GPU backend failed: {e}");
+            }
+            eprintln!("GPU tests skipped: {e}");
+            None
+        }
+    })
+    .as_ref()
+}
+
+/// An oblique, anisotropic affine: rotation about two axes, zooms, offset.
+pub fn oblique_affine(zooms: [f64; 3]) -> Affine {
+    let r = nalgebra::Rotation3::from_euler_angles(0.3, -0.2, 0.5);
+    let mut a = Affine::identity();
+    for c in 0..3 {
+        for r_ in 0..3 {
+            a[(r_, c)] = r[(r_, c)] * zooms[c];
+        }
+    }
+    a[(0, 3)] = -20.5;
+    a[(1, 3)] = 13.0;
+    a[(2, 3)] = 4.25;
+    a
+}
+
+/// A grid of `dims` with an oblique anisotropic affine.
+pub fn oblique_grid(dims: [usize; 3]) -> Grid {
+    Grid::new(dims, oblique_affine([1.1, 0.9, 1.7])).unwrap()
+}
+
+/// A smooth random volume: a sum of seeded random sinusoids over the voxel index, plus an
+/// offset so values are well away from zero (range about 20..180).
+pub fn smooth_volume(grid: &Grid, seed: u64) -> Volume {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let waves: Vec<([f32; 3], f32, f32)> = (0..4)
+        .map(|_| {
+            let k = [
+                rng.random_range(0.05..0.5f32),
+                rng.random_range(0.05..0.5f32),
+                rng.random_range(0.05..0.5f32),
+            ];
+            (k, rng.random_range(0.0..6.28f32), rng.random_range(10.0..20.0f32))
+        })
+        .collect();
+    let [nx, ny, nz] = grid.dims;
+    let mut data = Vec::with_capacity(grid.len());
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let p = [i as f32, j as f32, k as f32];
+                let v: f32 = waves
+                    .iter()
+                    .map(|(w, phase, amp)| amp * (w[0] * p[0] + w[1] * p[1] + w[2] * p[2] + phase).sin())
+                    .sum();
+                data.push(100.0 + v);
+            }
+        }
+    }
+    Image::from_data(grid.clone(), data).unwrap()
+}
+
+/// A smooth random displacement field (mm) of amplitude up to `amplitude` per component.
+pub fn smooth_field(grid: &Grid, seed: u64, amplitude: f32) -> Field {
+    let comps: Vec<Volume> = (0..3).map(|c| smooth_volume(grid, seed * 3 + c)).collect();
+    let data = (0..grid.len())
+        .map(|i| std::array::from_fn(|c| (comps[c].data[i] - 100.0) / 60.0 * amplitude))
+        .collect();
+    Image::from_data(grid.clone(), data).unwrap()
+}
+
+/// A constant displacement field.
+pub fn constant_field(grid: &Grid, d: [f32; 3]) -> Field {
+    Image::filled(grid.clone(), d)
+}
+
+/// Largest |a - b| over two equally long slices.
+pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
+}

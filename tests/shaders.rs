@@ -1,0 +1,113 @@
+//! Every shader parses and validates with naga (no device needed), and every parameter struct
+//! has the same size in Rust and WGSL.
+
+use posereg::abi::{ResampleParams, SsdParams};
+use posereg::shaders::{locate, source, KERNELS};
+
+fn parse(kernel: &str) -> naga::Module {
+    let src = source(kernel);
+    match naga::front::wgsl::parse_str(&src) {
+        Ok(m) => m,
+        Err(e) => {
+            let line = e.location(&src).map(|l| l.line_number as usize).unwrap_or(0);
+            let (file, file_line) = locate(kernel, line);
+            panic!("shaders/{file}:{file_line}: {}", e.emit_to_string(&src));
+        }
+    }
+}
+
+#[test]
+fn every_shader_parses_and_validates() {
+    assert!(!KERNELS.is_empty());
+    for (kernel, _) in KERNELS {
+        let module = parse(kernel);
+        let mut validator = naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::empty(),
+        );
+        if let Err(e) = validator.validate(&module) {
+            let src = source(kernel);
+            let line = e.location(&src).map(|l| l.line_number as usize).unwrap_or(0);
+            let (file, file_line) = locate(kernel, line);
+            panic!(
+                "shaders/{file}:{file_line}: {}",
+                e.emit_to_string(&src)
+            );
+        }
+        assert!(
+            module.entry_points.iter().any(|e| e.name == "main"),
+            "{kernel} has no entry point main"
+        );
+    }
+}
+
+/// Size in bytes of the struct named `name` in a kernel, via naga's layouter.
+fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
+    let module = parse(kernel);
+    let (_, ty) = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("{kernel} declares no struct {name}"));
+    match ty.inner {
+        naga::TypeInner::Struct { span, .. } => span,
+        _ => panic!("{name} is not a struct"),
+    }
+}
+
+#[test]
+fn abi_structs_match_their_wgsl_twins() {
+    assert_eq!(
+        wgsl_struct_size("resample", "ResampleParams") as usize,
+        std::mem::size_of::<ResampleParams>()
+    );
+    assert_eq!(
+        wgsl_struct_size("ssd_cells", "SsdParams") as usize,
+        std::mem::size_of::<SsdParams>()
+    );
+}
+
+#[test]
+fn locate_maps_assembled_lines_back_to_files() {
+    let src = source("resample");
+    let n = src.lines().position(|l| l.contains("struct ResampleParams")).unwrap() + 1;
+    let (file, line) = locate("resample", n);
+    assert_eq!(file, "resample.wgsl");
+    let text = include_str!("../shaders/resample.wgsl");
+    assert!(text.lines().nth(line - 1).unwrap().contains("struct ResampleParams"));
+}
+
+#[test]
+fn host_bind_group_layouts_match_shader_bindings() {
+    use posereg::gpu::kernel::Binding;
+    let kernels: [(&str, &[Binding]); 2] = [
+        ("resample", posereg::gpu::resample::BINDINGS),
+        ("ssd_cells", posereg::gpu::ssd_cells::BINDINGS),
+    ];
+    assert_eq!(kernels.len(), KERNELS.len(), "a kernel is missing from this test");
+    for (kernel, host) in kernels {
+        let module = parse(kernel);
+        let mut declared: Vec<(u32, String)> = module
+            .global_variables
+            .iter()
+            .filter_map(|(_, g)| {
+                let b = g.binding.as_ref()?;
+                assert_eq!(b.group, 0, "{kernel}: only group 0 is used");
+                let kind = match g.space {
+                    naga::AddressSpace::Uniform => "Uniform",
+                    naga::AddressSpace::Storage { access } if access.contains(naga::StorageAccess::STORE) => "ReadWrite",
+                    naga::AddressSpace::Storage { .. } => "Read",
+                    other => panic!("{kernel}: unexpected address space {other:?}"),
+                };
+                Some((b.binding, kind.to_string()))
+            })
+            .collect();
+        declared.sort();
+        let expected: Vec<(u32, String)> = host
+            .iter()
+            .enumerate()
+            .map(|(i, b)| (i as u32, format!("{b:?}")))
+            .collect();
+        assert_eq!(declared, expected, "{kernel}: shader bindings differ from the host layout");
+    }
+}
