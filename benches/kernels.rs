@@ -1,1 +1,101 @@
-fn main() {}
+//! Kernel benchmarks: each kernel × backend (CPU twin, GPU) × size, throughput in voxels/s.
+//! GPU timings include upload, submit, wait and read-back (what a caller pays today).
+//!
+//! Sizes: POSEREG_BENCH_SIZES=tiny (CI smoke: 16³), =small (64³, 128³), default all three of
+//! 64³, 128³ and the paper's 136×256×256.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use posereg::cpu::CpuBackend;
+use posereg::gpu::GpuBackend;
+use posereg::volume::{Affine, Grid, Image};
+use posereg::Backend;
+
+fn sizes() -> Vec<[usize; 3]> {
+    match std::env::var("POSEREG_BENCH_SIZES").as_deref() {
+        Ok("tiny") => vec![[16, 16, 16]],
+        Ok("small") => vec![[64, 64, 64], [128, 128, 128]],
+        _ => vec![[64, 64, 64], [128, 128, 128], [256, 256, 136]],
+    }
+}
+
+fn grid(dims: [usize; 3]) -> Grid {
+    let mut a = Affine::identity();
+    a[(2, 2)] = 1.2;
+    Grid::new(dims, a).unwrap()
+}
+
+/// Seeded smooth data: a deterministic pattern (no RNG needed for throughput).
+fn volume(g: &Grid, phase: f32) -> posereg::Volume {
+    let [nx, ny, _] = g.dims;
+    let data = (0..g.len())
+        .map(|i| {
+            let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+            100.0
+                + 30.0
+                    * ((x as f32 * 0.11 + phase).sin()
+                        + (y as f32 * 0.07).cos()
+                        + (z as f32 * 0.13).sin())
+        })
+        .collect();
+    Image::from_data(g.clone(), data).unwrap()
+}
+
+fn field(g: &Grid) -> posereg::Field {
+    let [nx, ny, _] = g.dims;
+    let data = (0..g.len())
+        .map(|i| {
+            let (x, y) = ((i % nx) as f32, ((i / nx) % ny) as f32);
+            [2.0 * (y * 0.05).sin(), 1.5 * (x * 0.04).cos(), 0.7]
+        })
+        .collect();
+    Image::from_data(g.clone(), data).unwrap()
+}
+
+fn backends() -> Vec<(&'static str, Box<dyn Backend>)> {
+    let mut list: Vec<(&'static str, Box<dyn Backend>)> = vec![("cpu", Box::new(CpuBackend))];
+    match GpuBackend::new() {
+        Ok(g) => {
+            eprintln!("gpu backend: {}", g.describe());
+            list.push(("gpu", Box::new(g)));
+        }
+        Err(e) if std::env::var("REQUIRE_GPU").as_deref() == Ok("1") => {
+            panic!("REQUIRE_GPU=1 but no GPU backend: {e}")
+        }
+        Err(e) => eprintln!("gpu benches skipped: {e}"),
+    }
+    list
+}
+
+fn kernels(c: &mut Criterion) {
+    let backends = backends();
+    for dims in sizes() {
+        let g = grid(dims);
+        let source = volume(&g, 0.0);
+        let target = volume(&g, 0.5);
+        let u = field(&g);
+        let label = format!("{}x{}x{}", dims[0], dims[1], dims[2]);
+        let mut group = c.benchmark_group("resample");
+        group
+            .sample_size(10)
+            .throughput(Throughput::Elements(g.len() as u64));
+        for (name, b) in &backends {
+            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
+                bench.iter(|| b.resample(&source, &u, 0.0).unwrap())
+            });
+        }
+        group.finish();
+        let mut group = c.benchmark_group("ssd_cells_16");
+        group
+            .sample_size(10)
+            .throughput(Throughput::Elements(g.len() as u64));
+        for (name, b) in &backends {
+            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
+                bench.iter(|| b.ssd_cells(&source, &target, [16, 16, 16]).unwrap())
+            });
+        }
+        group.finish();
+    }
+}
+
+criterion_group!(benches, kernels);
+criterion_main!(benches);

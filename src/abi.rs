@@ -29,7 +29,13 @@ pub struct ResampleParams {
 /// Removes the 1e-16-sized noise an f64 inverse leaves on entries that are whole numbers, so a
 /// target grid equal to the source grid maps every voxel exactly onto itself.
 fn snap_to_integers(m: &Affine) -> Affine {
-    m.map(|v| if (v - v.round()).abs() < 1e-9 { v.round() } else { v })
+    m.map(|v| {
+        if (v - v.round()).abs() < 1e-9 {
+            v.round()
+        } else {
+            v
+        }
+    })
 }
 
 impl ResampleParams {

@@ -23,8 +23,16 @@ fn check_resample(name: &str, source: &Volume, field: &Field, background: f32) {
     let got = gpu.resample(source, field, background).unwrap();
     assert_eq!(got.grid, cpu.grid);
     let diff = max_abs_diff(&got.data, &cpu.data);
-    let identical = got.data.iter().zip(&cpu.data).filter(|(a, b)| a == b).count();
-    eprintln!("{name}: max |gpu - cpu| = {diff:e}, {identical}/{} bit-identical", cpu.data.len());
+    let identical = got
+        .data
+        .iter()
+        .zip(&cpu.data)
+        .filter(|(a, b)| a == b)
+        .count();
+    eprintln!(
+        "{name}: max |gpu - cpu| = {diff:e}, {identical}/{} bit-identical",
+        cpu.data.len()
+    );
     assert!(diff <= RESAMPLE_TOLERANCE, "{name}: max diff {diff}");
 }
 
@@ -34,7 +42,10 @@ fn resample_identity_field_at_odd_size() {
     let source = smooth_volume(&grid, 1);
     check_resample("identity", &source, &constant_field(&grid, [0.0; 3]), 0.0);
     // And the identity really reproduces the source on both backends.
-    let gpu_out = gpu().map(|g| g.resample(&source, &constant_field(&grid, [0.0; 3]), 0.0).unwrap());
+    let gpu_out = gpu().map(|g| {
+        g.resample(&source, &constant_field(&grid, [0.0; 3]), 0.0)
+            .unwrap()
+    });
     if let Some(out) = gpu_out {
         assert_eq!(out.data, source.data);
     }
@@ -44,7 +55,12 @@ fn resample_identity_field_at_odd_size() {
 fn resample_integer_shift() {
     let grid = Grid::new([17, 9, 6], posereg::Affine::identity()).unwrap();
     let source = smooth_volume(&grid, 2);
-    check_resample("integer shift", &source, &constant_field(&grid, [3.0, -2.0, 1.0]), -5.0);
+    check_resample(
+        "integer shift",
+        &source,
+        &constant_field(&grid, [3.0, -2.0, 1.0]),
+        -5.0,
+    );
 }
 
 #[test]
@@ -54,7 +70,12 @@ fn resample_fully_outside() {
     let field = constant_field(&grid, [0.0, 1e4, 0.0]);
     check_resample("outside", &source, &field, 13.0);
     if let Some(g) = gpu() {
-        assert!(g.resample(&source, &field, 13.0).unwrap().data.iter().all(|&v| v == 13.0));
+        assert!(g
+            .resample(&source, &field, 13.0)
+            .unwrap()
+            .data
+            .iter()
+            .all(|&v| v == 13.0));
     }
 }
 
@@ -92,7 +113,10 @@ fn ssd_cells_parity_at_odd_sizes() {
         let got = gpu.ssd_cells(&a, &b, cells).unwrap();
         assert_eq!(got.count, cpu.count);
         for (g, c) in got.sum.iter().zip(&cpu.sum) {
-            assert!((g - c).abs() <= SSD_RELATIVE_TOLERANCE * c.max(1.0), "{dims:?}: {g} vs {c}");
+            assert!(
+                (g - c).abs() <= SSD_RELATIVE_TOLERANCE * c.max(1.0),
+                "{dims:?}: {g} vs {c}"
+            );
         }
     }
 }
@@ -108,11 +132,16 @@ fn slabs_do_not_change_results() {
     let whole = gpu.resample(&source, &field, 0.0).unwrap();
     let whole_ssd = gpu.ssd_cells(&whole, &target, [3, 4, 5]).unwrap();
     // A second backend on its own device, forced to two slices (or fewer voxels) per dispatch.
-    let small = posereg::gpu::GpuBackend::new().unwrap().with_max_slab_voxels(2 * 19 * 17);
+    let small = posereg::gpu::GpuBackend::new()
+        .unwrap()
+        .with_max_slab_voxels(2 * 19 * 17);
     let slabs = small.plan_slabs(target_grid.dims, 12).unwrap();
     assert_eq!(slabs.len(), 8, "15 slices in slabs of 2");
     let sliced = small.resample(&source, &field, 0.0).unwrap();
-    assert_eq!(sliced.data, whole.data, "slabs changed the resampled values");
+    assert_eq!(
+        sliced.data, whole.data,
+        "slabs changed the resampled values"
+    );
     let sliced_ssd = small.ssd_cells(&sliced, &target, [3, 4, 5]).unwrap();
     assert_eq!(sliced_ssd, whole_ssd, "slabs changed the per-cell SSD");
 }
@@ -121,8 +150,15 @@ fn slabs_do_not_change_results() {
 fn source_beyond_the_binding_limit_is_a_clear_error() {
     let Some(gpu) = gpu() else { return };
     let limit = gpu.context().limits.max_storage_buffer_binding_size;
-    let err = gpu.context().check_storage("source volume", limit + 4).unwrap_err().to_string();
-    assert!(err.contains("source volume") && err.contains(&limit.to_string()), "{err}");
+    let err = gpu
+        .context()
+        .check_storage("source volume", limit + 4)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("source volume") && err.contains(&limit.to_string()),
+        "{err}"
+    );
 }
 
 #[test]

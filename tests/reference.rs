@@ -36,11 +36,22 @@ fn trilinear_of_a_linear_ramp_is_exact() {
     for k in 0..nz {
         for j in 0..ny {
             for i in 0..nx {
-                let q = [i as f32 + shift[0], j as f32 + shift[1], k as f32 + shift[2]];
+                let q = [
+                    i as f32 + shift[0],
+                    j as f32 + shift[1],
+                    k as f32 + shift[2],
+                ];
                 let v = warped.data[grid.index(i, j, k)];
                 // Inside the hull of voxel centres the ramp is reproduced exactly.
-                if q.iter().zip(grid.dims).all(|(q, n)| *q >= 0.0 && *q <= (n - 1) as f32) {
-                    assert_eq!(v, 0.5 * q[0] + 0.25 * q[1] + 2.0 * q[2] + 3.0, "at {i},{j},{k}");
+                if q.iter()
+                    .zip(grid.dims)
+                    .all(|(q, n)| *q >= 0.0 && *q <= (n - 1) as f32)
+                {
+                    assert_eq!(
+                        v,
+                        0.5 * q[0] + 0.25 * q[1] + 2.0 * q[2] + 3.0,
+                        "at {i},{j},{k}"
+                    );
                     inside += 1;
                 }
             }
@@ -156,7 +167,10 @@ fn ssd_of_a_known_pair() {
     assert_eq!(ssd.count, counts);
     assert_eq!(ssd.count[..3], [3 * 3 * 2, 2 * 3 * 2, 2 * 3 * 2]);
     for (got, want) in ssd.sum.iter().zip(&expected) {
-        assert!((got - want).abs() <= 1e-5 * want.max(1.0), "{got} vs {want}");
+        assert!(
+            (got - want).abs() <= 1e-5 * want.max(1.0),
+            "{got} vs {want}"
+        );
     }
     let total: f64 = expected.iter().sum();
     assert!((ssd.total() - total).abs() <= 1e-5 * total);

@@ -9,7 +9,10 @@ fn parse(kernel: &str) -> naga::Module {
     match naga::front::wgsl::parse_str(&src) {
         Ok(m) => m,
         Err(e) => {
-            let line = e.location(&src).map(|l| l.line_number as usize).unwrap_or(0);
+            let line = e
+                .location(&src)
+                .map(|l| l.line_number as usize)
+                .unwrap_or(0);
             let (file, file_line) = locate(kernel, line);
             panic!("shaders/{file}:{file_line}: {}", e.emit_to_string(&src));
         }
@@ -27,12 +30,12 @@ fn every_shader_parses_and_validates() {
         );
         if let Err(e) = validator.validate(&module) {
             let src = source(kernel);
-            let line = e.location(&src).map(|l| l.line_number as usize).unwrap_or(0);
+            let line = e
+                .location(&src)
+                .map(|l| l.line_number as usize)
+                .unwrap_or(0);
             let (file, file_line) = locate(kernel, line);
-            panic!(
-                "shaders/{file}:{file_line}: {}",
-                e.emit_to_string(&src)
-            );
+            panic!("shaders/{file}:{file_line}: {}", e.emit_to_string(&src));
         }
         assert!(
             module.entry_points.iter().any(|e| e.name == "main"),
@@ -70,11 +73,19 @@ fn abi_structs_match_their_wgsl_twins() {
 #[test]
 fn locate_maps_assembled_lines_back_to_files() {
     let src = source("resample");
-    let n = src.lines().position(|l| l.contains("struct ResampleParams")).unwrap() + 1;
+    let n = src
+        .lines()
+        .position(|l| l.contains("struct ResampleParams"))
+        .unwrap()
+        + 1;
     let (file, line) = locate("resample", n);
     assert_eq!(file, "resample.wgsl");
     let text = include_str!("../shaders/resample.wgsl");
-    assert!(text.lines().nth(line - 1).unwrap().contains("struct ResampleParams"));
+    assert!(text
+        .lines()
+        .nth(line - 1)
+        .unwrap()
+        .contains("struct ResampleParams"));
 }
 
 #[test]
@@ -84,7 +95,11 @@ fn host_bind_group_layouts_match_shader_bindings() {
         ("resample", posereg::gpu::resample::BINDINGS),
         ("ssd_cells", posereg::gpu::ssd_cells::BINDINGS),
     ];
-    assert_eq!(kernels.len(), KERNELS.len(), "a kernel is missing from this test");
+    assert_eq!(
+        kernels.len(),
+        KERNELS.len(),
+        "a kernel is missing from this test"
+    );
     for (kernel, host) in kernels {
         let module = parse(kernel);
         let mut declared: Vec<(u32, String)> = module
@@ -95,7 +110,11 @@ fn host_bind_group_layouts_match_shader_bindings() {
                 assert_eq!(b.group, 0, "{kernel}: only group 0 is used");
                 let kind = match g.space {
                     naga::AddressSpace::Uniform => "Uniform",
-                    naga::AddressSpace::Storage { access } if access.contains(naga::StorageAccess::STORE) => "ReadWrite",
+                    naga::AddressSpace::Storage { access }
+                        if access.contains(naga::StorageAccess::STORE) =>
+                    {
+                        "ReadWrite"
+                    }
                     naga::AddressSpace::Storage { .. } => "Read",
                     other => panic!("{kernel}: unexpected address space {other:?}"),
                 };
@@ -108,6 +127,9 @@ fn host_bind_group_layouts_match_shader_bindings() {
             .enumerate()
             .map(|(i, b)| (i as u32, format!("{b:?}")))
             .collect();
-        assert_eq!(declared, expected, "{kernel}: shader bindings differ from the host layout");
+        assert_eq!(
+            declared, expected,
+            "{kernel}: shader bindings differ from the host layout"
+        );
     }
 }

@@ -26,7 +26,9 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     let non_finite = raw.data.len() - finite.len();
     let (lo, hi) = finite
         .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
     let affine: Vec<Vec<f64>> = (0..4)
         .map(|r| (0..4).map(|c| info.affine[(r, c)]).collect())
         .collect();

@@ -16,6 +16,8 @@ pub fn linear_row(row: [f32; 4], v: [f32; 3]) -> f32 {
 }
 
 /// First index of cell c when n voxels are split into `cells` cells.
+// Written as in WGSL, which has no div_ceil.
+#[allow(clippy::manual_div_ceil)]
 pub fn cell_start(c: u32, n: u32, cells: u32) -> u32 {
     (c * n + cells - 1) / cells
 }

@@ -30,7 +30,8 @@ pub fn resample(params: &ResampleParams, source: &[f32], field: &[f32], warped: 
                         affine_row(params.index_to_source[r], p)
                             + linear_row(params.mm_to_source[r], u)
                     });
-                    out[local - zl as usize * slice] = trilinear(source, q, source_dims, params.background);
+                    out[local - zl as usize * slice] =
+                        trilinear(source, q, source_dims, params.background);
                 }
             }
         });

@@ -56,16 +56,15 @@ impl GpuContext {
         let adapter = adapters.remove(0);
         let info = adapter.get_info();
         let limits = adapter.limits();
-        let (device, queue) =
-            pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-                label: Some("posereg"),
-                required_features: wgpu::Features::empty(),
-                required_limits: limits.clone(),
-                experimental_features: wgpu::ExperimentalFeatures::default(),
-                memory_hints: wgpu::MemoryHints::Performance,
-                trace: wgpu::Trace::Off,
-            }))
-            .map_err(|e| Error::NoAdapter(format!("{}: cannot open device: {e}", info.name)))?;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("posereg"),
+            required_features: wgpu::Features::empty(),
+            required_limits: limits.clone(),
+            experimental_features: wgpu::ExperimentalFeatures::default(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|e| Error::NoAdapter(format!("{}: cannot open device: {e}", info.name)))?;
         // Errors are captured by error scopes around every operation; anything escaping them is
         // reported rather than aborting the process (wgpu's default handler panics).
         device.on_uncaptured_error(Arc::new(|e| {

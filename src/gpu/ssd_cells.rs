@@ -33,7 +33,11 @@ pub fn ssd_partials(
     let mut partial = Vec::with_capacity(nz * nx * cells[1]);
     for slab in slabs {
         let range = slab.z0 * slice..(slab.z0 + slab.depth) * slice;
-        let uniform = uniform_from(ctx, "ssd parameters", &SsdParams::new(dims, cells, slab.depth))?;
+        let uniform = uniform_from(
+            ctx,
+            "ssd parameters",
+            &SsdParams::new(dims, cells, slab.depth),
+        )?;
         let a_buffer = storage_from(ctx, "ssd first volume slab", &a[range.clone()])?;
         let b_buffer = storage_from(ctx, "ssd second volume slab", &b[range])?;
         let len = slab.depth * nx * cells[1];

@@ -40,7 +40,11 @@ pub fn load_field(path: &Path) -> Result<Field> {
     let raw = read_raw(path)?;
     let dims = &raw.info.dims;
     let spatial_ok = dims.len() >= 4 && dims.last() == Some(&3);
-    let middle: usize = dims.iter().skip(3).take(dims.len().saturating_sub(4)).product();
+    let middle: usize = dims
+        .iter()
+        .skip(3)
+        .take(dims.len().saturating_sub(4))
+        .product();
     if !spatial_ok || middle != 1 {
         return Err(Error::bad_file(
             path,
@@ -51,7 +55,10 @@ pub fn load_field(path: &Path) -> Result<Field> {
         .map_err(|e| Error::bad_file(path, e.to_string()))?;
     let n = grid.len();
     if raw.data.iter().any(|v| !v.is_finite()) {
-        return Err(Error::bad_file(path, "displacement field has NaN or Inf vectors"));
+        return Err(Error::bad_file(
+            path,
+            "displacement field has NaN or Inf vectors",
+        ));
     }
     let data = (0..n)
         .map(|i| flip_ras_lps([raw.data[i], raw.data[n + i], raw.data[2 * n + i]]))

@@ -28,7 +28,8 @@ where
         return Err(Error::bad_file(path, "output folder does not exist"));
     }
     let tmp = dir.join(format!(".posereg-tmp-{}-{name}", std::process::id()));
-    let result = write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
+    let result =
+        write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }

@@ -65,11 +65,17 @@ pub struct HeaderInfo {
 pub fn header_info(path: &Path, h: &NiftiHeader) -> Result<HeaderInfo> {
     let ndim = h.dim[0] as usize;
     if !(1..=7).contains(&ndim) {
-        return Err(Error::bad_file(path, format!("dim[0] = {} is not 1..7", h.dim[0])));
+        return Err(Error::bad_file(
+            path,
+            format!("dim[0] = {} is not 1..7", h.dim[0]),
+        ));
     }
     let dims: Vec<usize> = h.dim[1..=ndim].iter().map(|&d| d as usize).collect();
     if dims.contains(&0) {
-        return Err(Error::bad_file(path, format!("has an empty dimension: {dims:?}")));
+        return Err(Error::bad_file(
+            path,
+            format!("has an empty dimension: {dims:?}"),
+        ));
     }
     let datatype = h
         .data_type()
@@ -180,7 +186,11 @@ fn spatial_grid(path: &Path, info: &HeaderInfo, what: &str) -> Result<Grid> {
             format!("{what} must be a 3-D image, but its dims are {dims:?}"),
         ));
     }
-    let d3 = [dims[0], *dims.get(1).unwrap_or(&1), *dims.get(2).unwrap_or(&1)];
+    let d3 = [
+        dims[0],
+        *dims.get(1).unwrap_or(&1),
+        *dims.get(2).unwrap_or(&1),
+    ];
     Grid::new(d3, info.affine).map_err(|e| Error::bad_file(path, e.to_string()))
 }
 
@@ -220,21 +230,26 @@ pub fn load_labels(path: &Path) -> Result<Labels> {
 
 /// A header for `dims` placed by `affine`: sform exact, qform the nearest rotation + zooms.
 pub fn header_for(dims: &[usize], affine: &Affine, datatype: NiftiType) -> Result<NiftiHeader> {
-    let mut h = NiftiHeader::default();
-    h.dim = [1; 8];
-    h.dim[0] = dims.len() as u16;
+    let mut dim = [1u16; 8];
+    dim[0] = dims.len() as u16;
     for (i, d) in dims.iter().enumerate() {
-        h.dim[i + 1] = u16::try_from(*d)
-            .map_err(|_| Error::InvalidInput(format!("dimension {d} exceeds NIfTI-1's 32767")))?;
+        dim[i + 1] = u16::try_from(*d)
+            .ok()
+            .filter(|&v| v <= i16::MAX as u16)
+            .ok_or_else(|| Error::InvalidInput(format!("dimension {d} exceeds NIfTI-1's 32767")))?;
     }
-    h.datatype = datatype as i16;
-    h.bitpix = (datatype.size_of() * 8) as i16;
-    h.xyzt_units = 2; // NIFTI_UNITS_MM
-    h.sform_code = 1;
-    h.qform_code = 1;
-    h.srow_x = std::array::from_fn(|c| affine[(0, c)] as f32);
-    h.srow_y = std::array::from_fn(|c| affine[(1, c)] as f32);
-    h.srow_z = std::array::from_fn(|c| affine[(2, c)] as f32);
+    let mut h = NiftiHeader {
+        dim,
+        datatype: datatype as i16,
+        bitpix: (datatype.size_of() * 8) as i16,
+        xyzt_units: 2, // NIFTI_UNITS_MM
+        sform_code: 1,
+        qform_code: 1,
+        srow_x: std::array::from_fn(|c| affine[(0, c)] as f32),
+        srow_y: std::array::from_fn(|c| affine[(1, c)] as f32),
+        srow_z: std::array::from_fn(|c| affine[(2, c)] as f32),
+        ..NiftiHeader::default()
+    };
     set_qform(&mut h, affine);
     Ok(h)
 }
@@ -246,8 +261,8 @@ fn set_qform(h: &mut NiftiHeader, affine: &Affine) {
     let m: Matrix3<f64> = affine.fixed_view::<3, 3>(0, 0).into_owned();
     let mut zooms: [f64; 3] = std::array::from_fn(|c| m.column(c).norm());
     let mut r = m;
-    for c in 0..3 {
-        r.column_mut(c).unscale_mut(zooms[c]);
+    for (c, zoom) in zooms.iter().enumerate() {
+        r.column_mut(c).unscale_mut(*zoom);
     }
     let mut qfac = 1.0;
     if r.determinant() < 0.0 {
@@ -269,8 +284,8 @@ fn set_qform(h: &mut NiftiHeader, affine: &Affine) {
     h.quatern_y = affine[(1, 3)] as f32;
     h.quatern_z = affine[(2, 3)] as f32;
     h.pixdim[0] = qfac as f32;
-    for i in 0..3 {
-        h.pixdim[i + 1] = zooms[i].abs() as f32;
+    for (i, zoom) in zooms.iter().enumerate() {
+        h.pixdim[i + 1] = zoom.abs() as f32;
     }
 }
 
@@ -286,7 +301,10 @@ pub fn write_image(
 ) -> Result<()> {
     let name = path.to_string_lossy();
     if !(name.ends_with(".nii") || name.ends_with(".nii.gz")) {
-        return Err(Error::bad_file(path, "output name must end in .nii or .nii.gz"));
+        return Err(Error::bad_file(
+            path,
+            "output name must end in .nii or .nii.gz",
+        ));
     }
     let shape = IxDyn(dims).f();
     let nifti_type = match dtype {

@@ -55,7 +55,11 @@ pub fn smooth_volume(grid: &Grid, seed: u64) -> Volume {
                 rng.random_range(0.05..0.5f32),
                 rng.random_range(0.05..0.5f32),
             ];
-            (k, rng.random_range(0.0..6.28f32), rng.random_range(10.0..20.0f32))
+            (
+                k,
+                rng.random_range(0.0..std::f32::consts::TAU),
+                rng.random_range(10.0..20.0f32),
+            )
         })
         .collect();
     let [nx, ny, nz] = grid.dims;
@@ -66,7 +70,9 @@ pub fn smooth_volume(grid: &Grid, seed: u64) -> Volume {
                 let p = [i as f32, j as f32, k as f32];
                 let v: f32 = waves
                     .iter()
-                    .map(|(w, phase, amp)| amp * (w[0] * p[0] + w[1] * p[1] + w[2] * p[2] + phase).sin())
+                    .map(|(w, phase, amp)| {
+                        amp * (w[0] * p[0] + w[1] * p[1] + w[2] * p[2] + phase).sin()
+                    })
                     .sum();
                 data.push(100.0 + v);
             }
@@ -92,5 +98,8 @@ pub fn constant_field(grid: &Grid, d: [f32; 3]) -> Field {
 /// Largest |a - b| over two equally long slices.
 pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
     assert_eq!(a.len(), b.len());
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
 }
