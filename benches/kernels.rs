@@ -5,6 +5,7 @@
 //! 64³, 128³ and the paper's 136×256×256.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use posereg::abi::Interpolation;
 use posereg::cpu::CpuBackend;
 use posereg::gpu::GpuBackend;
 use posereg::volume::{Affine, Grid, Image};
@@ -80,7 +81,7 @@ fn kernels(c: &mut Criterion) {
             .throughput(Throughput::Elements(g.len() as u64));
         for (name, b) in &backends {
             group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
-                bench.iter(|| b.resample(&source, &u, 0.0).unwrap())
+                bench.iter(|| b.resample(&source, &u, 0.0, Interpolation::Linear).unwrap())
             });
         }
         group.finish();

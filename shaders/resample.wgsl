@@ -1,4 +1,5 @@
-// resample.wgsl: warped(x) = source(x + u(x)) for every voxel x of the target grid, trilinear,
+// resample.wgsl: warped(x) = source(x + u(x)) for every voxel x of the target grid, trilinear
+// (or nearest neighbour for label maps),
 // `background` outside the source. u is a displacement in world mm (RAS) on the target grid.
 //
 // Bindings (group 0):
@@ -19,9 +20,9 @@ struct ResampleParams {
     index_to_source: array<vec4<f32>, 3>,
     mm_to_source: array<vec4<f32>, 3>,
     background: f32,
-    pad0: f32,
-    pad1: f32,
-    pad2: f32,
+    nearest: u32,                // 1: nearest neighbour (labels), 0: trilinear
+    pad0: u32,
+    pad1: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: ResampleParams;
@@ -49,5 +50,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         affine_row(params.index_to_source[1], p) + linear_row(params.mm_to_source[1], u),
         affine_row(params.index_to_source[2], p) + linear_row(params.mm_to_source[2], u),
     );
-    warped[local] = trilinear(q, params.source_dims.xyz, params.background);
+    if (params.nearest == 1u) {
+        warped[local] = nearest(q, params.source_dims.xyz, params.background);
+    } else {
+        warped[local] = trilinear(q, params.source_dims.xyz, params.background);
+    }
 }

@@ -6,10 +6,12 @@
 // coordinate lies in [-0.5, n - 0.5] (ITK's rule: half a voxel beyond the outer centres);
 // neighbours beyond the edge are clamped to it. Outside points get `background`.
 
+fn inside_source(q: vec3<f32>, dims: vec3<u32>) -> bool {
+    return all(q >= vec3<f32>(-0.5)) && all(q <= vec3<f32>(dims) - vec3<f32>(0.5));
+}
+
 fn trilinear(q: vec3<f32>, dims: vec3<u32>, background: f32) -> f32 {
-    let hi = vec3<f32>(dims) - vec3<f32>(0.5);
-    let inside = all(q >= vec3<f32>(-0.5)) && all(q <= hi);
-    if (!inside) {
+    if (!inside_source(q, dims)) {
         return background;
     }
     let base = floor(q);
@@ -33,4 +35,14 @@ fn trilinear(q: vec3<f32>, dims: vec3<u32>, background: f32) -> f32 {
     let c0 = (1.0 - t.y) * c00 + t.y * c10;
     let c1 = (1.0 - t.y) * c01 + t.y * c11;
     return (1.0 - t.z) * c0 + t.z * c1;
+}
+
+// The value of the voxel whose centre is nearest to q (ties round up: floor(q + 0.5)).
+fn nearest(q: vec3<f32>, dims: vec3<u32>, background: f32) -> f32 {
+    if (!inside_source(q, dims)) {
+        return background;
+    }
+    let top = vec3<i32>(dims) - vec3<i32>(1);
+    let i = vec3<u32>(clamp(vec3<i32>(floor(q + vec3<f32>(0.5))), vec3<i32>(0), top));
+    return source_value(voxel_index(i.x, i.y, i.z, dims));
 }

@@ -8,6 +8,16 @@
 use crate::volume::{Affine, Grid};
 use bytemuck::{Pod, Zeroable};
 
+/// How a resample reads the source between voxel centres.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Interpolation {
+    /// Trilinear (intensities).
+    #[default]
+    Linear,
+    /// Nearest voxel centre (label maps: no invented in-between codes).
+    Nearest,
+}
+
 /// Keep in sync with `ResampleParams` in shaders/resample.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
@@ -22,8 +32,10 @@ pub struct ResampleParams {
     pub mm_to_source: [[f32; 4]; 3],
     /// Value for points outside the source.
     pub background: f32,
+    /// 0: trilinear; 1: nearest neighbour (label maps).
+    pub nearest: u32,
     /// Padding to a multiple of 16 bytes.
-    pub pad: [f32; 3],
+    pub pad: [u32; 2],
 }
 
 /// Removes the 1e-16-sized noise an f64 inverse leaves on entries that are whole numbers, so a
@@ -40,7 +52,12 @@ fn snap_to_integers(m: &Affine) -> Affine {
 
 impl ResampleParams {
     /// Parameters to resample a volume on `source` onto `target` through a displacement field.
-    pub fn new(source: &Grid, target: &Grid, background: f32) -> Self {
+    pub fn new(
+        source: &Grid,
+        target: &Grid,
+        background: f32,
+        interpolation: Interpolation,
+    ) -> Self {
         let to_source = source.world_to_voxel_affine();
         let combined = snap_to_integers(&(to_source * target.affine));
         let linear = snap_to_integers(&to_source);
@@ -68,7 +85,8 @@ impl ResampleParams {
             index_to_source: std::array::from_fn(|r| row(&combined, r, true)),
             mm_to_source: std::array::from_fn(|r| row(&linear, r, false)),
             background,
-            pad: [0.0; 3],
+            nearest: (interpolation == Interpolation::Nearest) as u32,
+            pad: [0; 2],
         }
     }
 
@@ -98,5 +116,50 @@ impl SsdParams {
             dims: [dims[0] as u32, dims[1] as u32, depth as u32, 0],
             cells: [cells[0] as u32, cells[1] as u32, cells[2] as u32, 0],
         }
+    }
+}
+
+/// Keep in sync with `JacobianParams` in shaders/jacobian.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct JacobianParams {
+    /// nx, ny, nz of the field's grid, and the first slice of this slab.
+    pub dims: [u32; 4],
+    /// Slices in this slab, the slab's first slice held in the bound field buffer (the slab
+    /// plus a one-slice halo on each side where the volume has one), unused ×2.
+    pub slab: [u32; 4],
+    /// Rows of the inverse of the grid's linear part: d(index)/d(world mm).
+    pub mm_to_index: [[f32; 4]; 3],
+}
+
+impl JacobianParams {
+    /// Parameters for the Jacobian of a field on `grid` (whole volume as one slab).
+    pub fn new(grid: &Grid) -> Self {
+        let inv = snap_to_integers(&grid.world_to_voxel_affine());
+        JacobianParams {
+            dims: [
+                grid.dims[0] as u32,
+                grid.dims[1] as u32,
+                grid.dims[2] as u32,
+                0,
+            ],
+            slab: [grid.dims[2] as u32, 0, 0, 0],
+            mm_to_index: std::array::from_fn(|r| {
+                [
+                    inv[(r, 0)] as f32,
+                    inv[(r, 1)] as f32,
+                    inv[(r, 2)] as f32,
+                    0.0,
+                ]
+            }),
+        }
+    }
+
+    /// Restricted to slices z0 .. z0 + depth, with the bound field starting at slice `first`.
+    pub fn slab(&self, z0: u32, depth: u32, first: u32) -> Self {
+        let mut p = *self;
+        p.dims[3] = z0;
+        p.slab = [depth, first, 0, 0];
+        p
     }
 }

@@ -2,6 +2,7 @@
 //! shaders) and its CPU twin (rayon). Host code (registration loops, commands) is written
 //! against this trait only, so every stage runs on either and the two can be compared.
 
+use crate::abi::Interpolation;
 use crate::error::Result;
 use crate::metric::CellSsd;
 use crate::volume::{Field, Volume};
@@ -11,12 +12,22 @@ pub trait Backend {
     /// One line saying what this backend is (e.g. "gpu: NVIDIA H100 (Vulkan)", "cpu: 2 threads").
     fn describe(&self) -> String;
 
-    /// Trilinear resampling of `source` at x + u(x) for every voxel x of `field`'s grid (the
-    /// target grid); `background` where that point is outside the source.
-    fn resample(&self, source: &Volume, field: &Field, background: f32) -> Result<Volume>;
+    /// Resampling of `source` at x + u(x) for every voxel x of `field`'s grid (the target
+    /// grid), trilinear or nearest; `background` where that point is outside the source.
+    fn resample(
+        &self,
+        source: &Volume,
+        field: &Field,
+        background: f32,
+        interpolation: Interpolation,
+    ) -> Result<Volume>;
 
     /// Sum of squared differences between `a` and `b` (same grid) per cell of `cells`.
     fn ssd_cells(&self, a: &Volume, b: &Volume, cells: [usize; 3]) -> Result<CellSsd>;
+
+    /// det(I + du/dx) of the map x → x + u(x) at every voxel of the field's grid: where it is
+    /// ≤ 0 the map folds.
+    fn jacobian(&self, field: &Field) -> Result<Volume>;
 }
 
 /// Checks two volumes compared voxel by voxel share a grid.

@@ -31,6 +31,8 @@ pub mod error;
 pub mod gpu;
 pub mod io;
 pub mod metric;
+pub mod phantom;
+pub mod picture;
 pub mod shaders;
 pub mod volume;
 

@@ -84,3 +84,47 @@ pub fn fold_ssd_partials(dims: [usize; 3], cells: [usize; 3], partial: &[f32]) -
     }
     CellSsd { cells, sum, count }
 }
+
+/// Pearson correlation of two equally long sequences over the voxels where `mask` is true
+/// (f64 accumulation); 0 when either side is constant.
+pub fn correlation(a: &[f32], b: &[f32], mask: impl Fn(usize) -> bool) -> f64 {
+    let (mut n, mut sa, mut sb) = (0.0f64, 0.0f64, 0.0f64);
+    for i in (0..a.len()).filter(|&i| mask(i)) {
+        n += 1.0;
+        sa += a[i] as f64;
+        sb += b[i] as f64;
+    }
+    if n == 0.0 {
+        return 0.0;
+    }
+    let (ma, mb) = (sa / n, sb / n);
+    let (mut cov, mut va, mut vb) = (0.0f64, 0.0f64, 0.0f64);
+    for i in (0..a.len()).filter(|&i| mask(i)) {
+        let (da, db) = (a[i] as f64 - ma, b[i] as f64 - mb);
+        cov += da * db;
+        va += da * da;
+        vb += db * db;
+    }
+    if va == 0.0 || vb == 0.0 {
+        0.0
+    } else {
+        cov / (va * vb).sqrt()
+    }
+}
+
+/// Dice overlap 2|A∩B| / (|A| + |B|) of the voxels equal to `label` in two label maps
+/// (labels as exact small integers in f32 or u16). 1 when both are empty.
+pub fn dice<T: PartialEq + Copy>(a: &[T], b: &[T], label: T) -> f64 {
+    let (mut both, mut na, mut nb) = (0usize, 0usize, 0usize);
+    for (x, y) in a.iter().zip(b) {
+        let (ia, ib) = (*x == label, *y == label);
+        na += ia as usize;
+        nb += ib as usize;
+        both += (ia && ib) as usize;
+    }
+    if na + nb == 0 {
+        1.0
+    } else {
+        2.0 * both as f64 / (na + nb) as f64
+    }
+}

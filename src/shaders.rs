@@ -15,6 +15,13 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         ],
     ),
     (
+        "jacobian",
+        &[
+            COMMON,
+            ("jacobian.wgsl", include_str!("../shaders/jacobian.wgsl")),
+        ],
+    ),
+    (
         "ssd_cells",
         &[
             COMMON,

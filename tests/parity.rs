@@ -10,6 +10,7 @@
 mod common;
 
 use common::*;
+use posereg::abi::Interpolation;
 use posereg::cpu::CpuBackend;
 use posereg::volume::{Field, Grid, Volume};
 use posereg::Backend;
@@ -19,8 +20,12 @@ const SSD_RELATIVE_TOLERANCE: f64 = 1e-4;
 
 fn check_resample(name: &str, source: &Volume, field: &Field, background: f32) {
     let Some(gpu) = gpu() else { return };
-    let cpu = CpuBackend.resample(source, field, background).unwrap();
-    let got = gpu.resample(source, field, background).unwrap();
+    let cpu = CpuBackend
+        .resample(source, field, background, Interpolation::Linear)
+        .unwrap();
+    let got = gpu
+        .resample(source, field, background, Interpolation::Linear)
+        .unwrap();
     assert_eq!(got.grid, cpu.grid);
     let diff = max_abs_diff(&got.data, &cpu.data);
     let identical = got
@@ -43,8 +48,13 @@ fn resample_identity_field_at_odd_size() {
     check_resample("identity", &source, &constant_field(&grid, [0.0; 3]), 0.0);
     // And the identity really reproduces the source on both backends.
     let gpu_out = gpu().map(|g| {
-        g.resample(&source, &constant_field(&grid, [0.0; 3]), 0.0)
-            .unwrap()
+        g.resample(
+            &source,
+            &constant_field(&grid, [0.0; 3]),
+            0.0,
+            Interpolation::Linear,
+        )
+        .unwrap()
     });
     if let Some(out) = gpu_out {
         assert_eq!(out.data, source.data);
@@ -71,7 +81,7 @@ fn resample_fully_outside() {
     check_resample("outside", &source, &field, 13.0);
     if let Some(g) = gpu() {
         assert!(g
-            .resample(&source, &field, 13.0)
+            .resample(&source, &field, 13.0, Interpolation::Linear)
             .unwrap()
             .data
             .iter()
@@ -129,21 +139,32 @@ fn slabs_do_not_change_results() {
     let source = smooth_volume(&source_grid, 8);
     let target = smooth_volume(&target_grid, 9);
     let field = smooth_field(&target_grid, 10, 3.0);
-    let whole = gpu.resample(&source, &field, 0.0).unwrap();
+    let whole = gpu
+        .resample(&source, &field, 0.0, Interpolation::Linear)
+        .unwrap();
     let whole_ssd = gpu.ssd_cells(&whole, &target, [3, 4, 5]).unwrap();
     // A second backend on its own device, forced to two slices (or fewer voxels) per dispatch.
     let small = posereg::gpu::GpuBackend::new()
         .unwrap()
         .with_max_slab_voxels(2 * 19 * 17);
-    let slabs = small.plan_slabs(target_grid.dims, 12).unwrap();
+    let slabs = small.plan_slabs(target_grid.dims, 12, 0).unwrap();
     assert_eq!(slabs.len(), 8, "15 slices in slabs of 2");
-    let sliced = small.resample(&source, &field, 0.0).unwrap();
+    let sliced = small
+        .resample(&source, &field, 0.0, Interpolation::Linear)
+        .unwrap();
     assert_eq!(
         sliced.data, whole.data,
         "slabs changed the resampled values"
     );
     let sliced_ssd = small.ssd_cells(&sliced, &target, [3, 4, 5]).unwrap();
     assert_eq!(sliced_ssd, whole_ssd, "slabs changed the per-cell SSD");
+    // The Jacobian reads one slice either side: slabs carry a halo.
+    let whole_det = gpu.jacobian(&field).unwrap();
+    let sliced_det = small.jacobian(&field).unwrap();
+    assert_eq!(
+        sliced_det.data, whole_det.data,
+        "slabs changed the Jacobian"
+    );
 }
 
 #[test]
@@ -167,13 +188,36 @@ fn same_inputs_give_bit_identical_outputs() {
     let grid = oblique_grid([23, 17, 11]);
     let source = smooth_volume(&grid, 12);
     let field = smooth_field(&grid, 13, 2.0);
-    let a = gpu.resample(&source, &field, 0.0).unwrap();
-    let b = gpu.resample(&source, &field, 0.0).unwrap();
+    let a = gpu
+        .resample(&source, &field, 0.0, Interpolation::Linear)
+        .unwrap();
+    let b = gpu
+        .resample(&source, &field, 0.0, Interpolation::Linear)
+        .unwrap();
     assert_eq!(a.data, b.data);
-    let c = CpuBackend.resample(&source, &field, 0.0).unwrap();
-    let d = CpuBackend.resample(&source, &field, 0.0).unwrap();
+    let c = CpuBackend
+        .resample(&source, &field, 0.0, Interpolation::Linear)
+        .unwrap();
+    let d = CpuBackend
+        .resample(&source, &field, 0.0, Interpolation::Linear)
+        .unwrap();
     assert_eq!(c.data, d.data);
     let s1 = gpu.ssd_cells(&a, &source, [4, 4, 4]).unwrap();
     let s2 = gpu.ssd_cells(&b, &source, [4, 4, 4]).unwrap();
     assert_eq!(s1, s2);
+}
+
+#[test]
+fn jacobian_parity_at_odd_sizes() {
+    let Some(gpu) = gpu() else { return };
+    for dims in [[13usize, 11, 7], [30, 21, 17], [5, 1, 3]] {
+        let grid = oblique_grid(dims);
+        let field = smooth_field(&grid, 14, 6.0);
+        let cpu = CpuBackend.jacobian(&field).unwrap();
+        let got = gpu.jacobian(&field).unwrap();
+        // Determinants near 1 from differences of mm-sized values: a fused multiply-add moves
+        // them by a few ulp of the entries, far below 1e-4.
+        let diff = max_abs_diff(&got.data, &cpu.data);
+        assert!(diff <= 1e-4, "{dims:?}: max diff {diff}");
+    }
 }

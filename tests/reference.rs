@@ -3,6 +3,7 @@
 mod common;
 
 use common::*;
+use posereg::abi::Interpolation;
 use posereg::cpu::CpuBackend;
 use posereg::volume::{Affine, Grid, Image};
 use posereg::Backend;
@@ -29,7 +30,12 @@ fn trilinear_of_a_linear_ramp_is_exact() {
     // A shift in eighths of a voxel keeps every coordinate and weight dyadic.
     let shift = [0.125f32, -0.375, 0.25];
     let warped = CpuBackend
-        .resample(&source, &constant_field(&grid, shift), -1.0)
+        .resample(
+            &source,
+            &constant_field(&grid, shift),
+            -1.0,
+            Interpolation::Linear,
+        )
         .unwrap();
     let [nx, ny, nz] = grid.dims;
     let mut inside = 0;
@@ -78,7 +84,9 @@ fn ramp_through_oblique_grids_matches_the_world_ramp() {
     .unwrap();
     let source = ramp(&source_grid);
     let field = constant_field(&target_grid, [0.7, -0.4, 1.1]);
-    let warped = CpuBackend.resample(&source, &field, f32::MIN).unwrap();
+    let warped = CpuBackend
+        .resample(&source, &field, f32::MIN, Interpolation::Linear)
+        .unwrap();
     let to_source = source_grid.world_to_voxel_affine();
     let mut checked = 0;
     for k in 0..7 {
@@ -117,7 +125,12 @@ fn integer_voxel_shift_moves_values_exactly() {
     let source = smooth_volume(&grid, 3);
     // 4 mm along x is exactly 2 voxels of 2 mm.
     let warped = CpuBackend
-        .resample(&source, &constant_field(&grid, [4.0, 0.0, 0.0]), -7.0)
+        .resample(
+            &source,
+            &constant_field(&grid, [4.0, 0.0, 0.0]),
+            -7.0,
+            Interpolation::Linear,
+        )
         .unwrap();
     for k in 0..8 {
         for j in 0..9 {
@@ -139,7 +152,12 @@ fn points_fully_outside_get_the_background() {
     let grid = oblique_grid([7, 6, 5]);
     let source = smooth_volume(&grid, 1);
     let warped = CpuBackend
-        .resample(&source, &constant_field(&grid, [500.0, 0.0, 0.0]), 42.0)
+        .resample(
+            &source,
+            &constant_field(&grid, [500.0, 0.0, 0.0]),
+            42.0,
+            Interpolation::Linear,
+        )
         .unwrap();
     assert!(warped.data.iter().all(|&v| v == 42.0));
 }
@@ -187,4 +205,77 @@ fn ssd_rejects_bad_cell_grids_and_mismatched_volumes() {
     assert!(CpuBackend.ssd_cells(&a, &a, [0, 1, 1]).is_err());
     let other = smooth_volume(&Grid::new([4, 4, 5], Affine::identity()).unwrap(), 1);
     assert!(CpuBackend.ssd_cells(&a, &other, [1, 1, 1]).is_err());
+}
+
+#[test]
+fn jacobian_of_a_linear_field_is_its_determinant() {
+    // u(x) = B x in world mm has x + u(x) = (I + B) x: det(I + B) at every voxel, borders
+    // included (one-sided differences are exact for a linear field), on an oblique grid.
+    let grid = oblique_grid([9, 8, 6]);
+    let b = nalgebra::Matrix3::new(0.10, -0.05, 0.02, 0.03, -0.20, 0.04, 0.01, 0.06, 0.15);
+    let field: posereg::Field = Image::from_data(
+        grid.clone(),
+        (0..grid.len())
+            .map(|n| {
+                let w =
+                    grid.voxel_to_world([(n % 9) as f64, ((n / 9) % 8) as f64, (n / 72) as f64]);
+                let u = b * nalgebra::Vector3::new(w[0], w[1], w[2]);
+                [u.x as f32, u.y as f32, u.z as f32]
+            })
+            .collect(),
+    )
+    .unwrap();
+    let expected = (nalgebra::Matrix3::identity() + b).determinant();
+    let det = CpuBackend.jacobian(&field).unwrap();
+    for v in &det.data {
+        assert!((*v as f64 - expected).abs() < 1e-4, "{v} vs {expected}");
+    }
+    // A fold: x -> -x along the first index axis (u = -2x) has a negative determinant.
+    let flip: posereg::Field = Image::from_data(
+        grid.clone(),
+        (0..grid.len())
+            .map(|n| {
+                let w =
+                    grid.voxel_to_world([(n % 9) as f64, ((n / 9) % 8) as f64, (n / 72) as f64]);
+                [-2.0 * w[0] as f32, 0.0, 0.0]
+            })
+            .collect(),
+    )
+    .unwrap();
+    assert!(CpuBackend
+        .jacobian(&flip)
+        .unwrap()
+        .data
+        .iter()
+        .all(|&v| v < 0.0));
+}
+
+#[test]
+fn nearest_neighbour_keeps_label_codes() {
+    let grid = Grid::new([6, 5, 4], Affine::identity()).unwrap();
+    let labels: posereg::Volume =
+        Image::from_data(grid.clone(), (0..120).map(|i| (i % 5) as f32).collect()).unwrap();
+    // A shift of 0.4 voxel rounds back to the same voxel; 0.6 to the next one.
+    let same = CpuBackend
+        .resample(
+            &labels,
+            &constant_field(&grid, [0.4, 0.0, 0.0]),
+            0.0,
+            Interpolation::Nearest,
+        )
+        .unwrap();
+    assert_eq!(same.data, labels.data);
+    let next = CpuBackend
+        .resample(
+            &labels,
+            &constant_field(&grid, [0.6, 0.0, 0.0]),
+            99.0,
+            Interpolation::Nearest,
+        )
+        .unwrap();
+    for (n, v) in next.data.iter().enumerate() {
+        // The last column lands 0.1 voxel beyond the half-voxel margin: background.
+        let expected = if n % 6 == 5 { 99.0 } else { labels.data[n + 1] };
+        assert_eq!(*v, expected, "voxel {n}");
+    }
 }

@@ -1,7 +1,7 @@
 //! Every shader parses and validates with naga (no device needed), and every parameter struct
 //! has the same size in Rust and WGSL.
 
-use posereg::abi::{ResampleParams, SsdParams};
+use posereg::abi::{JacobianParams, ResampleParams, SsdParams};
 use posereg::shaders::{locate, source, KERNELS};
 
 fn parse(kernel: &str) -> naga::Module {
@@ -65,6 +65,10 @@ fn abi_structs_match_their_wgsl_twins() {
         std::mem::size_of::<ResampleParams>()
     );
     assert_eq!(
+        wgsl_struct_size("jacobian", "JacobianParams") as usize,
+        std::mem::size_of::<JacobianParams>()
+    );
+    assert_eq!(
         wgsl_struct_size("ssd_cells", "SsdParams") as usize,
         std::mem::size_of::<SsdParams>()
     );
@@ -91,8 +95,9 @@ fn locate_maps_assembled_lines_back_to_files() {
 #[test]
 fn host_bind_group_layouts_match_shader_bindings() {
     use posereg::gpu::kernel::Binding;
-    let kernels: [(&str, &[Binding]); 2] = [
+    let kernels: [(&str, &[Binding]); 3] = [
         ("resample", posereg::gpu::resample::BINDINGS),
+        ("jacobian", posereg::gpu::jacobian::BINDINGS),
         ("ssd_cells", posereg::gpu::ssd_cells::BINDINGS),
     ];
     assert_eq!(

@@ -1,6 +1,7 @@
 //! The command-line verbs: each parses its arguments, calls the library, and prints.
 
 pub mod info;
+pub mod phantom;
 pub mod resample;
 
 use clap::{Parser, Subcommand};
@@ -23,6 +24,8 @@ pub struct Cli {
 pub enum Command {
     /// Print a NIfTI file's grid, world affine, orientation and intensity range.
     Info(info::InfoArgs),
+    /// Make a knee phantom in any flexion, with exact ground truth.
+    Phantom(phantom::PhantomArgs),
     /// Resample an image through a displacement field (ITK convention) onto a target grid.
     Resample(resample::ResampleArgs),
 }
@@ -31,6 +34,7 @@ pub enum Command {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(args) => info::run(&args),
+        Command::Phantom(args) => phantom::run(&args),
         Command::Resample(args) => resample::run(&args, cli.device),
     }
 }

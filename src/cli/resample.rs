@@ -1,6 +1,7 @@
 //! `posereg resample SOURCE --field FIELD --like TARGET -o OUT`.
 
 use clap::Args;
+use posereg::abi::Interpolation;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::load_field;
 use posereg::io::nifti::{load_volume, read_raw, save_volume, DataType};
@@ -24,6 +25,9 @@ pub struct ResampleArgs {
     /// Value for points that fall outside the source.
     #[arg(long, default_value_t = 0.0)]
     pub background: f32,
+    /// Nearest-neighbour interpolation (for label maps).
+    #[arg(long)]
+    pub nearest: bool,
     /// Voxel type of the output.
     #[arg(long, value_enum, default_value_t = DataType::F32)]
     pub dtype: DataType,
@@ -51,7 +55,12 @@ pub fn run(args: &ResampleArgs, device: DeviceChoice) -> anyhow::Result<()> {
     }
     let (backend, line) = open_backend(device)?;
     eprintln!("{line}");
-    let warped = backend.resample(&source, &field, args.background)?;
+    let interpolation = if args.nearest {
+        Interpolation::Nearest
+    } else {
+        Interpolation::Linear
+    };
+    let warped = backend.resample(&source, &field, args.background, interpolation)?;
     save_volume(&args.output, &warped, args.dtype)?;
     Ok(())
 }

@@ -3,11 +3,12 @@
 //! path is tested against.
 
 pub mod common;
+pub mod jacobian;
 pub mod resample;
 pub mod sample;
 pub mod ssd_cells;
 
-use crate::abi::{ResampleParams, SsdParams};
+use crate::abi::{Interpolation, JacobianParams, ResampleParams, SsdParams};
 use crate::backend::{check_pair, Backend};
 use crate::error::Result;
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
@@ -22,8 +23,14 @@ impl Backend for CpuBackend {
         format!("cpu: {} threads", rayon::current_num_threads())
     }
 
-    fn resample(&self, source: &Volume, field: &Field, background: f32) -> Result<Volume> {
-        let params = ResampleParams::new(&source.grid, &field.grid, background);
+    fn resample(
+        &self,
+        source: &Volume,
+        field: &Field,
+        background: f32,
+        interpolation: Interpolation,
+    ) -> Result<Volume> {
+        let params = ResampleParams::new(&source.grid, &field.grid, background, interpolation);
         let mut warped = vec![0.0f32; field.grid.len()];
         resample::resample(
             &params,
@@ -45,5 +52,15 @@ impl Backend for CpuBackend {
         let mut partial = vec![0.0f32; dims[2] * dims[0] * cells[1]];
         ssd_cells::ssd_cells(&params, &a.data, &b.data, &mut partial);
         Ok(fold_ssd_partials(dims, cells, &partial))
+    }
+
+    fn jacobian(&self, field: &Field) -> Result<Volume> {
+        let params = JacobianParams::new(&field.grid);
+        let mut det = vec![0.0f32; field.grid.len()];
+        jacobian::jacobian(&params, bytemuck::cast_slice(&field.data), &mut det);
+        Ok(Image {
+            grid: field.grid.clone(),
+            data: det,
+        })
     }
 }

@@ -1,7 +1,7 @@
 //! CPU twin of shaders/resample.wgsl: one target slice per rayon task.
 
 use super::common::{affine_row, linear_row, voxel_index};
-use super::sample::trilinear;
+use super::sample::{nearest, trilinear};
 use crate::abi::ResampleParams;
 use rayon::prelude::*;
 
@@ -30,8 +30,11 @@ pub fn resample(params: &ResampleParams, source: &[f32], field: &[f32], warped: 
                         affine_row(params.index_to_source[r], p)
                             + linear_row(params.mm_to_source[r], u)
                     });
-                    out[local - zl as usize * slice] =
-                        trilinear(source, q, source_dims, params.background);
+                    out[local - zl as usize * slice] = if params.nearest == 1 {
+                        nearest(source, q, source_dims, params.background)
+                    } else {
+                        trilinear(source, q, source_dims, params.background)
+                    };
                 }
             }
         });

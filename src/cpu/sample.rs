@@ -2,11 +2,15 @@
 
 use super::common::voxel_index;
 
+/// True when q lies within half a voxel of the outer voxel centres on every axis.
+pub fn inside_source(q: [f32; 3], dims: [u32; 3]) -> bool {
+    (0..3).all(|a| q[a] >= -0.5 && q[a] <= dims[a] as f32 - 0.5)
+}
+
 /// Trilinear value of `source` at continuous index q; `background` outside
 /// [-0.5, n - 0.5] on any axis (NaN coordinates count as outside).
 pub fn trilinear(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -> f32 {
-    let inside = (0..3).all(|a| q[a] >= -0.5 && q[a] <= dims[a] as f32 - 0.5);
-    if !inside {
+    if !inside_source(q, dims) {
         return background;
     }
     let base = q.map(f32::floor);
@@ -30,4 +34,14 @@ pub fn trilinear(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -
     let c0 = (1.0 - t[1]) * c00 + t[1] * c10;
     let c1 = (1.0 - t[1]) * c01 + t[1] * c11;
     (1.0 - t[2]) * c0 + t[2] * c1
+}
+
+/// The value of the voxel whose centre is nearest to q (ties round up); `background` outside.
+pub fn nearest(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -> f32 {
+    if !inside_source(q, dims) {
+        return background;
+    }
+    let i: [u32; 3] =
+        std::array::from_fn(|a| ((q[a] + 0.5).floor() as i32).clamp(0, dims[a] as i32 - 1) as u32);
+    source[voxel_index(i[0], i[1], i[2], dims) as usize]
 }

@@ -7,11 +7,12 @@
 
 pub mod buffer;
 pub mod context;
+pub mod jacobian;
 pub mod kernel;
 pub mod resample;
 pub mod ssd_cells;
 
-use crate::abi::ResampleParams;
+use crate::abi::{Interpolation, JacobianParams, ResampleParams};
 use crate::backend::{check_pair, Backend};
 use crate::error::{Error, Result};
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
@@ -33,6 +34,7 @@ pub struct GpuBackend {
     ctx: GpuContext,
     resample: Kernel,
     ssd_cells: Kernel,
+    jacobian: Kernel,
     max_slab_voxels: Option<usize>,
 }
 
@@ -47,6 +49,7 @@ impl GpuBackend {
         Ok(GpuBackend {
             resample: Kernel::new(&ctx, "resample", resample::BINDINGS)?,
             ssd_cells: Kernel::new(&ctx, "ssd_cells", ssd_cells::BINDINGS)?,
+            jacobian: Kernel::new(&ctx, "jacobian", jacobian::BINDINGS)?,
             ctx,
             max_slab_voxels: None,
         })
@@ -64,9 +67,15 @@ impl GpuBackend {
         &self.ctx
     }
 
-    /// Splits `dims` into slabs whose per-voxel buffers (`bytes_per_voxel` for the largest)
-    /// fit the device's binding limits, the optional cap, and the workgroup count limit.
-    pub fn plan_slabs(&self, dims: [usize; 3], bytes_per_voxel: usize) -> Result<Vec<Slab>> {
+    /// Splits `dims` into slabs whose per-voxel buffers (`bytes_per_voxel` for the largest,
+    /// holding the slab plus `halo` extra slices) fit the device's binding limits, the optional
+    /// cap, and the workgroup count limit.
+    pub fn plan_slabs(
+        &self,
+        dims: [usize; 3],
+        bytes_per_voxel: usize,
+        halo: usize,
+    ) -> Result<Vec<Slab>> {
         let slice = dims[0] * dims[1];
         let limit = self
             .ctx
@@ -74,7 +83,7 @@ impl GpuBackend {
             .max_storage_buffer_binding_size
             .min(self.ctx.limits.max_buffer_size);
         let fits = (limit / bytes_per_voxel as u64) as usize;
-        if slice > fits {
+        if slice * (1 + halo) > fits {
             return Err(Error::DeviceLimit {
                 what: format!("one {}×{} slice", dims[0], dims[1]),
                 needed: (slice * bytes_per_voxel) as u64,
@@ -84,6 +93,7 @@ impl GpuBackend {
         }
         let cap = self.max_slab_voxels.unwrap_or(usize::MAX).min(fits);
         let max_depth = (cap / slice)
+            .saturating_sub(halo)
             .max(1)
             .min(self.ctx.limits.max_compute_workgroups_per_dimension as usize);
         Ok((0..dims[2])
@@ -101,9 +111,15 @@ impl Backend for GpuBackend {
         format!("gpu: {}", self.ctx.describe())
     }
 
-    fn resample(&self, source: &Volume, field: &Field, background: f32) -> Result<Volume> {
-        let params = ResampleParams::new(&source.grid, &field.grid, background);
-        let slabs = self.plan_slabs(field.grid.dims, resample::FIELD_BYTES_PER_VOXEL)?;
+    fn resample(
+        &self,
+        source: &Volume,
+        field: &Field,
+        background: f32,
+        interpolation: Interpolation,
+    ) -> Result<Volume> {
+        let params = ResampleParams::new(&source.grid, &field.grid, background, interpolation);
+        let slabs = self.plan_slabs(field.grid.dims, resample::FIELD_BYTES_PER_VOXEL, 0)?;
         let warped = resample::resample(
             &self.ctx,
             &self.resample,
@@ -122,7 +138,7 @@ impl Backend for GpuBackend {
         check_pair(a, b)?;
         let dims = a.grid.dims;
         check_cells(dims, cells)?;
-        let slabs = self.plan_slabs(dims, ssd_cells::BYTES_PER_VOXEL)?;
+        let slabs = self.plan_slabs(dims, ssd_cells::BYTES_PER_VOXEL, 0)?;
         let partial = ssd_cells::ssd_partials(
             &self.ctx,
             &self.ssd_cells,
@@ -133,5 +149,24 @@ impl Backend for GpuBackend {
             &slabs,
         )?;
         Ok(fold_ssd_partials(dims, cells, &partial))
+    }
+
+    fn jacobian(&self, field: &Field) -> Result<Volume> {
+        let slabs = self.plan_slabs(
+            field.grid.dims,
+            jacobian::FIELD_BYTES_PER_VOXEL,
+            jacobian::HALO_SLICES,
+        )?;
+        let det = jacobian::jacobian(
+            &self.ctx,
+            &self.jacobian,
+            &JacobianParams::new(&field.grid),
+            bytemuck::cast_slice(&field.data),
+            &slabs,
+        )?;
+        Ok(Image {
+            grid: field.grid.clone(),
+            data: det,
+        })
     }
 }

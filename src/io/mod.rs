@@ -3,6 +3,7 @@
 
 pub mod field;
 pub mod nifti;
+pub mod transform;
 
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};

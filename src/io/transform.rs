@@ -1,0 +1,102 @@
+//! Bone transforms on disk (truth.json, init.json, transform.json): a top-level
+//! `"space": "RAS"` and `"bones": [{"label": 2, "name": "femur", "matrix": [[4 rows of 4]]}]`,
+//! each matrix row-major, world RAS mm, mapping a point of the source (straight) pose to the
+//! same material point in the target (bent) pose: v_target = M v_source. Other top-level keys
+//! (the flexion axis of a phantom, the solver's report ...) ride along untouched.
+
+use crate::error::{Error, Result};
+use crate::volume::Affine;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// One bone's rigid motion.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BoneTransform {
+    /// Label code (2 femur, 3 tibia, 4 patella, 5 fibula).
+    pub label: u16,
+    /// Bone name.
+    pub name: String,
+    /// 4×4 row-major matrix, source pose → target pose, RAS mm.
+    pub matrix: [[f64; 4]; 4],
+}
+
+impl BoneTransform {
+    /// From an affine.
+    pub fn new(label: u16, name: &str, m: &Affine) -> Self {
+        BoneTransform {
+            label,
+            name: name.to_string(),
+            matrix: std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)])),
+        }
+    }
+
+    /// As an affine.
+    pub fn affine(&self) -> Affine {
+        Affine::from_fn(|r, c| self.matrix[r][c])
+    }
+}
+
+/// A bone-transform file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BoneTransforms {
+    /// Always "RAS".
+    pub space: String,
+    /// One entry per bone.
+    pub bones: Vec<BoneTransform>,
+    /// Anything else the writer recorded.
+    #[serde(flatten)]
+    pub extra: serde_json::Map<String, serde_json::Value>,
+}
+
+impl BoneTransforms {
+    /// RAS transforms with no extra keys.
+    pub fn new(bones: Vec<BoneTransform>) -> Self {
+        BoneTransforms {
+            space: "RAS".into(),
+            bones,
+            extra: Default::default(),
+        }
+    }
+
+    /// Writes pretty JSON atomically.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        let text = serde_json::to_string_pretty(self)
+            .map_err(|e| Error::bad_file(path, format!("cannot encode JSON ({e})")))?;
+        super::write_atomically(path, |tmp| {
+            std::fs::write(tmp, text + "\n").map_err(|e| Error::io(path, e))
+        })
+    }
+
+    /// Reads and checks a file: RAS space, finite rigid-or-affine matrices with last row
+    /// 0 0 0 1, no label twice.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let parsed: BoneTransforms = serde_json::from_str(&text)
+            .map_err(|e| Error::bad_file(path, format!("not a bone-transform file ({e})")))?;
+        if parsed.space != "RAS" {
+            return Err(Error::bad_file(
+                path,
+                format!("space is {:?}; posereg reads \"RAS\"", parsed.space),
+            ));
+        }
+        for (i, b) in parsed.bones.iter().enumerate() {
+            let m = &b.matrix;
+            if m.iter().flatten().any(|v| !v.is_finite()) || m[3] != [0.0, 0.0, 0.0, 1.0] {
+                return Err(Error::bad_file(
+                    path,
+                    format!(
+                        "bone {} ({}): matrix must be finite with last row 0 0 0 1",
+                        b.label, b.name
+                    ),
+                ));
+            }
+            if parsed.bones[..i].iter().any(|o| o.label == b.label) {
+                return Err(Error::bad_file(
+                    path,
+                    format!("label {} appears twice", b.label),
+                ));
+            }
+        }
+        Ok(parsed)
+    }
+}

@@ -1,0 +1,143 @@
+//! Pictures for people: three orthogonal planes through a volume, in world orientation
+//! (sagittal with anterior left, coronal and axial in radiological convention: the subject's
+//! right on the image's left), whatever the voxel order on disk.
+
+use crate::cpu::sample::trilinear;
+use crate::error::{Error, Result};
+use crate::volume::Volume;
+use image::{Rgb, RgbImage};
+use nalgebra::Vector4;
+use std::path::Path;
+
+/// One plane of intensities, row-major, top row first.
+pub struct Panel {
+    /// Pixels across.
+    pub width: usize,
+    /// Pixels down.
+    pub height: usize,
+    /// Intensities (NaN outside the volume).
+    pub values: Vec<f32>,
+}
+
+/// World bounding box of the grid's voxel centres.
+fn world_bounds(volume: &Volume) -> ([f64; 3], [f64; 3]) {
+    let d = volume.grid.dims;
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for corner in 0..8 {
+        let ijk = [0, 1, 2].map(|a| {
+            if corner >> a & 1 == 1 {
+                (d[a] - 1) as f64
+            } else {
+                0.0
+            }
+        });
+        let w = volume.grid.voxel_to_world(ijk);
+        for a in 0..3 {
+            lo[a] = lo[a].min(w[a]);
+            hi[a] = hi[a].max(w[a]);
+        }
+    }
+    (lo, hi)
+}
+
+/// The plane through `centre` spanned by world axes `h` (left to right of the picture, running
+/// in direction `h_sign`) and `v` (top to bottom, running towards −v: up is +v).
+fn plane(volume: &Volume, centre: [f64; 3], h: usize, h_sign: f64, v: usize, pixel: f64) -> Panel {
+    let (lo, hi) = world_bounds(volume);
+    let width = ((hi[h] - lo[h]) / pixel).ceil() as usize + 1;
+    let height = ((hi[v] - lo[v]) / pixel).ceil() as usize + 1;
+    let to_voxel = volume.grid.world_to_voxel_affine();
+    let dims = volume.grid.dims.map(|d| d as u32);
+    let mut values = Vec::with_capacity(width * height);
+    for row in 0..height {
+        for col in 0..width {
+            let mut w = centre;
+            w[h] = if h_sign > 0.0 {
+                lo[h] + col as f64 * pixel
+            } else {
+                hi[h] - col as f64 * pixel
+            };
+            w[v] = hi[v] - row as f64 * pixel;
+            let q = to_voxel * Vector4::new(w[0], w[1], w[2], 1.0);
+            values.push(trilinear(
+                &volume.data,
+                [q.x as f32, q.y as f32, q.z as f32],
+                dims,
+                f32::NAN,
+            ));
+        }
+    }
+    Panel {
+        width,
+        height,
+        values,
+    }
+}
+
+/// Sagittal, coronal and axial planes through `centre` (world RAS mm; the middle of the volume
+/// when None), pixels of the finest voxel spacing.
+pub fn orthogonal_planes(volume: &Volume, centre: Option<[f64; 3]>) -> [Panel; 3] {
+    let (lo, hi) = world_bounds(volume);
+    let centre = centre.unwrap_or([0, 1, 2].map(|a| (lo[a] + hi[a]) / 2.0));
+    let pixel = volume
+        .grid
+        .spacing()
+        .iter()
+        .cloned()
+        .fold(f64::INFINITY, f64::min);
+    [
+        plane(volume, centre, 1, -1.0, 2, pixel), // sagittal: anterior (+y) on the left
+        plane(volume, centre, 0, -1.0, 2, pixel), // coronal: right (+x) on the left
+        plane(volume, centre, 0, -1.0, 1, pixel), // axial: anterior up
+    ]
+}
+
+/// Display window: 0 to the 99.5th percentile of the finite, positive values.
+pub fn window(panels: &[Panel]) -> (f32, f32) {
+    let mut v: Vec<f32> = panels
+        .iter()
+        .flat_map(|p| p.values.iter().copied())
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
+    if v.is_empty() {
+        return (0.0, 1.0);
+    }
+    let k = ((v.len() - 1) as f64 * 0.995) as usize;
+    let (_, hi, _) = v.select_nth_unstable_by(k, f32::total_cmp);
+    (0.0, hi.max(f32::MIN_POSITIVE))
+}
+
+/// Lays panels side by side (top-aligned, 4-pixel gaps) as grey levels.
+pub fn compose(panels: &[Panel], (lo, hi): (f32, f32)) -> RgbImage {
+    let gap = 4;
+    let width = panels.iter().map(|p| p.width + gap).sum::<usize>() - gap;
+    let height = panels.iter().map(|p| p.height).max().unwrap_or(1);
+    let mut img = RgbImage::new(width as u32, height as u32);
+    let mut x0 = 0;
+    for p in panels {
+        for row in 0..p.height {
+            for col in 0..p.width {
+                let v = p.values[row * p.width + col];
+                let g = if v.is_finite() {
+                    ((v - lo) / (hi - lo) * 255.0).clamp(0.0, 255.0) as u8
+                } else {
+                    0
+                };
+                img.put_pixel((x0 + col) as u32, row as u32, Rgb([g, g, g]));
+            }
+        }
+        x0 += p.width + gap;
+    }
+    img
+}
+
+/// Writes the three planes of `volume` through `centre` side by side as a PNG (atomically).
+pub fn save_planes_png(path: &Path, volume: &Volume, centre: Option<[f64; 3]>) -> Result<()> {
+    let panels = orthogonal_planes(volume, centre);
+    let img = compose(&panels, window(&panels));
+    crate::io::write_atomically(path, |tmp| {
+        img.save_with_format(tmp, image::ImageFormat::Png)
+            .map_err(|e| Error::bad_file(path, format!("cannot write PNG ({e})")))
+    })
+}
