@@ -5,6 +5,7 @@
 //! the same name in its shader; `tests/shaders.rs` checks the sizes through naga reflection.
 //! The constructors do the f64 host-side geometry once, so both backends receive identical f32s.
 
+use crate::gpu::run::SlabParams;
 use crate::volume::{Affine, Grid};
 use bytemuck::{Pod, Zeroable};
 
@@ -89,9 +90,10 @@ impl ResampleParams {
             pad: [0; 2],
         }
     }
+}
 
-    /// The same parameters restricted to slices z0 .. z0 + depth of the target.
-    pub fn slab(&self, z0: u32, depth: u32) -> Self {
+impl SlabParams for ResampleParams {
+    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
         let mut p = *self;
         p.target_dims[3] = z0;
         p.source_dims[3] = depth;
@@ -116,6 +118,14 @@ impl SsdParams {
             dims: [dims[0] as u32, dims[1] as u32, depth as u32, 0],
             cells: [cells[0] as u32, cells[1] as u32, cells[2] as u32, 0],
         }
+    }
+}
+
+impl SlabParams for SsdParams {
+    fn for_slab(&self, _z0: u32, depth: u32, _first: u32) -> Self {
+        let mut p = *self;
+        p.dims[2] = depth;
+        p
     }
 }
 
@@ -154,9 +164,10 @@ impl JacobianParams {
             }),
         }
     }
+}
 
-    /// Restricted to slices z0 .. z0 + depth, with the bound field starting at slice `first`.
-    pub fn slab(&self, z0: u32, depth: u32, first: u32) -> Self {
+impl SlabParams for JacobianParams {
+    fn for_slab(&self, z0: u32, depth: u32, first: u32) -> Self {
         let mut p = *self;
         p.dims[3] = z0;
         p.slab = [depth, first, 0, 0];

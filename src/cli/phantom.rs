@@ -50,7 +50,10 @@ pub fn run(args: &PhantomArgs) -> anyhow::Result<()> {
     phantom.truth.save(&out("truth.json"))?;
     if args.png {
         // Through the knee: the flexion axis at the midline.
-        let knee = posereg::phantom::flexion::Flexion::knee(0.0).axis_point.as_dvec3().to_array();
+        let knee = posereg::phantom::flexion::Flexion::knee(0.0)
+            .axis_point
+            .as_dvec3()
+            .to_array();
         posereg::picture::save_planes_png(&out("picture.png"), &phantom.image, Some(knee))?;
     }
     println!("phantom written to {}", args.output.display());

@@ -10,6 +10,7 @@ pub mod context;
 pub mod jacobian;
 pub mod kernel;
 pub mod resample;
+pub mod run;
 pub mod ssd_cells;
 
 use crate::abi::{Interpolation, JacobianParams, ResampleParams};
@@ -29,12 +30,21 @@ pub struct Slab {
     pub depth: usize,
 }
 
+/// Every compiled kernel.
+pub struct Kernels {
+    /// shaders/resample.wgsl
+    pub resample: Kernel,
+    /// shaders/ssd_cells.wgsl
+    pub ssd_cells: Kernel,
+    /// shaders/jacobian.wgsl
+    pub jacobian: Kernel,
+}
+
 /// The GPU backend with its compiled kernels.
 pub struct GpuBackend {
     ctx: GpuContext,
-    resample: Kernel,
-    ssd_cells: Kernel,
-    jacobian: Kernel,
+    /// The compiled kernels.
+    pub kernels: Kernels,
     max_slab_voxels: Option<usize>,
 }
 
@@ -47,9 +57,11 @@ impl GpuBackend {
     /// Compiles every kernel on an opened context.
     pub fn with_context(ctx: GpuContext) -> Result<Self> {
         Ok(GpuBackend {
-            resample: Kernel::new(&ctx, "resample", resample::BINDINGS)?,
-            ssd_cells: Kernel::new(&ctx, "ssd_cells", ssd_cells::BINDINGS)?,
-            jacobian: Kernel::new(&ctx, "jacobian", jacobian::BINDINGS)?,
+            kernels: Kernels {
+                resample: Kernel::new(&ctx, "resample", resample::BINDINGS)?,
+                ssd_cells: Kernel::new(&ctx, "ssd_cells", ssd_cells::BINDINGS)?,
+                jacobian: Kernel::new(&ctx, "jacobian", jacobian::BINDINGS)?,
+            },
             ctx,
             max_slab_voxels: None,
         })
@@ -119,54 +131,26 @@ impl Backend for GpuBackend {
         interpolation: Interpolation,
     ) -> Result<Volume> {
         let params = ResampleParams::new(&source.grid, &field.grid, background, interpolation);
-        let slabs = self.plan_slabs(field.grid.dims, resample::FIELD_BYTES_PER_VOXEL, 0)?;
-        let warped = resample::resample(
-            &self.ctx,
-            &self.resample,
+        let data = resample::resample(
+            self,
             &params,
             &source.data,
             bytemuck::cast_slice(&field.data),
-            &slabs,
         )?;
-        Ok(Image {
-            grid: field.grid.clone(),
-            data: warped,
-        })
+        Image::from_data(field.grid.clone(), data)
     }
 
     fn ssd_cells(&self, a: &Volume, b: &Volume, cells: [usize; 3]) -> Result<CellSsd> {
         check_pair(a, b)?;
         let dims = a.grid.dims;
         check_cells(dims, cells)?;
-        let slabs = self.plan_slabs(dims, ssd_cells::BYTES_PER_VOXEL, 0)?;
-        let partial = ssd_cells::ssd_partials(
-            &self.ctx,
-            &self.ssd_cells,
-            dims,
-            cells,
-            &a.data,
-            &b.data,
-            &slabs,
-        )?;
+        let partial = ssd_cells::ssd_partials(self, dims, cells, &a.data, &b.data)?;
         Ok(fold_ssd_partials(dims, cells, &partial))
     }
 
     fn jacobian(&self, field: &Field) -> Result<Volume> {
-        let slabs = self.plan_slabs(
-            field.grid.dims,
-            jacobian::FIELD_BYTES_PER_VOXEL,
-            jacobian::HALO_SLICES,
-        )?;
-        let det = jacobian::jacobian(
-            &self.ctx,
-            &self.jacobian,
-            &JacobianParams::new(&field.grid),
-            bytemuck::cast_slice(&field.data),
-            &slabs,
-        )?;
-        Ok(Image {
-            grid: field.grid.clone(),
-            data: det,
-        })
+        let params = JacobianParams::new(&field.grid);
+        let data = jacobian::jacobian(self, &params, bytemuck::cast_slice(&field.data))?;
+        Image::from_data(field.grid.clone(), data)
     }
 }

@@ -1,9 +1,8 @@
 //! Host side of shaders/ssd_cells.wgsl.
 
-use super::buffer::{storage_from, storage_output, submit_and_read, uniform_from};
-use super::context::GpuContext;
-use super::kernel::{groups, Binding, Kernel};
-use super::Slab;
+use super::kernel::{groups, Binding};
+use super::run::{run_slabs, Input};
+use super::GpuBackend;
 use crate::abi::SsdParams;
 use crate::error::Result;
 
@@ -15,41 +14,30 @@ pub const BINDINGS: &[Binding] = &[
     Binding::ReadWrite,
 ];
 
-/// Bytes per voxel of the largest per-slab binding (one f32 volume).
-pub const BYTES_PER_VOXEL: usize = 4;
-
 /// Column partial sums for the whole volume (layout of metric::fold_ssd_partials).
 pub fn ssd_partials(
-    ctx: &GpuContext,
-    kernel: &Kernel,
+    gpu: &GpuBackend,
     dims: [usize; 3],
     cells: [usize; 3],
     a: &[f32],
     b: &[f32],
-    slabs: &[Slab],
 ) -> Result<Vec<f32>> {
-    let [nx, ny, nz] = dims;
-    let slice = nx * ny;
-    let mut partial = Vec::with_capacity(nz * nx * cells[1]);
-    for slab in slabs {
-        let range = slab.z0 * slice..(slab.z0 + slab.depth) * slice;
-        let uniform = uniform_from(
-            ctx,
-            "ssd parameters",
-            &SsdParams::new(dims, cells, slab.depth),
-        )?;
-        let a_buffer = storage_from(ctx, "ssd first volume slab", &a[range.clone()])?;
-        let b_buffer = storage_from(ctx, "ssd second volume slab", &b[range])?;
-        let len = slab.depth * nx * cells[1];
-        let output = storage_output::<f32>(ctx, "ssd partial sums", len)?;
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        kernel.dispatch(
-            ctx,
-            &mut encoder,
-            &[&uniform, &a_buffer, &b_buffer, &output],
-            [groups(nx, 64), slab.depth as u32, 1],
-        )?;
-        partial.extend(submit_and_read::<f32>(ctx, encoder, &output, len)?);
-    }
-    Ok(partial)
+    let per_voxel = |what, data| Input::PerVoxel {
+        what,
+        data,
+        per_voxel: 1,
+        halo: 0,
+    };
+    run_slabs(
+        gpu,
+        &gpu.kernels.ssd_cells,
+        &SsdParams::new(dims, cells, dims[2]),
+        &[
+            per_voxel("ssd first volume", a),
+            per_voxel("ssd second volume", b),
+        ],
+        dims,
+        dims[0] * cells[1],
+        |depth| [groups(dims[0], 64), depth as u32, 1],
+    )
 }
