@@ -22,3 +22,19 @@ fn linear_row(row: vec4<f32>, v: vec3<f32>) -> f32 {
 fn cell_start(c: u32, n: u32, cells: u32) -> u32 {
     return (c * n + cells - 1u) / cells;
 }
+
+// Determinant of the 3x3 matrix with rows r0, r1, r2, by cofactors of the first row (written
+// out so the CPU twin follows the same order).
+fn det3(r0: vec3<f32>, r1: vec3<f32>, r2: vec3<f32>) -> f32 {
+    return r0.x * (r1.y * r2.z - r1.z * r2.y)
+        - r0.y * (r1.x * r2.z - r1.z * r2.x)
+        + r0.z * (r1.x * r2.y - r1.y * r2.x);
+}
+
+// Solves A s = e for A with rows r0, r1, r2 by Cramer's rule; `det` is det3(r0, r1, r2) != 0.
+fn solve3(r0: vec3<f32>, r1: vec3<f32>, r2: vec3<f32>, det: f32, e: vec3<f32>) -> vec3<f32> {
+    let sx = det3(vec3<f32>(e.x, r0.y, r0.z), vec3<f32>(e.y, r1.y, r1.z), vec3<f32>(e.z, r2.y, r2.z));
+    let sy = det3(vec3<f32>(r0.x, e.x, r0.z), vec3<f32>(r1.x, e.y, r1.z), vec3<f32>(r2.x, e.z, r2.z));
+    let sz = det3(vec3<f32>(r0.x, r0.y, e.x), vec3<f32>(r1.x, r1.y, e.y), vec3<f32>(r2.x, r2.y, e.z));
+    return vec3<f32>(sx, sy, sz) / det;
+}

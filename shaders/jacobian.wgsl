@@ -58,11 +58,3 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let r2 = dx.z * m0 + dy.z * m1 + dz.z * m2 + vec3<f32>(0.0, 0.0, 1.0);
     det[voxel_index(i, j, gid.z, vec3<u32>(d.x, d.y, params.slab.x))] = det3(r0, r1, r2);
 }
-
-// Determinant of the matrix with rows r0, r1, r2, by cofactors of the first row (written out so
-// the CPU twin can follow the same order).
-fn det3(r0: vec3<f32>, r1: vec3<f32>, r2: vec3<f32>) -> f32 {
-    return r0.x * (r1.y * r2.z - r1.z * r2.y)
-        - r0.y * (r1.x * r2.z - r1.z * r2.x)
-        + r0.z * (r1.x * r2.y - r1.y * r2.x);
-}

@@ -30,7 +30,7 @@ struct ResampleParams {
 @group(0) @binding(2) var<storage, read> field: array<f32>;
 @group(0) @binding(3) var<storage, read_write> warped: array<f32>;
 
-fn source_value(index: u32) -> f32 {
+fn sampled_value(index: u32) -> f32 {
     return source[index];
 }
 

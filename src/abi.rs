@@ -174,3 +174,230 @@ impl SlabParams for JacobianParams {
         p
     }
 }
+
+/// Rows 0..3 of a 4×4 affine as f32 [x, y, z, w] (w = translation).
+fn rows(m: &Affine) -> [[f32; 4]; 3] {
+    std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)] as f32))
+}
+
+/// Rows of the linear part only (w = 0).
+fn linear_rows(m: &nalgebra::Matrix3<f64>) -> [[f32; 4]; 3] {
+    std::array::from_fn(|r| [m[(r, 0)] as f32, m[(r, 1)] as f32, m[(r, 2)] as f32, 0.0])
+}
+
+fn dims4(g: &Grid, w: u32) -> [u32; 4] {
+    [g.dims[0] as u32, g.dims[1] as u32, g.dims[2] as u32, w]
+}
+
+/// Keep in sync with `PyramidParams` in shaders/pyramid.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct PyramidParams {
+    /// Output nx, ny, nz, first slice of this slab.
+    pub dims: [u32; 4],
+    /// Slices in this slab, unused ×3.
+    pub slab: [u32; 4],
+    /// Input nx, ny, nz, unused.
+    pub input_dims: [u32; 4],
+    /// 1 or 2 per axis, unused.
+    pub factors: [u32; 4],
+}
+
+impl PyramidParams {
+    /// From the input grid, the output dims and the per-axis factors.
+    pub fn new(input: &Grid, output_dims: [usize; 3], factors: [usize; 3]) -> Self {
+        PyramidParams {
+            dims: [
+                output_dims[0] as u32,
+                output_dims[1] as u32,
+                output_dims[2] as u32,
+                0,
+            ],
+            slab: [output_dims[2] as u32, 0, 0, 0],
+            input_dims: dims4(input, 0),
+            factors: [factors[0] as u32, factors[1] as u32, factors[2] as u32, 0],
+        }
+    }
+}
+
+impl SlabParams for PyramidParams {
+    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
+        let mut p = *self;
+        p.dims[3] = z0;
+        p.slab[0] = depth;
+        p
+    }
+}
+
+/// Keep in sync with `RigidParams` in shaders/rigid_gn.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct RigidParams {
+    /// Source nx, ny, nz, first slice of this slab.
+    pub dims: [u32; 4],
+    /// Slices in this slab, unused ×3.
+    pub slab: [u32; 4],
+    /// Target nx, ny, nz, unused.
+    pub target_dims: [u32; 4],
+    /// Source voxel index → target continuous index under the current motion.
+    pub to_target_index: [[f32; 4]; 3],
+    /// Source voxel index → moved world point minus the rotation centre.
+    pub to_centred_world: [[f32; 4]; 3],
+    /// Target index-space gradient → world gradient ((L_t⁻¹)ᵀ).
+    pub gradient_to_world: [[f32; 4]; 3],
+}
+
+impl RigidParams {
+    /// For motion `m` (source world → target world) linearised about `centre` (target world).
+    pub fn new(source: &Grid, target: &Grid, m: &Affine, centre: [f64; 3]) -> Self {
+        let to_target = target.world_to_voxel_affine() * m * source.affine;
+        let mut centred = m * source.affine;
+        for r in 0..3 {
+            centred[(r, 3)] -= centre[r];
+        }
+        let lt: nalgebra::Matrix3<f64> = target.affine.fixed_view::<3, 3>(0, 0).into_owned();
+        let grad = lt
+            .try_inverse()
+            .expect("validated grids are invertible")
+            .transpose();
+        RigidParams {
+            dims: dims4(source, 0),
+            slab: [source.dims[2] as u32, 0, 0, 0],
+            target_dims: dims4(target, 0),
+            to_target_index: rows(&to_target),
+            to_centred_world: rows(&centred),
+            gradient_to_world: linear_rows(&grad),
+        }
+    }
+}
+
+impl SlabParams for RigidParams {
+    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
+        let mut p = *self;
+        p.dims[3] = z0;
+        p.slab[0] = depth;
+        p
+    }
+}
+
+/// Keep in sync with `ScoreParams` in shaders/rigid_score.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ScoreParams {
+    /// Source nx, ny, nz, first slice of this slab.
+    pub dims: [u32; 4],
+    /// Slices in this slab, number of candidates, unused ×2.
+    pub slab: [u32; 4],
+    /// Target nx, ny, nz, unused.
+    pub target_dims: [u32; 4],
+    /// Source voxel index → world.
+    pub source_to_world: [[f32; 4]; 3],
+    /// World → target continuous index.
+    pub world_to_target: [[f32; 4]; 3],
+}
+
+impl ScoreParams {
+    /// For `candidates` motions of a bone from `source` into `target`.
+    pub fn new(source: &Grid, target: &Grid, candidates: usize) -> Self {
+        ScoreParams {
+            dims: dims4(source, 0),
+            slab: [source.dims[2] as u32, candidates as u32, 0, 0],
+            target_dims: dims4(target, 0),
+            source_to_world: rows(&source.affine),
+            world_to_target: rows(&target.world_to_voxel_affine()),
+        }
+    }
+}
+
+impl SlabParams for ScoreParams {
+    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
+        let mut p = *self;
+        p.dims[3] = z0;
+        p.slab[0] = depth;
+        p
+    }
+}
+
+/// Keep in sync with `SkinWeightsParams` in shaders/skin_weights.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SkinWeightsParams {
+    /// nx, ny, nz, first slice of this slab.
+    pub dims: [u32; 4],
+    /// Slices in this slab, bones, Shepard power, unused.
+    pub slab: [u32; 4],
+}
+
+impl SkinWeightsParams {
+    /// Weights of `bones` bones on `grid` with Shepard exponent `power`.
+    pub fn new(grid: &Grid, bones: usize, power: u32) -> Self {
+        SkinWeightsParams {
+            dims: dims4(grid, 0),
+            slab: [grid.dims[2] as u32, bones as u32, power, 0],
+        }
+    }
+}
+
+impl SlabParams for SkinWeightsParams {
+    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
+        let mut p = *self;
+        p.dims[3] = z0;
+        p.slab[0] = depth;
+        p
+    }
+}
+
+/// Most bones a skinning kernel takes (its matrices live in the uniform).
+pub const MAX_SKIN_BONES: usize = 8;
+
+/// Keep in sync with `SkinBlendParams` in shaders/skin_blend.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SkinBlendParams {
+    /// Target nx, ny, nz, first slice of this slab.
+    pub dims: [u32; 4],
+    /// Slices in this slab, bones, inversion iterations, unused.
+    pub slab: [u32; 4],
+    /// Weight grid nx, ny, nz, unused.
+    pub weight_dims: [u32; 4],
+    /// Target voxel index → world.
+    pub target_to_world: [[f32; 4]; 3],
+    /// World → weight-grid continuous index.
+    pub world_to_weight: [[f32; 4]; 3],
+    /// Three rows of M_j per bone (source → target world).
+    pub forward: [[f32; 4]; 3 * MAX_SKIN_BONES],
+    /// Three rows of M_j⁻¹ per bone.
+    pub inverse: [[f32; 4]; 3 * MAX_SKIN_BONES],
+}
+
+impl SkinBlendParams {
+    /// For bones moving by `motions` (at most [`MAX_SKIN_BONES`]), weights on `weights`.
+    pub fn new(target: &Grid, weights: &Grid, motions: &[Affine], iterations: u32) -> Self {
+        assert!(motions.len() <= MAX_SKIN_BONES, "checked by the caller");
+        let mut forward = [[0.0f32; 4]; 3 * MAX_SKIN_BONES];
+        let mut inverse = [[0.0f32; 4]; 3 * MAX_SKIN_BONES];
+        for (j, m) in motions.iter().enumerate() {
+            let inv = m.try_inverse().unwrap_or_else(Affine::identity);
+            forward[3 * j..3 * j + 3].copy_from_slice(&rows(m));
+            inverse[3 * j..3 * j + 3].copy_from_slice(&rows(&inv));
+        }
+        SkinBlendParams {
+            dims: dims4(target, 0),
+            slab: [target.dims[2] as u32, motions.len() as u32, iterations, 0],
+            weight_dims: dims4(weights, 0),
+            target_to_world: rows(&target.affine),
+            world_to_weight: rows(&weights.world_to_voxel_affine()),
+            forward,
+            inverse,
+        }
+    }
+}
+
+impl SlabParams for SkinBlendParams {
+    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
+        let mut p = *self;
+        p.dims[3] = z0;
+        p.slab[0] = depth;
+        p
+    }
+}

@@ -5,7 +5,7 @@
 use crate::abi::Interpolation;
 use crate::error::Result;
 use crate::metric::CellSsd;
-use crate::volume::{Field, Volume};
+use crate::volume::{Affine, Field, Grid, Volume};
 
 /// A place kernels run.
 pub trait Backend {
@@ -28,6 +28,50 @@ pub trait Backend {
     /// det(I + du/dx) of the map x → x + u(x) at every voxel of the field's grid: where it is
     /// ≤ 0 the map folds.
     fn jacobian(&self, field: &Field) -> Result<Volume>;
+
+    /// One pyramid step: `input` smoothed and decimated by `factors` (1 or 2 per axis) onto
+    /// `output` (see pyramid::next_level_grid).
+    fn pyramid_level(&self, input: &Volume, output: &Grid, factors: [usize; 3]) -> Result<Volume>;
+
+    /// Per-column Gauss-Newton sums of a bone's rigid registration (29 per column of the
+    /// source, layout of shaders/rigid_gn.wgsl) for `motion` linearised about `centre`.
+    fn rigid_sums(
+        &self,
+        source: &Volume,
+        mask: &Volume,
+        target: &Volume,
+        motion: &Affine,
+        centre: [f64; 3],
+    ) -> Result<Vec<f32>>;
+
+    /// Per-column (Σ r², count) of every candidate motion (layout of shaders/rigid_score.wgsl).
+    fn rigid_scores(
+        &self,
+        source: &Volume,
+        mask: &Volume,
+        target: &Volume,
+        candidates: &[Affine],
+    ) -> Result<Vec<f32>>;
+
+    /// Skinning weights (bones per voxel) from distance maps (bones per voxel, mm) on `grid`.
+    fn skin_weights(
+        &self,
+        distances: &[f32],
+        grid: &Grid,
+        bones: usize,
+        power: u32,
+    ) -> Result<Vec<f32>>;
+
+    /// The inverted blend on `target`: 4 floats per voxel (u in mm, inversion residual in mm)
+    /// for bones moving by `motions`, weights (bones per voxel) on `weight_grid`.
+    fn skin_blend(
+        &self,
+        weights: &[f32],
+        weight_grid: &Grid,
+        target: &Grid,
+        motions: &[Affine],
+        iterations: u32,
+    ) -> Result<Vec<f32>>;
 }
 
 /// Checks two volumes compared voxel by voxel share a grid.

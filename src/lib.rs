@@ -24,17 +24,23 @@
 #![warn(missing_docs)]
 
 pub mod abi;
+pub mod articulated;
 pub mod backend;
 pub mod cpu;
 pub mod device;
 pub mod error;
 pub mod gpu;
 pub mod io;
+pub mod joint;
 pub mod metric;
 pub mod phantom;
 pub mod picture;
+pub mod pyramid;
+pub mod rigid;
 pub mod shaders;
+pub mod skinning;
 pub mod volume;
+pub mod vsd;
 
 pub use backend::Backend;
 pub use error::{Error, Result};

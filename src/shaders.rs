@@ -22,6 +22,52 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         ],
     ),
     (
+        "pyramid",
+        &[
+            COMMON,
+            ("pyramid.wgsl", include_str!("../shaders/pyramid.wgsl")),
+        ],
+    ),
+    (
+        "rigid_gn",
+        &[
+            COMMON,
+            SAMPLE,
+            ("rigid_gn.wgsl", include_str!("../shaders/rigid_gn.wgsl")),
+        ],
+    ),
+    (
+        "rigid_score",
+        &[
+            COMMON,
+            SAMPLE,
+            (
+                "rigid_score.wgsl",
+                include_str!("../shaders/rigid_score.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "skin_blend",
+        &[
+            COMMON,
+            (
+                "skin_blend.wgsl",
+                include_str!("../shaders/skin_blend.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "skin_weights",
+        &[
+            COMMON,
+            (
+                "skin_weights.wgsl",
+                include_str!("../shaders/skin_weights.wgsl"),
+            ),
+        ],
+    ),
+    (
         "ssd_cells",
         &[
             COMMON,

@@ -279,3 +279,138 @@ fn nearest_neighbour_keeps_label_codes() {
         assert_eq!(*v, expected, "voxel {n}");
     }
 }
+
+#[test]
+fn pyramid_keeps_constants_and_linear_ramps() {
+    // The binomial kernel sums to one (constants stay) and is symmetric about the coarse voxel
+    // centre (a ramp is sampled at the coarse centres), away from the clamped faces.
+    let grid = Grid::new([20, 18, 16], Affine::identity()).unwrap();
+    let (coarse, factors) = posereg::pyramid::next_level_grid(&grid).unwrap();
+    assert_eq!(factors, [2, 2, 2]);
+    let constant = Image::filled(grid.clone(), 7.5f32);
+    let down = CpuBackend
+        .pyramid_level(&constant, &coarse, factors)
+        .unwrap();
+    assert!(down.data.iter().all(|&v| (v - 7.5).abs() < 1e-5));
+    let ramp = ramp(&grid);
+    let down = CpuBackend.pyramid_level(&ramp, &coarse, factors).unwrap();
+    let to_fine = grid.world_to_voxel_affine();
+    for k in 1..coarse.dims[2] - 1 {
+        for j in 1..coarse.dims[1] - 1 {
+            for i in 1..coarse.dims[0] - 1 {
+                let w = coarse.voxel_to_world([i as f64, j as f64, k as f64]);
+                let q = to_fine * nalgebra::Vector4::new(w[0], w[1], w[2], 1.0);
+                let expected = 0.5 * q.x + 0.25 * q.y + 2.0 * q.z + 3.0;
+                let v = down.data[coarse.index(i, j, k)] as f64;
+                assert!((v - expected).abs() < 1e-4, "{v} vs {expected}");
+            }
+        }
+    }
+}
+
+#[test]
+fn rigid_gradient_matches_finite_differences() {
+    // Cost C(δ) = Σ r² at motion small_motion(δ, c)·M; the kernel's Jᵀr is ½ ∂C/∂δ at δ = 0.
+    let grid = oblique_grid([26, 22, 18]);
+    let source = smooth_volume(&grid, 21);
+    let target = smooth_volume(&grid, 22);
+    let mask: posereg::Volume = Image::filled(grid.clone(), 1.0);
+    let base = posereg::rigid::small_motion(
+        &nalgebra::Vector6::new(0.03, 0.02, -0.04, 0.8, -0.5, 0.3),
+        &nalgebra::Vector3::zeros(),
+    );
+    // Keep only voxels well inside the target under every perturbed motion, so the set of
+    // contributing voxels does not change between the finite-difference evaluations.
+    let mut inner = mask.clone();
+    let d = grid.dims;
+    for n in 0..grid.len() {
+        let (i, j, k) = (n % d[0], (n / d[0]) % d[1], n / (d[0] * d[1]));
+        if i < 4 || j < 4 || k < 4 || i + 4 >= d[0] || j + 4 >= d[1] || k + 4 >= d[2] {
+            inner.data[n] = 0.0;
+        }
+    }
+    let centre = nalgebra::Vector3::new(-15.0, 12.0, 10.0);
+    let eq = posereg::rigid::fold_normal_equations(
+        &CpuBackend
+            .rigid_sums(&source, &inner, &target, &base, centre.into())
+            .unwrap(),
+    );
+    let cost = |delta: nalgebra::Vector6<f64>| {
+        let m = posereg::rigid::small_motion(&delta, &centre) * base;
+        let p = CpuBackend
+            .rigid_scores(&source, &inner, &target, &[m])
+            .unwrap();
+        posereg::rigid::fold_scores(&p, 1)[0]
+    };
+    let n0 = cost(nalgebra::Vector6::zeros()).1;
+    for k in 0..6 {
+        let eps = if k < 3 { 1e-3 } else { 1e-2 };
+        let mut e = nalgebra::Vector6::zeros();
+        e[k] = eps;
+        let (plus, n_plus) = cost(e);
+        let (minus, n_minus) = cost(-e);
+        assert_eq!((n_plus, n_minus), (n0, n0), "voxel set changed");
+        let fd = (plus - minus) / (2.0 * eps);
+        let analytic = 2.0 * eq.jtr[k];
+        assert!(
+            (fd - analytic).abs() <= 1e-2 * analytic.abs().max(1.0),
+            "parameter {k}: finite difference {fd} vs analytic {analytic}"
+        );
+    }
+}
+
+#[test]
+fn skin_blend_inverts_a_common_rigid_motion_exactly() {
+    // When every bone makes the same motion M the blend is M itself, whatever the weights: the
+    // field must be M⁻¹p − p with (near) zero residual.
+    let grid = oblique_grid([11, 10, 9]);
+    let bones = 2;
+    let distances: Vec<f32> = (0..grid.len() * bones)
+        .map(|k| 1.0 + (k % 13) as f32)
+        .collect();
+    let weights = CpuBackend
+        .skin_weights(&distances, &grid, bones, 4)
+        .unwrap();
+    for w in weights.chunks(bones) {
+        assert!(
+            (w.iter().sum::<f32>() - 1.0).abs() < 1e-5,
+            "partition of unity"
+        );
+    }
+    let m = posereg::rigid::small_motion(
+        &nalgebra::Vector6::new(0.3, -0.2, 0.5, 4.0, -2.0, 1.0),
+        &nalgebra::Vector3::new(1.0, 2.0, 3.0),
+    );
+    let target = oblique_grid([7, 6, 5]);
+    let out = CpuBackend
+        .skin_blend(&weights, &grid, &target, &[m, m], 4)
+        .unwrap();
+    let inv = m.try_inverse().unwrap();
+    let d = target.dims;
+    for n in 0..target.len() {
+        let w = target.voxel_to_world([
+            (n % d[0]) as f64,
+            ((n / d[0]) % d[1]) as f64,
+            (n / (d[0] * d[1])) as f64,
+        ]);
+        let q = inv * nalgebra::Vector4::new(w[0], w[1], w[2], 1.0);
+        for a in 0..3 {
+            assert!((out[4 * n + a] as f64 - (q[a] - w[a])).abs() < 1e-3);
+        }
+        assert!(out[4 * n + 3] < 1e-3, "residual {}", out[4 * n + 3]);
+    }
+}
+
+#[test]
+fn skin_weights_are_one_inside_their_bone() {
+    let grid = Grid::new([5, 4, 3], Affine::identity()).unwrap();
+    let bones = 3;
+    let mut distances = vec![5.0f32; grid.len() * bones];
+    distances[7 * bones + 1] = 0.0; // voxel 7 is inside bone 1
+    let w = CpuBackend
+        .skin_weights(&distances, &grid, bones, 4)
+        .unwrap();
+    assert_eq!(&w[7 * bones..8 * bones], &[0.0, 1.0, 0.0]);
+    // Equal distances: equal shares.
+    assert!((w[0] - 1.0 / 3.0).abs() < 1e-6);
+}

@@ -1,8 +1,12 @@
 //! Every shader parses and validates with naga (no device needed), and every parameter struct
 //! has the same size in Rust and WGSL.
 
-use posereg::abi::{JacobianParams, ResampleParams, SsdParams};
+use posereg::abi::{
+    JacobianParams, PyramidParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams,
+    SkinWeightsParams, SsdParams,
+};
 use posereg::shaders::{locate, source, KERNELS};
+use std::mem::size_of;
 
 fn parse(kernel: &str) -> naga::Module {
     let src = source(kernel);
@@ -60,18 +64,41 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
+    let pairs: [(&str, &str, usize); 8] = [
+        ("resample", "ResampleParams", size_of::<ResampleParams>()),
+        ("jacobian", "JacobianParams", size_of::<JacobianParams>()),
+        ("ssd_cells", "SsdParams", size_of::<SsdParams>()),
+        ("pyramid", "PyramidParams", size_of::<PyramidParams>()),
+        ("rigid_gn", "RigidParams", size_of::<RigidParams>()),
+        ("rigid_score", "ScoreParams", size_of::<ScoreParams>()),
+        (
+            "skin_weights",
+            "SkinWeightsParams",
+            size_of::<SkinWeightsParams>(),
+        ),
+        (
+            "skin_blend",
+            "SkinBlendParams",
+            size_of::<SkinBlendParams>(),
+        ),
+    ];
     assert_eq!(
-        wgsl_struct_size("resample", "ResampleParams") as usize,
-        std::mem::size_of::<ResampleParams>()
+        pairs.len(),
+        KERNELS.len(),
+        "a kernel's parameters are missing from this test"
     );
-    assert_eq!(
-        wgsl_struct_size("jacobian", "JacobianParams") as usize,
-        std::mem::size_of::<JacobianParams>()
-    );
-    assert_eq!(
-        wgsl_struct_size("ssd_cells", "SsdParams") as usize,
-        std::mem::size_of::<SsdParams>()
-    );
+    for (kernel, name, size) in pairs {
+        assert_eq!(
+            wgsl_struct_size(kernel, name) as usize,
+            size,
+            "{kernel}: {name}"
+        );
+        assert_eq!(
+            size % 16,
+            0,
+            "{name}: uniform structs are padded to 16 bytes"
+        );
+    }
 }
 
 #[test]
@@ -94,18 +121,12 @@ fn locate_maps_assembled_lines_back_to_files() {
 
 #[test]
 fn host_bind_group_layouts_match_shader_bindings() {
-    use posereg::gpu::kernel::Binding;
-    let kernels: [(&str, &[Binding]); 3] = [
-        ("resample", posereg::gpu::resample::BINDINGS),
-        ("jacobian", posereg::gpu::jacobian::BINDINGS),
-        ("ssd_cells", posereg::gpu::ssd_cells::BINDINGS),
-    ];
     assert_eq!(
-        kernels.len(),
+        posereg::gpu::BINDINGS.len(),
         KERNELS.len(),
-        "a kernel is missing from this test"
+        "a kernel has no host layout"
     );
-    for (kernel, host) in kernels {
+    for (kernel, host) in posereg::gpu::BINDINGS {
         let module = parse(kernel);
         let mut declared: Vec<(u32, String)> = module
             .global_variables

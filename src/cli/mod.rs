@@ -1,6 +1,7 @@
 //! The command-line verbs: each parses its arguments, calls the library, and prints.
 
 pub mod info;
+pub mod init;
 pub mod phantom;
 pub mod resample;
 
@@ -24,6 +25,8 @@ pub struct Cli {
 pub enum Command {
     /// Print a NIfTI file's grid, world affine, orientation and intensity range.
     Info(info::InfoArgs),
+    /// Articulated initialisation alone: per-bone rigid, skinning, volume skeletal deformation.
+    Init(init::InitArgs),
     /// Make a knee phantom in any flexion, with exact ground truth.
     Phantom(phantom::PhantomArgs),
     /// Resample an image through a displacement field (ITK convention) onto a target grid.
@@ -34,6 +37,7 @@ pub enum Command {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(args) => info::run(&args),
+        Command::Init(args) => init::run(&args, cli.device),
         Command::Phantom(args) => phantom::run(&args),
         Command::Resample(args) => resample::run(&args, cli.device),
     }

@@ -21,3 +21,36 @@ pub fn linear_row(row: [f32; 4], v: [f32; 3]) -> f32 {
 pub fn cell_start(c: u32, n: u32, cells: u32) -> u32 {
     (c * n + cells - 1) / cells
 }
+
+/// Determinant of the 3×3 matrix with rows r0, r1, r2 (cofactors of the first row).
+pub fn det3(r0: glam::Vec3, r1: glam::Vec3, r2: glam::Vec3) -> f32 {
+    r0.x * (r1.y * r2.z - r1.z * r2.y) - r0.y * (r1.x * r2.z - r1.z * r2.x)
+        + r0.z * (r1.x * r2.y - r1.y * r2.x)
+}
+
+/// Solves A s = e for A with rows r0, r1, r2 by Cramer's rule; `det` = det3(r0, r1, r2) ≠ 0.
+pub fn solve3(
+    r0: glam::Vec3,
+    r1: glam::Vec3,
+    r2: glam::Vec3,
+    det: f32,
+    e: glam::Vec3,
+) -> glam::Vec3 {
+    use glam::Vec3;
+    let sx = det3(
+        Vec3::new(e.x, r0.y, r0.z),
+        Vec3::new(e.y, r1.y, r1.z),
+        Vec3::new(e.z, r2.y, r2.z),
+    );
+    let sy = det3(
+        Vec3::new(r0.x, e.x, r0.z),
+        Vec3::new(r1.x, e.y, r1.z),
+        Vec3::new(r2.x, e.z, r2.z),
+    );
+    let sz = det3(
+        Vec3::new(r0.x, r0.y, e.x),
+        Vec3::new(r1.x, r1.y, e.y),
+        Vec3::new(r2.x, r2.y, e.z),
+    );
+    Vec3::new(sx, sy, sz) / det
+}

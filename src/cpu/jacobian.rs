@@ -1,6 +1,6 @@
 //! CPU twin of shaders/jacobian.wgsl: one slice per rayon task.
 
-use super::common::voxel_index;
+use super::common::{det3, voxel_index};
 use crate::abi::JacobianParams;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -19,11 +19,6 @@ fn difference(lo: Vec3, hi: Vec3, c: u32, n: u32) -> Vec3 {
         return hi - lo;
     }
     (hi - lo) * 0.5
-}
-
-fn det3(r0: Vec3, r1: Vec3, r2: Vec3) -> f32 {
-    r0.x * (r1.y * r2.z - r1.z * r2.y) - r0.y * (r1.x * r2.z - r1.z * r2.x)
-        + r0.z * (r1.x * r2.y - r1.y * r2.x)
 }
 
 /// Fills `det` (one value per voxel of the slab) with det(I + du/dx).

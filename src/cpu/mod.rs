@@ -4,15 +4,23 @@
 
 pub mod common;
 pub mod jacobian;
+pub mod pyramid;
 pub mod resample;
+pub mod rigid_gn;
+pub mod rigid_score;
 pub mod sample;
+pub mod skin_blend;
+pub mod skin_weights;
 pub mod ssd_cells;
 
-use crate::abi::{Interpolation, JacobianParams, ResampleParams, SsdParams};
+use crate::abi::{
+    Interpolation, JacobianParams, PyramidParams, ResampleParams, RigidParams, ScoreParams,
+    SkinBlendParams, SkinWeightsParams, SsdParams,
+};
 use crate::backend::{check_pair, Backend};
 use crate::error::Result;
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
-use crate::volume::{Field, Image, Volume};
+use crate::volume::{Affine, Field, Grid, Image, Volume};
 
 /// Runs every kernel on the host's cores.
 #[derive(Clone, Copy, Debug, Default)]
@@ -62,5 +70,85 @@ impl Backend for CpuBackend {
             grid: field.grid.clone(),
             data: det,
         })
+    }
+
+    fn pyramid_level(&self, input: &Volume, output: &Grid, factors: [usize; 3]) -> Result<Volume> {
+        let params = PyramidParams::new(&input.grid, output.dims, factors);
+        let mut data = vec![0.0f32; output.len()];
+        pyramid::pyramid(&params, &input.data, &mut data);
+        Image::from_data(output.clone(), data)
+    }
+
+    fn rigid_sums(
+        &self,
+        source: &Volume,
+        mask: &Volume,
+        target: &Volume,
+        motion: &Affine,
+        centre: [f64; 3],
+    ) -> Result<Vec<f32>> {
+        check_pair(source, mask)?;
+        let params = RigidParams::new(&source.grid, &target.grid, motion, centre);
+        let [nx, _, nz] = source.grid.dims;
+        let mut partial = vec![0.0f32; nx * nz * rigid_gn::SUMS];
+        rigid_gn::rigid_gn(
+            &params,
+            &source.data,
+            &mask.data,
+            &target.data,
+            &mut partial,
+        );
+        Ok(partial)
+    }
+
+    fn rigid_scores(
+        &self,
+        source: &Volume,
+        mask: &Volume,
+        target: &Volume,
+        candidates: &[Affine],
+    ) -> Result<Vec<f32>> {
+        check_pair(source, mask)?;
+        let params = ScoreParams::new(&source.grid, &target.grid, candidates.len());
+        let packed = crate::rigid::pack_candidates(candidates);
+        let [nx, _, nz] = source.grid.dims;
+        let mut partial = vec![0.0f32; nx * nz * candidates.len() * 2];
+        rigid_score::rigid_score(
+            &params,
+            &source.data,
+            &mask.data,
+            &target.data,
+            &packed,
+            &mut partial,
+        );
+        Ok(partial)
+    }
+
+    fn skin_weights(
+        &self,
+        distances: &[f32],
+        grid: &Grid,
+        bones: usize,
+        power: u32,
+    ) -> Result<Vec<f32>> {
+        let params = SkinWeightsParams::new(grid, bones, power);
+        let mut weights = vec![0.0f32; distances.len()];
+        skin_weights::skin_weights(&params, distances, &mut weights);
+        Ok(weights)
+    }
+
+    fn skin_blend(
+        &self,
+        weights: &[f32],
+        weight_grid: &Grid,
+        target: &Grid,
+        motions: &[Affine],
+        iterations: u32,
+    ) -> Result<Vec<f32>> {
+        crate::skinning::check_bone_count(motions.len())?;
+        let params = SkinBlendParams::new(target, weight_grid, motions, iterations);
+        let mut out = vec![0.0f32; 4 * target.len()];
+        skin_blend::skin_blend(&params, weights, &mut out);
+        Ok(out)
     }
 }

@@ -13,6 +13,22 @@ pub fn trilinear(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -
     if !inside_source(q, dims) {
         return background;
     }
+    trilinear_with_gradient(source, q, dims)[0]
+}
+
+/// The value of the voxel whose centre is nearest to q (ties round up); `background` outside.
+pub fn nearest(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -> f32 {
+    if !inside_source(q, dims) {
+        return background;
+    }
+    let i: [u32; 3] =
+        std::array::from_fn(|a| ((q[a] + 0.5).floor() as i32).clamp(0, dims[a] as i32 - 1) as u32);
+    source[voxel_index(i[0], i[1], i[2], dims) as usize]
+}
+
+/// Value and index-space gradient of the trilinear interpolant at q (caller checks
+/// [`inside_source`]): [value, d/di, d/dj, d/dk].
+pub fn trilinear_with_gradient(source: &[f32], q: [f32; 3], dims: [u32; 3]) -> [f32; 4] {
     let base = q.map(f32::floor);
     let t = [q[0] - base[0], q[1] - base[1], q[2] - base[2]];
     let top = dims.map(|d| d as i32 - 1);
@@ -33,15 +49,11 @@ pub fn trilinear(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -
     let c11 = (1.0 - t[0]) * v011 + t[0] * v111;
     let c0 = (1.0 - t[1]) * c00 + t[1] * c10;
     let c1 = (1.0 - t[1]) * c01 + t[1] * c11;
-    (1.0 - t[2]) * c0 + t[2] * c1
-}
-
-/// The value of the voxel whose centre is nearest to q (ties round up); `background` outside.
-pub fn nearest(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -> f32 {
-    if !inside_source(q, dims) {
-        return background;
-    }
-    let i: [u32; 3] =
-        std::array::from_fn(|a| ((q[a] + 0.5).floor() as i32).clamp(0, dims[a] as i32 - 1) as u32);
-    source[voxel_index(i[0], i[1], i[2], dims) as usize]
+    let value = (1.0 - t[2]) * c0 + t[2] * c1;
+    let dz = c1 - c0;
+    let dy = (1.0 - t[2]) * (c10 - c00) + t[2] * (c11 - c01);
+    let (e00, e10, e01, e11) = (v100 - v000, v110 - v010, v101 - v001, v111 - v011);
+    let dx =
+        (1.0 - t[2]) * ((1.0 - t[1]) * e00 + t[1] * e10) + t[2] * ((1.0 - t[1]) * e01 + t[1] * e11);
+    [value, dx, dy, dz]
 }

@@ -9,15 +9,21 @@ pub mod buffer;
 pub mod context;
 pub mod jacobian;
 pub mod kernel;
+pub mod pyramid;
 pub mod resample;
+pub mod rigid;
 pub mod run;
+pub mod skinning;
 pub mod ssd_cells;
 
-use crate::abi::{Interpolation, JacobianParams, ResampleParams};
+use crate::abi::{
+    Interpolation, JacobianParams, PyramidParams, ResampleParams, RigidParams, ScoreParams,
+    SkinBlendParams, SkinWeightsParams,
+};
 use crate::backend::{check_pair, Backend};
 use crate::error::{Error, Result};
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
-use crate::volume::{Field, Image, Volume};
+use crate::volume::{Affine, Field, Grid, Image, Volume};
 use context::GpuContext;
 use kernel::Kernel;
 
@@ -30,6 +36,27 @@ pub struct Slab {
     pub depth: usize,
 }
 
+/// The bind group layout of every kernel, by name (the names of crate::shaders::KERNELS).
+pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
+    ("jacobian", jacobian::BINDINGS),
+    ("pyramid", pyramid::BINDINGS),
+    ("resample", resample::BINDINGS),
+    ("rigid_gn", rigid::GN_BINDINGS),
+    ("rigid_score", rigid::SCORE_BINDINGS),
+    ("skin_blend", skinning::BLEND_BINDINGS),
+    ("skin_weights", skinning::WEIGHTS_BINDINGS),
+    ("ssd_cells", ssd_cells::BINDINGS),
+];
+
+fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
+    let bindings = BINDINGS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, b)| *b)
+        .unwrap_or_else(|| panic!("kernel {name} has no bindings entry"));
+    Kernel::new(ctx, name, bindings)
+}
+
 /// Every compiled kernel.
 pub struct Kernels {
     /// shaders/resample.wgsl
@@ -38,6 +65,16 @@ pub struct Kernels {
     pub ssd_cells: Kernel,
     /// shaders/jacobian.wgsl
     pub jacobian: Kernel,
+    /// shaders/pyramid.wgsl
+    pub pyramid: Kernel,
+    /// shaders/rigid_gn.wgsl
+    pub rigid_gn: Kernel,
+    /// shaders/rigid_score.wgsl
+    pub rigid_score: Kernel,
+    /// shaders/skin_weights.wgsl
+    pub skin_weights: Kernel,
+    /// shaders/skin_blend.wgsl
+    pub skin_blend: Kernel,
 }
 
 /// The GPU backend with its compiled kernels.
@@ -58,9 +95,14 @@ impl GpuBackend {
     pub fn with_context(ctx: GpuContext) -> Result<Self> {
         Ok(GpuBackend {
             kernels: Kernels {
-                resample: Kernel::new(&ctx, "resample", resample::BINDINGS)?,
-                ssd_cells: Kernel::new(&ctx, "ssd_cells", ssd_cells::BINDINGS)?,
-                jacobian: Kernel::new(&ctx, "jacobian", jacobian::BINDINGS)?,
+                resample: compile(&ctx, "resample")?,
+                ssd_cells: compile(&ctx, "ssd_cells")?,
+                jacobian: compile(&ctx, "jacobian")?,
+                pyramid: compile(&ctx, "pyramid")?,
+                rigid_gn: compile(&ctx, "rigid_gn")?,
+                rigid_score: compile(&ctx, "rigid_score")?,
+                skin_weights: compile(&ctx, "skin_weights")?,
+                skin_blend: compile(&ctx, "skin_blend")?,
             },
             ctx,
             max_slab_voxels: None,
@@ -152,5 +194,69 @@ impl Backend for GpuBackend {
         let params = JacobianParams::new(&field.grid);
         let data = jacobian::jacobian(self, &params, bytemuck::cast_slice(&field.data))?;
         Image::from_data(field.grid.clone(), data)
+    }
+
+    fn pyramid_level(&self, input: &Volume, output: &Grid, factors: [usize; 3]) -> Result<Volume> {
+        let params = PyramidParams::new(&input.grid, output.dims, factors);
+        Image::from_data(
+            output.clone(),
+            pyramid::pyramid(self, &params, &input.data)?,
+        )
+    }
+
+    fn rigid_sums(
+        &self,
+        source: &Volume,
+        mask: &Volume,
+        target: &Volume,
+        motion: &Affine,
+        centre: [f64; 3],
+    ) -> Result<Vec<f32>> {
+        check_pair(source, mask)?;
+        let params = RigidParams::new(&source.grid, &target.grid, motion, centre);
+        rigid::rigid_sums(self, &params, &source.data, &mask.data, &target.data)
+    }
+
+    fn rigid_scores(
+        &self,
+        source: &Volume,
+        mask: &Volume,
+        target: &Volume,
+        candidates: &[Affine],
+    ) -> Result<Vec<f32>> {
+        check_pair(source, mask)?;
+        let params = ScoreParams::new(&source.grid, &target.grid, candidates.len());
+        let packed = crate::rigid::pack_candidates(candidates);
+        rigid::rigid_scores(
+            self,
+            &params,
+            &source.data,
+            &mask.data,
+            &target.data,
+            &packed,
+        )
+    }
+
+    fn skin_weights(
+        &self,
+        distances: &[f32],
+        grid: &Grid,
+        bones: usize,
+        power: u32,
+    ) -> Result<Vec<f32>> {
+        skinning::skin_weights(self, &SkinWeightsParams::new(grid, bones, power), distances)
+    }
+
+    fn skin_blend(
+        &self,
+        weights: &[f32],
+        weight_grid: &Grid,
+        target: &Grid,
+        motions: &[Affine],
+        iterations: u32,
+    ) -> Result<Vec<f32>> {
+        crate::skinning::check_bone_count(motions.len())?;
+        let params = SkinBlendParams::new(target, weight_grid, motions, iterations);
+        skinning::skin_blend(self, &params, weights)
     }
 }

@@ -1,0 +1,129 @@
+// skin_blend.wgsl: volume skeletal deformation (paper eq. 1) inverted for pull-back resampling.
+//
+// The blend maps a source point x to B(x) = Σ_j w_j(x) M_j x (linear blend skinning of the
+// whole volume; w_j trilinear from the weight grid, clamped to its edge). For each target voxel
+// p this finds the source point x with B(x) = p: start from the bone whose inverse M_j⁻¹ p
+// blends back closest to p, then Newton-like steps x ← x − A(x)⁻¹ (B(x) − p) with
+// A = Σ_j w_j L_j (the blended linear part; the weights' own derivative is left out, which keeps
+// each step a 3×3 solve and converges where weights vary slowly against the motion).
+// Output per voxel: u = x − p (the initial displacement field, world mm) and the residual
+// |B(x) − p| (mm), so the host can report the worst inversion.
+//
+// Bindings (group 0):
+//   0 uniform  SkinBlendParams (bone matrices for up to 8 bones)
+//   1 storage  weight: array<f32>  bones floats per voxel of the weight grid, whole
+//   2 storage  out: array<f32>     4 floats per target voxel of this slab (read_write)
+// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(depth/4)) over the target grid.
+
+// Keep in sync with abi::SkinBlendParams.
+struct SkinBlendParams {
+    dims: vec4<u32>,        // target nx, ny, nz, z0
+    slab: vec4<u32>,        // depth, bones, iterations, unused
+    weight_dims: vec4<u32>, // weight grid nx, ny, nz, unused
+    target_to_world: array<vec4<f32>, 3>,
+    world_to_weight: array<vec4<f32>, 3>,
+    forward: array<vec4<f32>, 24>,   // 3 rows of M_j per bone
+    inverse: array<vec4<f32>, 24>,   // 3 rows of M_j⁻¹ per bone
+}
+
+@group(0) @binding(0) var<uniform> params: SkinBlendParams;
+@group(0) @binding(1) var<storage, read> weight: array<f32>;
+@group(0) @binding(2) var<storage, read_write> out: array<f32>;
+
+struct Blend {
+    point: vec3<f32>,  // B(x)
+    r0: vec3<f32>,     // rows of A(x)
+    r1: vec3<f32>,
+    r2: vec3<f32>,
+}
+
+fn blend(x: vec3<f32>) -> Blend {
+    let n = params.weight_dims.xyz;
+    let bones = params.slab.y;
+    let s = vec3<f32>(
+        affine_row(params.world_to_weight[0], x),
+        affine_row(params.world_to_weight[1], x),
+        affine_row(params.world_to_weight[2], x),
+    );
+    let q = clamp(s, vec3<f32>(0.0), vec3<f32>(n - vec3<u32>(1u)));
+    let base = floor(q);
+    let t = q - base;
+    let i0 = vec3<u32>(base);
+    let i1 = min(i0 + vec3<u32>(1u), n - vec3<u32>(1u));
+    var b: Blend;
+    b.point = vec3<f32>(0.0);
+    b.r0 = vec3<f32>(0.0);
+    b.r1 = vec3<f32>(0.0);
+    b.r2 = vec3<f32>(0.0);
+    for (var j = 0u; j < bones; j = j + 1u) {
+        let v000 = weight[voxel_index(i0.x, i0.y, i0.z, n) * bones + j];
+        let v100 = weight[voxel_index(i1.x, i0.y, i0.z, n) * bones + j];
+        let v010 = weight[voxel_index(i0.x, i1.y, i0.z, n) * bones + j];
+        let v110 = weight[voxel_index(i1.x, i1.y, i0.z, n) * bones + j];
+        let v001 = weight[voxel_index(i0.x, i0.y, i1.z, n) * bones + j];
+        let v101 = weight[voxel_index(i1.x, i0.y, i1.z, n) * bones + j];
+        let v011 = weight[voxel_index(i0.x, i1.y, i1.z, n) * bones + j];
+        let v111 = weight[voxel_index(i1.x, i1.y, i1.z, n) * bones + j];
+        let c00 = (1.0 - t.x) * v000 + t.x * v100;
+        let c10 = (1.0 - t.x) * v010 + t.x * v110;
+        let c01 = (1.0 - t.x) * v001 + t.x * v101;
+        let c11 = (1.0 - t.x) * v011 + t.x * v111;
+        let c0 = (1.0 - t.y) * c00 + t.y * c10;
+        let c1 = (1.0 - t.y) * c01 + t.y * c11;
+        let w = (1.0 - t.z) * c0 + t.z * c1;
+        let m0 = params.forward[3u * j];
+        let m1 = params.forward[3u * j + 1u];
+        let m2 = params.forward[3u * j + 2u];
+        b.point = b.point + w * vec3<f32>(affine_row(m0, x), affine_row(m1, x), affine_row(m2, x));
+        b.r0 = b.r0 + w * m0.xyz;
+        b.r1 = b.r1 + w * m1.xyz;
+        b.r2 = b.r2 + w * m2.xyz;
+    }
+    return b;
+}
+
+@compute @workgroup_size(4, 4, 4)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let d = params.dims;
+    let depth = params.slab.x;
+    if (gid.x >= d.x || gid.y >= d.y || gid.z >= depth) {
+        return;
+    }
+    let bones = params.slab.y;
+    let v = vec3<f32>(f32(gid.x), f32(gid.y), f32(gid.z + d.w));
+    let p = vec3<f32>(
+        affine_row(params.target_to_world[0], v),
+        affine_row(params.target_to_world[1], v),
+        affine_row(params.target_to_world[2], v),
+    );
+    var x = p;
+    var best = 3.4e38;
+    for (var j = 0u; j < bones; j = j + 1u) {
+        let candidate = vec3<f32>(
+            affine_row(params.inverse[3u * j], p),
+            affine_row(params.inverse[3u * j + 1u], p),
+            affine_row(params.inverse[3u * j + 2u], p),
+        );
+        let miss = length(blend(candidate).point - p);
+        if (miss < best) {
+            best = miss;
+            x = candidate;
+        }
+    }
+    for (var it = 0u; it < params.slab.z; it = it + 1u) {
+        let b = blend(x);
+        let e = b.point - p;
+        let det = det3(b.r0, b.r1, b.r2);
+        if (abs(det) > 1e-6) {
+            x = x - solve3(b.r0, b.r1, b.r2, det, e);
+        } else {
+            x = x - e;
+        }
+    }
+    let residual = length(blend(x).point - p);
+    let o = 4u * voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth));
+    out[o] = x.x - p.x;
+    out[o + 1u] = x.y - p.y;
+    out[o + 2u] = x.z - p.z;
+    out[o + 3u] = residual;
+}

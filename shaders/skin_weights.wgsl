@@ -1,0 +1,60 @@
+// skin_weights.wgsl: skinning weights w_j(x) from each bone's distance map: a partition of unity
+// that is exactly 1 inside bone j and 0 inside every other bone, and in soft tissue the
+// normalised inverse-distance (Shepard) weights w_j ∝ d_j^-p. Shepard weights need no solve,
+// are smooth away from the bones, and let the nearest bone dominate; computed as
+// (d_min / d_j)^p so nothing underflows.
+//
+// Bindings (group 0):
+//   0 uniform  SkinWeightsParams
+//   1 storage  distance: array<f32>  bones floats per voxel (mm to each bone, 0 inside), slab
+//   2 storage  weight: array<f32>    bones floats per voxel, slab (read_write)
+// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(depth/4)).
+
+// Keep in sync with abi::SkinWeightsParams.
+struct SkinWeightsParams {
+    dims: vec4<u32>,   // nx, ny, nz, z0
+    slab: vec4<u32>,   // depth, bones, power (integer p), unused
+}
+
+@group(0) @binding(0) var<uniform> params: SkinWeightsParams;
+@group(0) @binding(1) var<storage, read> distance: array<f32>;
+@group(0) @binding(2) var<storage, read_write> weight: array<f32>;
+
+@compute @workgroup_size(4, 4, 4)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let d = params.dims;
+    let depth = params.slab.x;
+    if (gid.x >= d.x || gid.y >= d.y || gid.z >= depth) {
+        return;
+    }
+    let bones = params.slab.y;
+    let base = voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth)) * bones;
+    var inside = bones;
+    var nearest = distance[base];
+    for (var j = 0u; j < bones; j = j + 1u) {
+        let dj = distance[base + j];
+        if (dj <= 0.0 && inside == bones) {
+            inside = j;
+        }
+        nearest = min(nearest, dj);
+    }
+    if (inside < bones) {
+        for (var j = 0u; j < bones; j = j + 1u) {
+            weight[base + j] = select(0.0, 1.0, j == inside);
+        }
+        return;
+    }
+    var total = 0.0;
+    for (var j = 0u; j < bones; j = j + 1u) {
+        let ratio = nearest / distance[base + j];
+        var raw = 1.0;
+        for (var k = 0u; k < params.slab.z; k = k + 1u) {
+            raw = raw * ratio;
+        }
+        weight[base + j] = raw;
+        total = total + raw;
+    }
+    for (var j = 0u; j < bones; j = j + 1u) {
+        weight[base + j] = weight[base + j] / total;
+    }
+}

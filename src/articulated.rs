@@ -1,0 +1,408 @@
+//! Articulated initialisation (paper §2): per-bone rigid registration coarse to fine, skinning
+//! weights, and the inverted volume skeletal deformation, giving the initial field u0.
+
+use crate::abi::Interpolation;
+use crate::backend::Backend;
+use crate::error::{Error, Result};
+use crate::io::transform::{BoneTransform, BoneTransforms};
+use crate::joint::{flexion_axis, rotation_about, JointAxis};
+use crate::phantom::anatomy::label;
+use crate::pyramid;
+use crate::rigid::{refine, score_candidates, LevelReport, RefineOptions};
+use crate::skinning::{self, distance_map, SkinningWeights};
+use crate::volume::{Affine, Field, Image, Labels, Volume};
+use crate::vsd::{initial_field, InitialField};
+use nalgebra::{Rotation3, Unit, Vector3};
+
+/// Name of a bone label code.
+pub fn bone_name(code: u16) -> String {
+    match code {
+        label::FEMUR => "femur".into(),
+        label::TIBIA => "tibia".into(),
+        label::PATELLA => "patella".into(),
+        label::FIBULA => "fibula".into(),
+        other => format!("bone{other}"),
+    }
+}
+
+/// Settings of the initialisation.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct InitOptions {
+    /// Bone labels to register (default: every bone label 2..=5 present).
+    pub bones: Vec<u16>,
+    /// The bone registered first, from the identity; the others start from its motion.
+    pub reference: u16,
+    /// Pyramid levels.
+    pub levels: usize,
+    /// Rigid registration runs on levels whose finest spacing is at least this (mm): finer
+    /// levels add time, not accuracy, at the sub-voxel precision the bones reach.
+    pub finest_spacing_mm: f64,
+    /// The bone region is the label dilated by this much (mm), so the bone's edges count.
+    pub dilation_mm: f64,
+    /// Flexion angles searched (degrees): from, to, step.
+    pub search_degrees: [f64; 3],
+    /// Tilts of the search axis away from the labels' flexion axis (degrees).
+    pub search_tilt_degrees: f64,
+}
+
+impl Default for InitOptions {
+    fn default() -> Self {
+        InitOptions {
+            bones: Vec::new(),
+            reference: label::FEMUR,
+            levels: 4,
+            finest_spacing_mm: 1.0,
+            dilation_mm: 3.0,
+            search_degrees: [-30.0, 150.0, 4.0],
+            search_tilt_degrees: 15.0,
+        }
+    }
+}
+
+/// One bone's outcome.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BoneReport {
+    /// Label code.
+    pub label: u16,
+    /// Name.
+    pub name: String,
+    /// Flexion angle of the best search candidate (degrees), when searched.
+    pub search_degrees: Option<f64>,
+    /// Refinement per level, coarse to fine.
+    pub levels: Vec<LevelReport>,
+}
+
+/// Everything the initialisation produces.
+pub struct Initialisation {
+    /// Bone motions, source → target (RAS), in `bones` order.
+    pub motions: Vec<(u16, Affine)>,
+    /// The flexion axis found from the labels.
+    pub axis: JointAxis,
+    /// Skinning weights.
+    pub weights: SkinningWeights,
+    /// The initial field and its inversion residual.
+    pub initial: InitialField,
+    /// The source moved by the initial field, on the target grid.
+    pub initialised: Volume,
+    /// Per-bone reports.
+    pub reports: Vec<BoneReport>,
+}
+
+impl Initialisation {
+    /// The bone motions in the on-disk format.
+    pub fn transforms(&self) -> BoneTransforms {
+        BoneTransforms::new(
+            self.motions
+                .iter()
+                .map(|(code, m)| BoneTransform::new(*code, &bone_name(*code), m))
+                .collect(),
+        )
+    }
+}
+
+/// Bone labels present in `labels` among the known bone codes.
+pub fn present_bones(labels: &Labels) -> Vec<u16> {
+    [label::FEMUR, label::TIBIA, label::PATELLA, label::FIBULA]
+        .into_iter()
+        .filter(|code| labels.data.contains(code))
+        .collect()
+}
+
+/// Candidate motions for a non-reference bone: rotations about the flexion axis (and about
+/// axes tilted from it) through the condyles, after the reference bone's motion.
+fn candidates(axis: &JointAxis, reference: &Affine, options: &InitOptions) -> Vec<(f64, Affine)> {
+    let tilt = options.search_tilt_degrees.to_radians();
+    let tilted = |about: Vector3<f64>, t: f64| {
+        Rotation3::from_axis_angle(&Unit::new_normalize(about), t) * axis.direction
+    };
+    let directions = [
+        axis.direction,
+        tilted(axis.long_axis, tilt),
+        tilted(axis.long_axis, -tilt),
+        tilted(axis.anterior, tilt),
+        tilted(axis.anterior, -tilt),
+    ];
+    let [from, to, step] = options.search_degrees;
+    let angles: Vec<f64> = (0..)
+        .map(|k| from + k as f64 * step)
+        .take_while(|a| *a <= to + 1e-9)
+        .collect();
+    directions
+        .iter()
+        .flat_map(|d| {
+            let a = JointAxis {
+                direction: *d,
+                ..*axis
+            };
+            angles
+                .iter()
+                .map(move |&deg| (deg, reference * rotation_about(&a, deg)))
+        })
+        .collect()
+}
+
+/// Bone-region masks (label dilated by `dilation_mm`) on a pyramid's levels.
+fn region_masks(
+    backend: &dyn Backend,
+    labels: &Labels,
+    code: u16,
+    source_levels: &[Volume],
+    first: usize,
+    dilation_mm: f64,
+) -> Result<Vec<Volume>> {
+    let indicator: Volume = Image {
+        grid: labels.grid.clone(),
+        data: labels
+            .data
+            .iter()
+            .map(|&l| (l == code) as u8 as f32)
+            .collect(),
+    };
+    let down = pyramid::build_like(backend, &indicator, &source_levels[..=first])?;
+    let at_first = &down[first];
+    let inside: Vec<bool> = at_first.data.iter().map(|&v| v >= 0.5).collect();
+    let dilated: Volume = Image {
+        grid: at_first.grid.clone(),
+        data: distance_map(&at_first.grid, &inside)
+            .iter()
+            .map(|&d| (d <= dilation_mm as f32) as u8 as f32)
+            .collect(),
+    };
+    let mut masks = pyramid::build_like(backend, &dilated, &source_levels[first..])?;
+    // Index masks by absolute level: levels below `first` are never used.
+    let mut out: Vec<Volume> = source_levels[..first].to_vec();
+    out.append(&mut masks);
+    Ok(out)
+}
+
+fn region_centroid(mask: &Volume) -> Vector3<f64> {
+    let d = mask.grid.dims;
+    let (mut sum, mut n) = (Vector3::zeros(), 0.0f64);
+    for (i, &m) in mask.data.iter().enumerate() {
+        if m >= 0.5 {
+            let w = mask.grid.voxel_to_world([
+                (i % d[0]) as f64,
+                ((i / d[0]) % d[1]) as f64,
+                (i / (d[0] * d[1])) as f64,
+            ]);
+            sum += Vector3::new(w[0], w[1], w[2]);
+            n += 1.0;
+        }
+    }
+    sum / n.max(1.0)
+}
+
+/// Registers one bone from `start` through the levels coarse to fine, after an optional
+/// search at its coarsest usable level.
+#[allow(clippy::too_many_arguments)]
+fn register_bone(
+    backend: &dyn Backend,
+    code: u16,
+    source: &[Volume],
+    target: &[Volume],
+    masks: &[Volume],
+    first: usize,
+    start: Affine,
+    search: Option<Vec<(f64, Affine)>>,
+) -> Result<(Affine, BoneReport)> {
+    let enough = |m: &Volume| m.data.iter().filter(|&&v| v >= 0.5).count() >= 200;
+    let coarsest = (first..source.len())
+        .rev()
+        .find(|&l| enough(&masks[l]))
+        .unwrap_or(first);
+    let options = RefineOptions::default();
+    let mut motion = start;
+    let mut searched = None;
+    let mut levels = Vec::new();
+    if let Some(cands) = search {
+        let (s, m, t) = (&source[coarsest], &masks[coarsest], &target[coarsest]);
+        let motions: Vec<Affine> = cands.iter().map(|c| c.1).collect();
+        let scores = score_candidates(backend, s, m, t, &motions)?;
+        let mut order: Vec<usize> = (0..cands.len()).collect();
+        order.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]));
+        // Refine the three best candidates and keep the one that fits best.
+        let centroid = region_centroid(m);
+        let mut best: Option<(f64, Affine, f64, LevelReport)> = None;
+        for &k in order.iter().take(3).filter(|&&k| scores[k].is_finite()) {
+            let (refined, report) = refine(backend, s, m, t, cands[k].1, &centroid, &options)?;
+            if best.as_ref().is_none_or(|b| report.cost_after < b.0) {
+                best = Some((report.cost_after, refined, cands[k].0, report));
+            }
+        }
+        let (_, refined, degrees, report) = best.ok_or_else(|| {
+            Error::InvalidInput(format!(
+                "bone {code}: no search candidate overlaps the target"
+            ))
+        })?;
+        motion = refined;
+        searched = Some(degrees);
+        levels.push(report);
+    }
+    let finer_from = if searched.is_some() {
+        coarsest.saturating_sub(1)
+    } else {
+        coarsest
+    };
+    let range: Vec<usize> = if searched.is_some() && coarsest == first {
+        Vec::new()
+    } else {
+        (first..=finer_from).rev().collect()
+    };
+    for l in range {
+        let centroid = region_centroid(&masks[l]);
+        let (refined, report) = refine(
+            backend, &source[l], &masks[l], &target[l], motion, &centroid, &options,
+        )?;
+        motion = refined;
+        levels.push(report);
+    }
+    Ok((
+        motion,
+        BoneReport {
+            label: code,
+            name: bone_name(code),
+            search_degrees: searched,
+            levels,
+        },
+    ))
+}
+
+/// Runs the articulated initialisation. `given` skips the rigid stage with known motions.
+pub fn initialise(
+    backend: &dyn Backend,
+    source: &Volume,
+    labels: &Labels,
+    target: &Volume,
+    options: &InitOptions,
+    given: Option<&BoneTransforms>,
+) -> Result<Initialisation> {
+    if !labels.grid.same_as(&source.grid, 1e-3) {
+        return Err(Error::InvalidInput(
+            "the label map is not on the source image's grid".into(),
+        ));
+    }
+    let bones = if options.bones.is_empty() {
+        present_bones(labels)
+    } else {
+        options.bones.clone()
+    };
+    for b in &bones {
+        if !labels.data.contains(b) {
+            return Err(Error::InvalidInput(format!(
+                "bone label {b} has no voxels in the label map"
+            )));
+        }
+    }
+    if bones.is_empty() {
+        return Err(Error::InvalidInput(
+            "the label map has no bone labels (2 femur, 3 tibia, 4 patella, 5 fibula)".into(),
+        ));
+    }
+    skinning::check_bone_count(bones.len())?;
+    let axis = flexion_axis(labels)?;
+    let motions: Vec<(u16, Affine)>;
+    let mut reports = Vec::new();
+    if let Some(given) = given {
+        motions = bones
+            .iter()
+            .map(|b| {
+                given
+                    .bones
+                    .iter()
+                    .find(|t| t.label == *b)
+                    .map(|t| (*b, t.affine()))
+                    .ok_or_else(|| {
+                        Error::InvalidInput(format!("--init has no transform for bone label {b}"))
+                    })
+            })
+            .collect::<Result<_>>()?;
+    } else {
+        let source_levels = pyramid::build(backend, source, options.levels)?;
+        let target_levels = pyramid::build(backend, target, options.levels)?;
+        let first = source_levels
+            .iter()
+            .position(|v| {
+                v.grid
+                    .spacing()
+                    .iter()
+                    .cloned()
+                    .fold(f64::INFINITY, f64::min)
+                    >= options.finest_spacing_mm - 1e-9
+            })
+            .unwrap_or(source_levels.len() - 1)
+            .min(target_levels.len() - 1);
+        let source_levels = &source_levels[..target_levels.len().min(source_levels.len())];
+        let mut order = bones.clone();
+        order.sort_by_key(|&b| b != options.reference);
+        let mut found: Vec<(u16, Affine)> = Vec::new();
+        let mut reference = Affine::identity();
+        for code in order {
+            let masks = region_masks(
+                backend,
+                labels,
+                code,
+                source_levels,
+                first,
+                options.dilation_mm,
+            )?;
+            let is_reference = code == options.reference;
+            let search = (!is_reference).then(|| candidates(&axis, &reference, options));
+            let (motion, report) = register_bone(
+                backend,
+                code,
+                source_levels,
+                &target_levels,
+                &masks,
+                first,
+                reference,
+                search,
+            )?;
+            if is_reference {
+                reference = motion;
+            }
+            found.push((code, motion));
+            reports.push(report);
+        }
+        motions = bones
+            .iter()
+            .map(|b| *found.iter().find(|f| f.0 == *b).expect("registered"))
+            .collect();
+    }
+    let weights = skinning::weights(backend, labels, &bones)?;
+    let matrices: Vec<Affine> = motions.iter().map(|m| m.1).collect();
+    let initial = initial_field(backend, &weights, &matrices, &target.grid)?;
+    let initialised = backend.resample(source, &initial.field, 0.0, Interpolation::Linear)?;
+    Ok(Initialisation {
+        motions,
+        axis,
+        weights,
+        initial,
+        initialised,
+        reports,
+    })
+}
+
+/// A field that moves every point by one rigid motion (source → target), on `grid`: what
+/// aligning a single bone gives the whole volume.
+pub fn rigid_field(motion: &Affine, grid: &crate::volume::Grid) -> Result<Field> {
+    let inverse = motion
+        .try_inverse()
+        .ok_or_else(|| Error::InvalidInput("motion is singular".into()))?;
+    let d = grid.dims;
+    let data = (0..grid.len())
+        .map(|n| {
+            let w = grid.voxel_to_world([
+                (n % d[0]) as f64,
+                ((n / d[0]) % d[1]) as f64,
+                (n / (d[0] * d[1])) as f64,
+            ]);
+            let q = inverse * nalgebra::Vector4::new(w[0], w[1], w[2], 1.0);
+            [
+                (q.x - w[0]) as f32,
+                (q.y - w[1]) as f32,
+                (q.z - w[2]) as f32,
+            ]
+        })
+        .collect();
+    Image::from_data(grid.clone(), data)
+}

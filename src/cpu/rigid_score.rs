@@ -1,0 +1,67 @@
+//! CPU twin of shaders/rigid_score.wgsl.
+
+use super::common::{affine_row, voxel_index};
+use super::sample::{inside_source, trilinear};
+use crate::abi::ScoreParams;
+use rayon::prelude::*;
+
+/// Fills `partial` with (Σ r², count) per column and candidate, layout
+/// ((zl * nx + x) * candidates + c) * 2.
+pub fn rigid_score(
+    params: &ScoreParams,
+    source: &[f32],
+    mask: &[f32],
+    target: &[f32],
+    candidates: &[f32],
+    partial: &mut [f32],
+) {
+    let [nx, ny, _, z0] = params.dims;
+    let [depth, count, _, _] = params.slab;
+    let tdims = [
+        params.target_dims[0],
+        params.target_dims[1],
+        params.target_dims[2],
+    ];
+    partial
+        .par_chunks_mut((nx * count * 2) as usize)
+        .enumerate()
+        .for_each(|(zl, out)| {
+            let zl = zl as u32;
+            for x in 0..nx {
+                for c in 0..count {
+                    let row = |r: u32| -> [f32; 4] {
+                        let b = (c * 12 + r * 4) as usize;
+                        [
+                            candidates[b],
+                            candidates[b + 1],
+                            candidates[b + 2],
+                            candidates[b + 3],
+                        ]
+                    };
+                    let m = [row(0), row(1), row(2)];
+                    let (mut sum, mut n) = (0.0f32, 0.0f32);
+                    for y in 0..ny {
+                        let i = voxel_index(x, y, zl, [nx, ny, depth]) as usize;
+                        if mask[i] < 0.5 {
+                            continue;
+                        }
+                        let p = [x as f32, y as f32, (zl + z0) as f32];
+                        let w: [f32; 3] =
+                            std::array::from_fn(|r| affine_row(params.source_to_world[r], p));
+                        let moved: [f32; 3] = std::array::from_fn(|r| affine_row(m[r], w));
+                        let q: [f32; 3] =
+                            std::array::from_fn(|r| affine_row(params.world_to_target[r], moved));
+                        if !inside_source(q, tdims) {
+                            continue;
+                        }
+                        let r = trilinear(target, q, tdims, 0.0) - source[i];
+                        sum += r * r;
+                        n += 1.0;
+                    }
+                    let base = ((x * count + c) * 2) as usize;
+                    out[base] = sum;
+                    out[base + 1] = n;
+                }
+            }
+        });
+}

@@ -1,0 +1,119 @@
+//! CPU twin of shaders/skin_blend.wgsl.
+
+use super::common::{affine_row, det3, solve3, voxel_index};
+use crate::abi::SkinBlendParams;
+use glam::Vec3;
+use rayon::prelude::*;
+
+struct Blend {
+    point: Vec3,
+    r0: Vec3,
+    r1: Vec3,
+    r2: Vec3,
+}
+
+fn row(r: [f32; 4]) -> Vec3 {
+    Vec3::new(r[0], r[1], r[2])
+}
+
+fn blend(params: &SkinBlendParams, weight: &[f32], x: Vec3) -> Blend {
+    let n = [
+        params.weight_dims[0],
+        params.weight_dims[1],
+        params.weight_dims[2],
+    ];
+    let bones = params.slab[1];
+    let xa = x.to_array();
+    let s = Vec3::from_array(std::array::from_fn(|r| {
+        affine_row(params.world_to_weight[r], xa)
+    }));
+    let q = s.clamp(
+        Vec3::ZERO,
+        Vec3::new(n[0] as f32 - 1.0, n[1] as f32 - 1.0, n[2] as f32 - 1.0),
+    );
+    let base = q.floor();
+    let t = q - base;
+    let i0 = [base.x as u32, base.y as u32, base.z as u32];
+    let i1: [u32; 3] = std::array::from_fn(|a| (i0[a] + 1).min(n[a] - 1));
+    let mut b = Blend {
+        point: Vec3::ZERO,
+        r0: Vec3::ZERO,
+        r1: Vec3::ZERO,
+        r2: Vec3::ZERO,
+    };
+    for j in 0..bones {
+        let v = |x: u32, y: u32, z: u32| weight[(voxel_index(x, y, z, n) * bones + j) as usize];
+        let v000 = v(i0[0], i0[1], i0[2]);
+        let v100 = v(i1[0], i0[1], i0[2]);
+        let v010 = v(i0[0], i1[1], i0[2]);
+        let v110 = v(i1[0], i1[1], i0[2]);
+        let v001 = v(i0[0], i0[1], i1[2]);
+        let v101 = v(i1[0], i0[1], i1[2]);
+        let v011 = v(i0[0], i1[1], i1[2]);
+        let v111 = v(i1[0], i1[1], i1[2]);
+        let c00 = (1.0 - t.x) * v000 + t.x * v100;
+        let c10 = (1.0 - t.x) * v010 + t.x * v110;
+        let c01 = (1.0 - t.x) * v001 + t.x * v101;
+        let c11 = (1.0 - t.x) * v011 + t.x * v111;
+        let c0 = (1.0 - t.y) * c00 + t.y * c10;
+        let c1 = (1.0 - t.y) * c01 + t.y * c11;
+        let w = (1.0 - t.z) * c0 + t.z * c1;
+        let m = [0, 1, 2].map(|r| params.forward[(3 * j + r) as usize]);
+        b.point += w * Vec3::new(
+            affine_row(m[0], xa),
+            affine_row(m[1], xa),
+            affine_row(m[2], xa),
+        );
+        b.r0 += w * row(m[0]);
+        b.r1 += w * row(m[1]);
+        b.r2 += w * row(m[2]);
+    }
+    b
+}
+
+/// Fills `out` (4 floats per target voxel of the slab: u and the inversion residual).
+pub fn skin_blend(params: &SkinBlendParams, weight: &[f32], out: &mut [f32]) {
+    let [nx, ny, _, z0] = params.dims;
+    let bones = params.slab[1];
+    out.par_chunks_mut((4 * nx * ny) as usize)
+        .enumerate()
+        .for_each(|(zl, slice)| {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let v = [i as f32, j as f32, (zl as u32 + z0) as f32];
+                    let p = Vec3::from_array(std::array::from_fn(|r| {
+                        affine_row(params.target_to_world[r], v)
+                    }));
+                    let pa = p.to_array();
+                    let mut x = p;
+                    let mut best = 3.4e38f32;
+                    for b in 0..bones {
+                        let inv = |r: u32| params.inverse[(3 * b + r) as usize];
+                        let candidate = Vec3::new(
+                            affine_row(inv(0), pa),
+                            affine_row(inv(1), pa),
+                            affine_row(inv(2), pa),
+                        );
+                        let miss = (blend(params, weight, candidate).point - p).length();
+                        if miss < best {
+                            best = miss;
+                            x = candidate;
+                        }
+                    }
+                    for _ in 0..params.slab[2] {
+                        let b = blend(params, weight, x);
+                        let e = b.point - p;
+                        let det = det3(b.r0, b.r1, b.r2);
+                        x = if det.abs() > 1e-6 {
+                            x - solve3(b.r0, b.r1, b.r2, det, e)
+                        } else {
+                            x - e
+                        };
+                    }
+                    let residual = (blend(params, weight, x).point - p).length();
+                    let o = 4 * (i + nx * j) as usize;
+                    slice[o..o + 4].copy_from_slice(&[x.x - p.x, x.y - p.y, x.z - p.z, residual]);
+                }
+            }
+        });
+}

@@ -1,0 +1,36 @@
+//! CPU twin of shaders/skin_weights.wgsl.
+
+use crate::abi::SkinWeightsParams;
+use rayon::prelude::*;
+
+/// Fills `weight` (bones per voxel) from `distance` (bones per voxel), for one slab.
+pub fn skin_weights(params: &SkinWeightsParams, distance: &[f32], weight: &mut [f32]) {
+    let bones = params.slab[1] as usize;
+    let power = params.slab[2];
+    weight
+        .par_chunks_mut(bones)
+        .zip(distance.par_chunks(bones))
+        .for_each(|(w, d)| {
+            let inside = d.iter().position(|&dj| dj <= 0.0);
+            if let Some(j) = inside {
+                for (k, wk) in w.iter_mut().enumerate() {
+                    *wk = if k == j { 1.0 } else { 0.0 };
+                }
+                return;
+            }
+            let nearest = d.iter().fold(d[0], |m, &dj| m.min(dj));
+            let mut total = 0.0f32;
+            for (wk, dk) in w.iter_mut().zip(d) {
+                let ratio = nearest / dk;
+                let mut raw = 1.0f32;
+                for _ in 0..power {
+                    raw *= ratio;
+                }
+                *wk = raw;
+                total += raw;
+            }
+            for wk in w.iter_mut() {
+                *wk /= total;
+            }
+        });
+}

@@ -1,0 +1,125 @@
+//! The knee's flexion axis, found from the bone labels of the straight (source) scan: through
+//! the femoral condyles, medio-lateral, oriented so that a positive rotation swings the shank
+//! posteriorly — the direction a knee bends.
+
+use crate::error::{Error, Result};
+use crate::phantom::anatomy::label;
+use crate::volume::Labels;
+use nalgebra::{Matrix3, Vector3};
+
+/// A rotation axis in world RAS mm.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointAxis {
+    /// A point on the axis: the centre of the distal femur (the condyles).
+    pub point: Vector3<f64>,
+    /// Unit direction; positive rotations flex the knee.
+    pub direction: Vector3<f64>,
+    /// Unit long axis of the femur, pointing proximally (away from the knee).
+    pub long_axis: Vector3<f64>,
+    /// Unit anterior direction, perpendicular to the long axis.
+    pub anterior: Vector3<f64>,
+}
+
+/// Thickness of the distal femur slab that locates the condyles (mm).
+const CONDYLE_SLAB_MM: f64 = 25.0;
+
+fn world_points(labels: &Labels, code: u16) -> Vec<Vector3<f64>> {
+    let d = labels.grid.dims;
+    labels
+        .data
+        .iter()
+        .enumerate()
+        .filter(|(_, &l)| l == code)
+        .map(|(n, _)| {
+            let w = labels.grid.voxel_to_world([
+                (n % d[0]) as f64,
+                ((n / d[0]) % d[1]) as f64,
+                (n / (d[0] * d[1])) as f64,
+            ]);
+            Vector3::new(w[0], w[1], w[2])
+        })
+        .collect()
+}
+
+fn centroid(points: &[Vector3<f64>]) -> Vector3<f64> {
+    points.iter().sum::<Vector3<f64>>() / points.len() as f64
+}
+
+/// Eigenvector of the points' covariance with the largest eigenvalue, after projecting out
+/// `remove` (if any).
+fn principal_direction(points: &[Vector3<f64>], remove: Option<Vector3<f64>>) -> Vector3<f64> {
+    let c = centroid(points);
+    let mut cov = Matrix3::zeros();
+    for p in points {
+        let mut d = p - c;
+        if let Some(r) = remove {
+            d -= r * r.dot(&d);
+        }
+        cov += d * d.transpose();
+    }
+    let eig = cov.symmetric_eigen();
+    let k = eig.eigenvalues.imax();
+    eig.eigenvectors.column(k).into_owned().normalize()
+}
+
+/// The flexion axis from femur and tibia labels (patella, when present, fixes anterior;
+/// otherwise world anterior +y is used).
+pub fn flexion_axis(labels: &Labels) -> Result<JointAxis> {
+    let femur = world_points(labels, label::FEMUR);
+    let tibia = world_points(labels, label::TIBIA);
+    if femur.len() < 50 || tibia.len() < 50 {
+        return Err(Error::InvalidInput(format!(
+            "finding the flexion axis needs femur (label {}) and tibia (label {}) voxels; found {} and {}",
+            label::FEMUR,
+            label::TIBIA,
+            femur.len(),
+            tibia.len()
+        )));
+    }
+    let mut long_axis = principal_direction(&femur, None);
+    if long_axis.dot(&(centroid(&femur) - centroid(&tibia))) < 0.0 {
+        long_axis = -long_axis;
+    }
+    let lowest = femur
+        .iter()
+        .map(|p| p.dot(&long_axis))
+        .fold(f64::INFINITY, f64::min);
+    let condyles: Vec<Vector3<f64>> = femur
+        .iter()
+        .filter(|p| p.dot(&long_axis) <= lowest + CONDYLE_SLAB_MM)
+        .copied()
+        .collect();
+    let point = centroid(&condyles);
+    let medio_lateral = principal_direction(&condyles, Some(long_axis));
+    let patella = world_points(labels, label::PATELLA);
+    let towards_front = if patella.len() >= 20 {
+        centroid(&patella) - point
+    } else {
+        Vector3::new(0.0, 1.0, 0.0)
+    };
+    let mut anterior = long_axis.cross(&medio_lateral).normalize();
+    if anterior.dot(&towards_front) < 0.0 {
+        anterior = -anterior;
+    }
+    // Rotating about long × anterior carries a point below the knee (−long) towards −anterior.
+    let direction = long_axis.cross(&anterior).normalize();
+    Ok(JointAxis {
+        point,
+        direction,
+        long_axis,
+        anterior,
+    })
+}
+
+/// The rigid motion rotating by `degrees` about `axis` (world → world).
+pub fn rotation_about(axis: &JointAxis, degrees: f64) -> crate::volume::Affine {
+    let r = nalgebra::Rotation3::from_axis_angle(
+        &nalgebra::Unit::new_normalize(axis.direction),
+        degrees.to_radians(),
+    );
+    let t = axis.point - r * axis.point;
+    let mut m = crate::volume::Affine::identity();
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(r.matrix());
+    m.fixed_view_mut::<3, 1>(0, 3).copy_from(&t);
+    m
+}
