@@ -1,18 +1,21 @@
 // skin_blend.wgsl: volume skeletal deformation (paper eq. 1) inverted for pull-back resampling.
 //
 // The blend maps a source point x to B(x) = Σ_j w_j(x) M_j x (linear blend skinning of the
-// whole volume; w_j trilinear from the weight grid, clamped to its edge). For each target voxel
+// whole volume). Inside a bone (nearest voxel of the source label grid) the weights are that
+// bone's alone, so bones move exactly rigidly up to their labelled surface; elsewhere w_j is
+// trilinear from the coarser weight grid, clamped to its edge. For each target voxel
 // p this finds the source point x with B(x) = p: start from the bone whose inverse M_j⁻¹ p
-// blends back closest to p, then Newton-like steps x ← x − A(x)⁻¹ (B(x) − p) with
+// blends back closest to p, then Newton-like steps x ← x − t A(x)⁻¹ (B(x) − p) with
 // A = Σ_j w_j L_j (the blended linear part; the weights' own derivative is left out, which keeps
-// each step a 3×3 solve and converges where weights vary slowly against the motion).
+// each step a 3×3 solve) and t the first of 1, 1/2, ... 1/16 that lowers the miss.
 // Output per voxel: u = x − p (the initial displacement field, world mm) and the residual
 // |B(x) − p| (mm), so the host can report the worst inversion.
 //
 // Bindings (group 0):
 //   0 uniform  SkinBlendParams (bone matrices for up to 8 bones)
 //   1 storage  weight: array<f32>  bones floats per voxel of the weight grid, whole
-//   2 storage  out: array<f32>     4 floats per target voxel of this slab (read_write)
+//   2 storage  bone_of_voxel: array<f32>  per source label voxel: 1 + the bone's index, or 0
+//   3 storage  out: array<f32>     4 floats per target voxel of this slab (read_write)
 // Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(depth/4)) over the target grid.
 
 // Keep in sync with abi::SkinBlendParams.
@@ -20,15 +23,21 @@ struct SkinBlendParams {
     dims: vec4<u32>,        // target nx, ny, nz, z0
     slab: vec4<u32>,        // depth, bones, iterations, unused
     weight_dims: vec4<u32>, // weight grid nx, ny, nz, unused
+    label_dims: vec4<u32>,  // source label grid nx, ny, nz, unused
     target_to_world: array<vec4<f32>, 3>,
     world_to_weight: array<vec4<f32>, 3>,
+    world_to_label: array<vec4<f32>, 3>,
     forward: array<vec4<f32>, 24>,   // 3 rows of M_j per bone
     inverse: array<vec4<f32>, 24>,   // 3 rows of M_j⁻¹ per bone
 }
 
 @group(0) @binding(0) var<uniform> params: SkinBlendParams;
+
+// A voxel whose blend lands within this of its target point needs no more steps (mm).
+const CONVERGED_MM: f32 = 1e-4;
 @group(0) @binding(1) var<storage, read> weight: array<f32>;
-@group(0) @binding(2) var<storage, read_write> out: array<f32>;
+@group(0) @binding(2) var<storage, read> bone_of_voxel: array<f32>;
+@group(0) @binding(3) var<storage, read_write> out: array<f32>;
 
 struct Blend {
     point: vec3<f32>,  // B(x)
@@ -37,9 +46,39 @@ struct Blend {
     r2: vec3<f32>,
 }
 
+// The bone whose label holds x (nearest label voxel), or `bones` when x is in soft tissue or
+// outside the label grid.
+fn bone_at(x: vec3<f32>) -> u32 {
+    let bones = params.slab.y;
+    let n = params.label_dims.xyz;
+    let q = vec3<f32>(
+        affine_row(params.world_to_label[0], x),
+        affine_row(params.world_to_label[1], x),
+        affine_row(params.world_to_label[2], x),
+    );
+    if (!(all(q >= vec3<f32>(-0.5)) && all(q <= vec3<f32>(n) - vec3<f32>(0.5)))) {
+        return bones;
+    }
+    let i = vec3<u32>(clamp(vec3<i32>(floor(q + vec3<f32>(0.5))), vec3<i32>(0), vec3<i32>(n) - vec3<i32>(1)));
+    let b = u32(bone_of_voxel[voxel_index(i.x, i.y, i.z, n)]);
+    return select(bones, b - 1u, b > 0u);
+}
+
 fn blend(x: vec3<f32>) -> Blend {
     let n = params.weight_dims.xyz;
     let bones = params.slab.y;
+    let inside = bone_at(x);
+    if (inside < bones) {
+        let m0 = params.forward[3u * inside];
+        let m1 = params.forward[3u * inside + 1u];
+        let m2 = params.forward[3u * inside + 2u];
+        var rigid: Blend;
+        rigid.point = vec3<f32>(affine_row(m0, x), affine_row(m1, x), affine_row(m2, x));
+        rigid.r0 = m0.xyz;
+        rigid.r1 = m1.xyz;
+        rigid.r2 = m2.xyz;
+        return rigid;
+    }
     let s = vec3<f32>(
         affine_row(params.world_to_weight[0], x),
         affine_row(params.world_to_weight[1], x),
@@ -110,17 +149,34 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             x = candidate;
         }
     }
-    for (var it = 0u; it < params.slab.z; it = it + 1u) {
+    var err = best;
+    for (var it = 0u; it < params.slab.z && err > CONVERGED_MM; it = it + 1u) {
         let b = blend(x);
         let e = b.point - p;
         let det = det3(b.r0, b.r1, b.r2);
+        var step = e;
         if (abs(det) > 1e-6) {
-            x = x - solve3(b.r0, b.r1, b.r2, det, e);
-        } else {
-            x = x - e;
+            step = solve3(b.r0, b.r1, b.r2, det, e);
+        }
+        // Backtrack: where the weights change fast the full step overshoots and would oscillate
+        // between two sides of the solution; take the first fraction that lowers the miss.
+        var t = 1.0;
+        var moved = false;
+        for (var k = 0u; k < 5u && !moved; k = k + 1u) {
+            let trial = x - t * step;
+            let miss = length(blend(trial).point - p);
+            if (miss < err) {
+                x = trial;
+                err = miss;
+                moved = true;
+            }
+            t = t * 0.5;
+        }
+        if (!moved) {
+            break;
         }
     }
-    let residual = length(blend(x).point - p);
+    let residual = err;
     let o = 4u * voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth));
     out[o] = x.x - p.x;
     out[o + 1u] = x.y - p.y;

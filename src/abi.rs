@@ -360,10 +360,14 @@ pub struct SkinBlendParams {
     pub slab: [u32; 4],
     /// Weight grid nx, ny, nz, unused.
     pub weight_dims: [u32; 4],
+    /// Source label grid nx, ny, nz, unused.
+    pub label_dims: [u32; 4],
     /// Target voxel index → world.
     pub target_to_world: [[f32; 4]; 3],
     /// World → weight-grid continuous index.
     pub world_to_weight: [[f32; 4]; 3],
+    /// World → source label grid continuous index.
+    pub world_to_label: [[f32; 4]; 3],
     /// Three rows of M_j per bone (source → target world).
     pub forward: [[f32; 4]; 3 * MAX_SKIN_BONES],
     /// Three rows of M_j⁻¹ per bone.
@@ -371,8 +375,15 @@ pub struct SkinBlendParams {
 }
 
 impl SkinBlendParams {
-    /// For bones moving by `motions` (at most [`MAX_SKIN_BONES`]), weights on `weights`.
-    pub fn new(target: &Grid, weights: &Grid, motions: &[Affine], iterations: u32) -> Self {
+    /// For bones moving by `motions` (at most [`MAX_SKIN_BONES`]), weights on `weights`, bone
+    /// labels on `labels`.
+    pub fn new(
+        target: &Grid,
+        weights: &Grid,
+        labels: &Grid,
+        motions: &[Affine],
+        iterations: u32,
+    ) -> Self {
         assert!(motions.len() <= MAX_SKIN_BONES, "checked by the caller");
         let mut forward = [[0.0f32; 4]; 3 * MAX_SKIN_BONES];
         let mut inverse = [[0.0f32; 4]; 3 * MAX_SKIN_BONES];
@@ -385,8 +396,10 @@ impl SkinBlendParams {
             dims: dims4(target, 0),
             slab: [target.dims[2] as u32, motions.len() as u32, iterations, 0],
             weight_dims: dims4(weights, 0),
+            label_dims: dims4(labels, 0),
             target_to_world: rows(&target.affine),
             world_to_weight: rows(&weights.world_to_voxel_affine()),
+            world_to_label: rows(&labels.world_to_voxel_affine()),
             forward,
             inverse,
         }

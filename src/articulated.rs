@@ -370,7 +370,7 @@ pub fn initialise(
     }
     let weights = skinning::weights(backend, labels, &bones)?;
     let matrices: Vec<Affine> = motions.iter().map(|m| m.1).collect();
-    let initial = initial_field(backend, &weights, &matrices, &target.grid)?;
+    let initial = initial_field(backend, &weights, labels, &matrices, &target.grid)?;
     let initialised = backend.resample(source, &initial.field, 0.0, Interpolation::Linear)?;
     Ok(Initialisation {
         motions,

@@ -63,11 +63,15 @@ pub trait Backend {
     ) -> Result<Vec<f32>>;
 
     /// The inverted blend on `target`: 4 floats per voxel (u in mm, inversion residual in mm)
-    /// for bones moving by `motions`, weights (bones per voxel) on `weight_grid`.
+    /// for bones moving by `motions`, weights (bones per voxel) on `weight_grid`, and
+    /// `bone_of_voxel` (1 + bone index, 0 for soft tissue) on the source label grid `labels`.
+    #[allow(clippy::too_many_arguments)]
     fn skin_blend(
         &self,
         weights: &[f32],
         weight_grid: &Grid,
+        bone_of_voxel: &[f32],
+        labels: &Grid,
         target: &Grid,
         motions: &[Affine],
         iterations: u32,

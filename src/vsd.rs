@@ -5,10 +5,10 @@
 use crate::backend::Backend;
 use crate::error::Result;
 use crate::skinning::SkinningWeights;
-use crate::volume::{Affine, Field, Grid, Image, Volume};
+use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
 
 /// Newton-like inversion steps per voxel.
-pub const INVERSION_ITERATIONS: u32 = 8;
+pub const INVERSION_ITERATIONS: u32 = 30;
 
 /// The initial field and how well the blend was inverted.
 pub struct InitialField {
@@ -16,26 +16,162 @@ pub struct InitialField {
     pub field: Field,
     /// |B(p + u0(p)) − p| per target voxel (mm): 0 where the inversion is exact.
     pub residual: Volume,
+    /// Folds of the blend removed by local smoothing.
+    pub repair: FoldRepair,
 }
 
-/// Inverts the blend of `motions` (one per weight bone, source → target) on `target`.
+/// Inverts the blend of `motions` (one per weight bone, source → target) on `target`; the
+/// source `labels` make each bone exactly rigid up to its labelled surface.
 pub fn initial_field(
     backend: &dyn Backend,
     weights: &SkinningWeights,
+    labels: &Labels,
     motions: &[Affine],
     target: &Grid,
 ) -> Result<InitialField> {
+    // 1 + the weight index of the bone each source label voxel belongs to; 0 for soft tissue.
+    let bone_of_voxel: Vec<f32> = labels
+        .data
+        .iter()
+        .map(|l| {
+            weights
+                .bones
+                .iter()
+                .position(|b| b == l)
+                .map_or(0.0, |j| (j + 1) as f32)
+        })
+        .collect();
     let out = backend.skin_blend(
         &weights.data,
         &weights.grid,
+        &bone_of_voxel,
+        &labels.grid,
         target,
         motions,
         INVERSION_ITERATIONS,
     )?;
     let field = out.chunks_exact(4).map(|c| [c[0], c[1], c[2]]).collect();
     let residual = out.chunks_exact(4).map(|c| c[3]).collect();
+    let mut field = Image::from_data(target.clone(), field)?;
+    let rigid = maps_into_bone(&field, labels, &weights.bones);
+    let repair = repair_folds(backend, &mut field, &rigid)?;
     Ok(InitialField {
-        field: Image::from_data(target.clone(), field)?,
+        field,
         residual: Image::from_data(target.clone(), residual)?,
+        repair,
     })
+}
+
+/// Jacobian determinant below which a voxel counts as folded (or about to fold) for repair.
+const FOLD_THRESHOLD: f32 = 0.05;
+/// Most repair rounds.
+const REPAIR_ROUNDS: usize = 30;
+/// Voxels around each folded voxel that are smoothed with it.
+const REPAIR_MARGIN: usize = 2;
+
+/// What [`repair_folds`] did.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct FoldRepair {
+    /// Voxels with det ≤ 0.05 before repair.
+    pub folded_before: usize,
+    /// After.
+    pub folded_after: usize,
+    /// Rounds of local smoothing.
+    pub rounds: usize,
+}
+
+/// Linear blend skinning can fold where a bone moves farther than its weights' falloff is wide
+/// (seen above the patella). This smooths the displacement locally — the voxels with
+/// det J ≤ 0.05 and two voxels around them, by 27-neighbour averaging — until the field no
+/// longer folds, leaving voxels that map into a bone (`rigid`) untouched so bones stay rigid.
+pub fn repair_folds(
+    backend: &dyn Backend,
+    field: &mut Field,
+    rigid: &[bool],
+) -> Result<FoldRepair> {
+    let [nx, ny, nz] = field.grid.dims;
+    let mut report = FoldRepair::default();
+    for round in 0..=REPAIR_ROUNDS {
+        let det = backend.jacobian(field)?;
+        let bad: Vec<usize> = (0..det.data.len())
+            .filter(|&n| det.data[n] <= FOLD_THRESHOLD && !rigid[n])
+            .collect();
+        if round == 0 {
+            report.folded_before = bad.len();
+        }
+        report.folded_after = bad.len();
+        if bad.is_empty() || round == REPAIR_ROUNDS {
+            break;
+        }
+        report.rounds = round + 1;
+        let mut region = vec![false; det.data.len()];
+        for &n in &bad {
+            let (i, j, k) = (n % nx, (n / nx) % ny, n / (nx * ny));
+            let (lo, hi) = (
+                |c: usize| c.saturating_sub(REPAIR_MARGIN),
+                |c: usize, n: usize| (c + REPAIR_MARGIN + 1).min(n),
+            );
+            for dk in lo(k)..hi(k, nz) {
+                for dj in lo(j)..hi(j, ny) {
+                    for di in lo(i)..hi(i, nx) {
+                        let m = di + nx * (dj + ny * dk);
+                        region[m] = !rigid[m];
+                    }
+                }
+            }
+        }
+        for _ in 0..3 {
+            let before = field.data.clone();
+            for n in (0..region.len()).filter(|&n| region[n]) {
+                let (i, j, k) = (n % nx, (n / nx) % ny, n / (nx * ny));
+                let mut sum = [0.0f32; 3];
+                let mut count = 0.0f32;
+                for dk in k.saturating_sub(1)..(k + 2).min(nz) {
+                    for dj in j.saturating_sub(1)..(j + 2).min(ny) {
+                        for di in i.saturating_sub(1)..(i + 2).min(nx) {
+                            let v = before[di + nx * (dj + ny * dk)];
+                            for c in 0..3 {
+                                sum[c] += v[c];
+                            }
+                            count += 1.0;
+                        }
+                    }
+                }
+                field.data[n] = sum.map(|s| s / count);
+            }
+        }
+    }
+    Ok(report)
+}
+
+/// Target voxels whose source point (p + u) lies in a bone of `labels` (nearest voxel).
+pub fn maps_into_bone(field: &Field, labels: &Labels, bones: &[u16]) -> Vec<bool> {
+    let to_label = labels.grid.world_to_voxel_affine();
+    let d = field.grid.dims;
+    (0..field.grid.len())
+        .map(|n| {
+            let w = field.grid.voxel_to_world([
+                (n % d[0]) as f64,
+                ((n / d[0]) % d[1]) as f64,
+                (n / (d[0] * d[1])) as f64,
+            ]);
+            let u = field.data[n];
+            let q = to_label
+                * nalgebra::Vector4::new(
+                    w[0] + u[0] as f64,
+                    w[1] + u[1] as f64,
+                    w[2] + u[2] as f64,
+                    1.0,
+                );
+            let ijk = [q.x, q.y, q.z].map(|v| v.round());
+            if (0..3).any(|a| ijk[a] < 0.0 || ijk[a] >= labels.grid.dims[a] as f64) {
+                return false;
+            }
+            bones.contains(
+                &labels.data[labels
+                    .grid
+                    .index(ijk[0] as usize, ijk[1] as usize, ijk[2] as usize)],
+            )
+        })
+        .collect()
 }

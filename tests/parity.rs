@@ -326,10 +326,16 @@ fn skinning_kernels_parity() {
         ),
     ];
     let target = oblique_grid([15, 12, 11]);
-    let cpu = CpuBackend
-        .skin_blend(&cpu, &grid, &target, &motions, 8)
-        .unwrap();
-    let got = gpu.skin_blend(&got, &grid, &target, &motions, 8).unwrap();
+    // Labels: runs of voxels in bone 1, 2, 3 and soft tissue (0).
+    let label_grid = oblique_grid([30, 25, 20]);
+    let bone_of_voxel: Vec<f32> = (0..label_grid.len())
+        .map(|n| ((n / 7) % 4) as f32)
+        .collect();
+    let blend = |b: &dyn Backend, w: &[f32]| {
+        b.skin_blend(w, &grid, &bone_of_voxel, &label_grid, &target, &motions, 8)
+            .unwrap()
+    };
+    let (cpu, got) = (blend(&CpuBackend, &cpu), blend(gpu, &got));
     // Eight Newton steps on mm-sized coordinates: ulp-level differences stay below 1e-3 mm
     // where the inversion converges; residual channel included.
     close("skin_blend", &got, &cpu, 2e-3, 1e-4);

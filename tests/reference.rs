@@ -382,22 +382,25 @@ fn skin_blend_inverts_a_common_rigid_motion_exactly() {
         &nalgebra::Vector3::new(1.0, 2.0, 3.0),
     );
     let target = oblique_grid([7, 6, 5]);
-    let out = CpuBackend
-        .skin_blend(&weights, &grid, &target, &[m, m], 4)
-        .unwrap();
     let inv = m.try_inverse().unwrap();
     let d = target.dims;
-    for n in 0..target.len() {
-        let w = target.voxel_to_world([
-            (n % d[0]) as f64,
-            ((n / d[0]) % d[1]) as f64,
-            (n / (d[0] * d[1])) as f64,
-        ]);
-        let q = inv * nalgebra::Vector4::new(w[0], w[1], w[2], 1.0);
-        for a in 0..3 {
-            assert!((out[4 * n + a] as f64 - (q[a] - w[a])).abs() < 1e-3);
+    // Soft tissue everywhere, then a label grid where every voxel is bone 1: both blend to M.
+    for bone_of_voxel in [vec![0.0f32; grid.len()], vec![2.0f32; grid.len()]] {
+        let out = CpuBackend
+            .skin_blend(&weights, &grid, &bone_of_voxel, &grid, &target, &[m, m], 4)
+            .unwrap();
+        for n in 0..target.len() {
+            let w = target.voxel_to_world([
+                (n % d[0]) as f64,
+                ((n / d[0]) % d[1]) as f64,
+                (n / (d[0] * d[1])) as f64,
+            ]);
+            let q = inv * nalgebra::Vector4::new(w[0], w[1], w[2], 1.0);
+            for a in 0..3 {
+                assert!((out[4 * n + a] as f64 - (q[a] - w[a])).abs() < 1e-3);
+            }
+            assert!(out[4 * n + 3] < 1e-3, "residual {}", out[4 * n + 3]);
         }
-        assert!(out[4 * n + 3] < 1e-3, "residual {}", out[4 * n + 3]);
     }
 }
 

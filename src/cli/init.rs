@@ -10,7 +10,7 @@ use posereg::io::nifti::{load_labels, load_volume, save_volume, DataType};
 use posereg::io::transform::BoneTransforms;
 use posereg::metric::correlation;
 use posereg::Error;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `posereg init`.
 #[derive(Args, Debug)]
@@ -40,9 +40,9 @@ pub struct InitArgs {
 
 /// Loads the three inputs, checking they fit together; errors name the file at fault.
 pub fn load_inputs(
-    source: &PathBuf,
-    labels: &PathBuf,
-    target: &PathBuf,
+    source: &Path,
+    labels: &Path,
+    target: &Path,
 ) -> anyhow::Result<(posereg::Volume, posereg::Labels, posereg::Volume)> {
     let s = load_volume(source)?;
     let l = load_labels(labels)?;

@@ -141,14 +141,16 @@ impl Backend for CpuBackend {
         &self,
         weights: &[f32],
         weight_grid: &Grid,
+        bone_of_voxel: &[f32],
+        labels: &Grid,
         target: &Grid,
         motions: &[Affine],
         iterations: u32,
     ) -> Result<Vec<f32>> {
         crate::skinning::check_bone_count(motions.len())?;
-        let params = SkinBlendParams::new(target, weight_grid, motions, iterations);
+        let params = SkinBlendParams::new(target, weight_grid, labels, motions, iterations);
         let mut out = vec![0.0f32; 4 * target.len()];
-        skin_blend::skin_blend(&params, weights, &mut out);
+        skin_blend::skin_blend(&params, weights, bone_of_voxel, &mut out);
         Ok(out)
     }
 }

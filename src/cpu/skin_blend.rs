@@ -1,9 +1,13 @@
 //! CPU twin of shaders/skin_blend.wgsl.
 
 use super::common::{affine_row, det3, solve3, voxel_index};
+use super::sample::inside_source;
 use crate::abi::SkinBlendParams;
 use glam::Vec3;
 use rayon::prelude::*;
+
+/// A voxel whose blend lands within this of its target point needs no more steps (mm).
+const CONVERGED_MM: f32 = 1e-4;
 
 struct Blend {
     point: Vec3,
@@ -16,7 +20,29 @@ fn row(r: [f32; 4]) -> Vec3 {
     Vec3::new(r[0], r[1], r[2])
 }
 
-fn blend(params: &SkinBlendParams, weight: &[f32], x: Vec3) -> Blend {
+fn bone_at(params: &SkinBlendParams, bone_of_voxel: &[f32], x: Vec3) -> u32 {
+    let bones = params.slab[1];
+    let n = [
+        params.label_dims[0],
+        params.label_dims[1],
+        params.label_dims[2],
+    ];
+    let xa = x.to_array();
+    let q: [f32; 3] = std::array::from_fn(|r| affine_row(params.world_to_label[r], xa));
+    if !inside_source(q, n) {
+        return bones;
+    }
+    let i: [u32; 3] =
+        std::array::from_fn(|a| ((q[a] + 0.5).floor() as i32).clamp(0, n[a] as i32 - 1) as u32);
+    let b = bone_of_voxel[voxel_index(i[0], i[1], i[2], n) as usize] as u32;
+    if b > 0 {
+        b - 1
+    } else {
+        bones
+    }
+}
+
+fn blend(params: &SkinBlendParams, weight: &[f32], bone_of_voxel: &[f32], x: Vec3) -> Blend {
     let n = [
         params.weight_dims[0],
         params.weight_dims[1],
@@ -24,6 +50,20 @@ fn blend(params: &SkinBlendParams, weight: &[f32], x: Vec3) -> Blend {
     ];
     let bones = params.slab[1];
     let xa = x.to_array();
+    let inside = bone_at(params, bone_of_voxel, x);
+    if inside < bones {
+        let m = [0, 1, 2].map(|r| params.forward[(3 * inside + r) as usize]);
+        return Blend {
+            point: Vec3::new(
+                affine_row(m[0], xa),
+                affine_row(m[1], xa),
+                affine_row(m[2], xa),
+            ),
+            r0: row(m[0]),
+            r1: row(m[1]),
+            r2: row(m[2]),
+        };
+    }
     let s = Vec3::from_array(std::array::from_fn(|r| {
         affine_row(params.world_to_weight[r], xa)
     }));
@@ -71,8 +111,14 @@ fn blend(params: &SkinBlendParams, weight: &[f32], x: Vec3) -> Blend {
     b
 }
 
-/// Fills `out` (4 floats per target voxel of the slab: u and the inversion residual).
-pub fn skin_blend(params: &SkinBlendParams, weight: &[f32], out: &mut [f32]) {
+/// Fills `out` (4 floats per target voxel of the slab: u and the inversion residual);
+/// `bone_of_voxel` holds 1 + the bone index (0 for soft tissue) per source label voxel.
+pub fn skin_blend(
+    params: &SkinBlendParams,
+    weight: &[f32],
+    bone_of_voxel: &[f32],
+    out: &mut [f32],
+) {
     let [nx, ny, _, z0] = params.dims;
     let bones = params.slab[1];
     out.par_chunks_mut((4 * nx * ny) as usize)
@@ -94,23 +140,44 @@ pub fn skin_blend(params: &SkinBlendParams, weight: &[f32], out: &mut [f32]) {
                             affine_row(inv(1), pa),
                             affine_row(inv(2), pa),
                         );
-                        let miss = (blend(params, weight, candidate).point - p).length();
+                        let miss =
+                            (blend(params, weight, bone_of_voxel, candidate).point - p).length();
                         if miss < best {
                             best = miss;
                             x = candidate;
                         }
                     }
-                    for _ in 0..params.slab[2] {
-                        let b = blend(params, weight, x);
+                    let mut err = best;
+                    let mut it = 0;
+                    while it < params.slab[2] && err > CONVERGED_MM {
+                        it += 1;
+                        let b = blend(params, weight, bone_of_voxel, x);
                         let e = b.point - p;
                         let det = det3(b.r0, b.r1, b.r2);
-                        x = if det.abs() > 1e-6 {
-                            x - solve3(b.r0, b.r1, b.r2, det, e)
+                        let step = if det.abs() > 1e-6 {
+                            solve3(b.r0, b.r1, b.r2, det, e)
                         } else {
-                            x - e
+                            e
                         };
+                        let mut t = 1.0f32;
+                        let mut moved = false;
+                        for _ in 0..5 {
+                            let trial = x - t * step;
+                            let miss =
+                                (blend(params, weight, bone_of_voxel, trial).point - p).length();
+                            if miss < err {
+                                x = trial;
+                                err = miss;
+                                moved = true;
+                                break;
+                            }
+                            t *= 0.5;
+                        }
+                        if !moved {
+                            break;
+                        }
                     }
-                    let residual = (blend(params, weight, x).point - p).length();
+                    let residual = err;
                     let o = 4 * (i + nx * j) as usize;
                     slice[o..o + 4].copy_from_slice(&[x.x - p.x, x.y - p.y, x.z - p.z, residual]);
                 }

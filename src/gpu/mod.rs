@@ -251,12 +251,14 @@ impl Backend for GpuBackend {
         &self,
         weights: &[f32],
         weight_grid: &Grid,
+        bone_of_voxel: &[f32],
+        labels: &Grid,
         target: &Grid,
         motions: &[Affine],
         iterations: u32,
     ) -> Result<Vec<f32>> {
         crate::skinning::check_bone_count(motions.len())?;
-        let params = SkinBlendParams::new(target, weight_grid, motions, iterations);
-        skinning::skin_blend(self, &params, weights)
+        let params = SkinBlendParams::new(target, weight_grid, labels, motions, iterations);
+        skinning::skin_blend(self, &params, weights, bone_of_voxel)
     }
 }

@@ -9,7 +9,12 @@ use crate::error::Result;
 /// skin_weights bindings in the order the shader declares them.
 pub const WEIGHTS_BINDINGS: &[Binding] = &[Binding::Uniform, Binding::Read, Binding::ReadWrite];
 /// skin_blend bindings in the order the shader declares them.
-pub const BLEND_BINDINGS: &[Binding] = &[Binding::Uniform, Binding::Read, Binding::ReadWrite];
+pub const BLEND_BINDINGS: &[Binding] = &[
+    Binding::Uniform,
+    Binding::Read,
+    Binding::Read,
+    Binding::ReadWrite,
+];
 
 /// Weights from distances.
 pub fn skin_weights(
@@ -36,13 +41,21 @@ pub fn skin_weights(
 }
 
 /// The inverted blend: 4 floats per target voxel.
-pub fn skin_blend(gpu: &GpuBackend, params: &SkinBlendParams, weights: &[f32]) -> Result<Vec<f32>> {
+pub fn skin_blend(
+    gpu: &GpuBackend,
+    params: &SkinBlendParams,
+    weights: &[f32],
+    bone_of_voxel: &[f32],
+) -> Result<Vec<f32>> {
     let dims = [0, 1, 2].map(|a| params.dims[a] as usize);
     run_slabs(
         gpu,
         &gpu.kernels.skin_blend,
         params,
-        &[Input::Whole("skinning weights", weights)],
+        &[
+            Input::Whole("skinning weights", weights),
+            Input::Whole("source bone labels", bone_of_voxel),
+        ],
         dims,
         dims[0] * dims[1] * 4,
         |depth| [groups(dims[0], 4), groups(dims[1], 4), groups(depth, 4)],
