@@ -406,3 +406,70 @@ pub fn rigid_field(motion: &Affine, grid: &crate::volume::Grid) -> Result<Field>
         .collect();
     Image::from_data(grid.clone(), data)
 }
+
+/// A synthetic bend of a labelled straight volume (the paper's §4 experiment).
+pub struct Bend {
+    /// Target point → straight point (the truth for registering the bent image back).
+    pub field: Field,
+    /// Bone motions, straight → bent, with the axis.
+    pub truth: BoneTransforms,
+    /// The axis used.
+    pub axis: JointAxis,
+}
+
+/// Share of the flexion angle the patella turns by when bending: it rides round the trochlea,
+/// held to the tibial tuberosity by the patellar tendon, turning less than the shank.
+pub const BEND_PATELLA_SHARE: f64 = 0.7;
+
+/// Bends `source` by `degrees` with volume skeletal deformation: the femur stays, tibia and
+/// fibula turn about the flexion axis (from the labels unless given), the patella by 0.7 of it.
+pub fn bend(
+    backend: &dyn Backend,
+    source: &Volume,
+    labels: &Labels,
+    degrees: f64,
+    axis: Option<JointAxis>,
+) -> Result<Bend> {
+    if !degrees.is_finite() || degrees.abs() > 150.0 {
+        return Err(Error::InvalidInput(format!(
+            "bend angle {degrees}° is outside -150..150"
+        )));
+    }
+    let axis = match axis {
+        Some(a) => a,
+        None => flexion_axis(labels)?,
+    };
+    let bones = present_bones(labels);
+    let motions: Vec<Affine> = bones
+        .iter()
+        .map(|&b| match b {
+            label::FEMUR => Affine::identity(),
+            label::PATELLA => rotation_about(&axis, degrees * BEND_PATELLA_SHARE),
+            _ => rotation_about(&axis, degrees),
+        })
+        .collect();
+    let weights = skinning::weights(backend, labels, &bones)?;
+    let initial = initial_field(backend, &weights, labels, &motions, &source.grid)?;
+    let mut truth = BoneTransforms::new(
+        bones
+            .iter()
+            .zip(&motions)
+            .map(|(b, m)| BoneTransform::new(*b, &bone_name(*b), m))
+            .collect(),
+    );
+    truth.extra.insert(
+        "flexion_axis".into(),
+        serde_json::json!({
+            "point": axis.point.as_slice(),
+            "direction": axis.direction.as_slice(),
+            "degrees": degrees,
+            "patella_share": BEND_PATELLA_SHARE,
+            "deformation": "volume skeletal deformation (linear blend skinning), inverted per voxel",
+        }),
+    );
+    Ok(Bend {
+        field: initial.field,
+        truth,
+        axis,
+    })
+}

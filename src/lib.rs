@@ -29,6 +29,7 @@ pub mod backend;
 pub mod cpu;
 pub mod device;
 pub mod error;
+pub mod evaluate;
 pub mod gpu;
 pub mod io;
 pub mod joint;

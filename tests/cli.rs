@@ -165,3 +165,128 @@ fn info_on_a_missing_or_corrupt_file_fails_cleanly() {
     assert_fails_naming(&posereg(&["info", s(&corrupt)]), "corrupt.nii");
     assert_fails_naming(&posereg(&["info", "/no/such/file.nii.gz"]), "file.nii.gz");
 }
+
+#[test]
+fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
+    let dir = tempfile::tempdir().unwrap();
+    let demo = dir.path().join("demo");
+    let out = posereg(&[
+        "demo",
+        "--size",
+        "small",
+        "--flexion",
+        "30",
+        "-o",
+        s(&demo),
+        "--device",
+        "cpu",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("mean error") && stdout.contains("correlation"),
+        "{stdout}"
+    );
+    for file in [
+        "warped.nii.gz",
+        "field.nii.gz",
+        "transform.json",
+        "target.nii.gz",
+        "source_labels.nii.gz",
+    ] {
+        assert!(demo.join(file).exists(), "demo did not write {file}");
+    }
+    // init on the demo's pair writes its three outputs.
+    let init = dir.path().join("init");
+    let out = posereg(&[
+        "init",
+        "--source",
+        s(&demo.join("source.nii.gz")),
+        "--source-labels",
+        s(&demo.join("source_labels.nii.gz")),
+        "--target",
+        s(&demo.join("target.nii.gz")),
+        "-o",
+        s(&init),
+        "--device",
+        "cpu",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for file in ["init.json", "init_field.nii.gz", "initialised.nii.gz"] {
+        assert!(init.join(file).exists(), "init did not write {file}");
+    }
+    let transforms = posereg::io::transform::BoneTransforms::load(&init.join("init.json")).unwrap();
+    assert_eq!(transforms.space, "RAS");
+    assert_eq!(transforms.bones.len(), 4);
+    // bend on the straight phantom: a 20° bend with its truth.
+    let bent = dir.path().join("bent");
+    let out = posereg(&[
+        "bend",
+        s(&demo.join("source.nii.gz")),
+        "--labels",
+        s(&demo.join("source_labels.nii.gz")),
+        "--degrees",
+        "20",
+        "-o",
+        s(&bent),
+        "--device",
+        "cpu",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let truth = posereg::io::transform::BoneTransforms::load(&bent.join("truth.json")).unwrap();
+    let tibia = truth.bones.iter().find(|b| b.label == 3).unwrap().affine();
+    let angle = ((tibia[(0, 0)] + tibia[(1, 1)] + tibia[(2, 2)] - 1.0) / 2.0)
+        .acos()
+        .to_degrees();
+    assert!((angle - 20.0).abs() < 1e-6, "tibia turned {angle}°");
+    assert!(bent.join("target.nii.gz").exists() && bent.join("truth_field.nii.gz").exists());
+}
+
+#[test]
+fn init_refuses_labels_on_another_grid_and_label_maps_without_bones() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = oblique_grid([10, 9, 8]);
+    let src = dir.path().join("source.nii.gz");
+    save_volume(&src, &smooth_volume(&grid, 1), DataType::F32).unwrap();
+    let wrong = dir.path().join("wrong_labels.nii.gz");
+    posereg::io::nifti::save_labels(
+        &wrong,
+        &posereg::Image::filled(oblique_grid([10, 9, 9]), 2u16),
+    )
+    .unwrap();
+    let empty = dir.path().join("empty_labels.nii.gz");
+    posereg::io::nifti::save_labels(&empty, &posereg::Image::filled(grid.clone(), 1u16)).unwrap();
+    let out = dir.path().join("out");
+    for (labels, name) in [
+        (&wrong, "wrong_labels.nii.gz"),
+        (&empty, "empty_labels.nii.gz"),
+    ] {
+        let result = posereg(&[
+            "init",
+            "--source",
+            s(&src),
+            "--source-labels",
+            s(labels),
+            "--target",
+            s(&src),
+            "-o",
+            s(&out),
+            "--device",
+            "cpu",
+        ]);
+        assert_fails_naming(&result, name);
+    }
+    assert!(!out.exists(), "no output folder on failure");
+}

@@ -1,5 +1,7 @@
 //! The command-line verbs: each parses its arguments, calls the library, and prints.
 
+pub mod bend;
+pub mod demo;
 pub mod info;
 pub mod init;
 pub mod phantom;
@@ -23,6 +25,10 @@ pub struct Cli {
 /// The verbs.
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// Bend a labelled straight volume by volume skeletal deformation, with the truth.
+    Bend(bend::BendArgs),
+    /// Make a phantom pair, register it, and print the figures against the truth.
+    Demo(demo::DemoArgs),
     /// Print a NIfTI file's grid, world affine, orientation and intensity range.
     Info(info::InfoArgs),
     /// Articulated initialisation alone: per-bone rigid, skinning, volume skeletal deformation.
@@ -36,6 +42,8 @@ pub enum Command {
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Bend(args) => bend::run(&args, cli.device),
+        Command::Demo(args) => demo::run(&args, cli.device),
         Command::Info(args) => info::run(&args),
         Command::Init(args) => init::run(&args, cli.device),
         Command::Phantom(args) => phantom::run(&args),
