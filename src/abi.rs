@@ -414,3 +414,85 @@ impl SlabParams for SkinBlendParams {
         p
     }
 }
+
+/// Keep in sync with `RbfGradParams` in shaders/rbf_grad.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct RbfGradParams {
+    /// Target nx, ny, nz, first slice of this slab.
+    pub dims: [u32; 4],
+    /// Slices in this slab, lattice step (voxels), unused ×2.
+    pub slab: [u32; 4],
+    /// Lattice nodes along x, y, z, unused.
+    pub lattice_dims: [u32; 4],
+    /// Rows of the inverse linear part of the grid: a displacement in mm → index delta.
+    pub mm_to_index: [[f32; 4]; 3],
+    /// Index-space gradient → world gradient ((L⁻¹)ᵀ).
+    pub gradient_to_world: [[f32; 4]; 3],
+}
+
+impl RbfGradParams {
+    /// For a target `grid` with a lattice of `lattice_dims` nodes every `step` voxels.
+    pub fn new(grid: &Grid, lattice_dims: [usize; 3], step: usize) -> Self {
+        let l: nalgebra::Matrix3<f64> = grid.affine.fixed_view::<3, 3>(0, 0).into_owned();
+        let inv = l.try_inverse().expect("validated grids are invertible");
+        RbfGradParams {
+            dims: dims4(grid, 0),
+            slab: [grid.dims[2] as u32, step as u32, 0, 0],
+            lattice_dims: [
+                lattice_dims[0] as u32,
+                lattice_dims[1] as u32,
+                lattice_dims[2] as u32,
+                0,
+            ],
+            mm_to_index: linear_rows(&inv),
+            gradient_to_world: linear_rows(&inv.transpose()),
+        }
+    }
+}
+
+impl SlabParams for RbfGradParams {
+    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
+        let mut p = *self;
+        p.dims[3] = z0;
+        p.slab[0] = depth;
+        p
+    }
+}
+
+/// Keep in sync with `SplatParams` in shaders/lattice_splat.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SplatParams {
+    /// Lattice lx, ly, lz, first lattice slice of this slab.
+    pub dims: [u32; 4],
+    /// Lattice slices in this slab, step (voxels), unused ×2.
+    pub slab: [u32; 4],
+    /// Volume nx, ny, nz, unused.
+    pub volume_dims: [u32; 4],
+}
+
+impl SplatParams {
+    /// For a lattice of `lattice_dims` nodes every `step` voxels over a volume of `dims`.
+    pub fn new(lattice_dims: [usize; 3], step: usize, dims: [usize; 3]) -> Self {
+        SplatParams {
+            dims: [
+                lattice_dims[0] as u32,
+                lattice_dims[1] as u32,
+                lattice_dims[2] as u32,
+                0,
+            ],
+            slab: [lattice_dims[2] as u32, step as u32, 0, 0],
+            volume_dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, 0],
+        }
+    }
+}
+
+impl SlabParams for SplatParams {
+    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
+        let mut p = *self;
+        p.dims[3] = z0;
+        p.slab[0] = depth;
+        p
+    }
+}

@@ -76,6 +76,28 @@ pub trait Backend {
         motions: &[Affine],
         iterations: u32,
     ) -> Result<Vec<f32>>;
+
+    /// The non-rigid cost's per-voxel terms: 4 floats per voxel of `fixed`'s grid — the moving
+    /// image I0 sampled through the lattice-interpolated warp, and the gradient of the squared
+    /// residual with respect to the warp (mm). `lattice` holds 3 floats per node.
+    fn rbf_grad(
+        &self,
+        lattice: &[f32],
+        lattice_dims: [usize; 3],
+        step: usize,
+        moving: &Volume,
+        fixed: &Volume,
+    ) -> Result<Vec<f32>>;
+
+    /// The adjoint of the lattice interpolation: 3 floats per lattice node, Σ_x w_n(x) v(x),
+    /// from 3 floats per voxel of `grid`.
+    fn lattice_splat(
+        &self,
+        values: &[f32],
+        grid: &Grid,
+        lattice_dims: [usize; 3],
+        step: usize,
+    ) -> Result<Vec<f32>>;
 }
 
 /// Checks two volumes compared voxel by voxel share a grid.

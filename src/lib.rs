@@ -24,6 +24,7 @@
 #![warn(missing_docs)]
 
 pub mod abi;
+pub mod adaptive;
 pub mod articulated;
 pub mod backend;
 pub mod cpu;
@@ -34,9 +35,12 @@ pub mod gpu;
 pub mod io;
 pub mod joint;
 pub mod metric;
+pub mod optim;
 pub mod phantom;
 pub mod picture;
 pub mod pyramid;
+pub mod rbf;
+pub mod register;
 pub mod rigid;
 pub mod shaders;
 pub mod skinning;

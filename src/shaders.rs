@@ -22,10 +22,28 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         ],
     ),
     (
+        "lattice_splat",
+        &[
+            COMMON,
+            (
+                "lattice_splat.wgsl",
+                include_str!("../shaders/lattice_splat.wgsl"),
+            ),
+        ],
+    ),
+    (
         "pyramid",
         &[
             COMMON,
             ("pyramid.wgsl", include_str!("../shaders/pyramid.wgsl")),
+        ],
+    ),
+    (
+        "rbf_grad",
+        &[
+            COMMON,
+            SAMPLE,
+            ("rbf_grad.wgsl", include_str!("../shaders/rbf_grad.wgsl")),
         ],
     ),
     (

@@ -2,8 +2,8 @@
 //! has the same size in Rust and WGSL.
 
 use posereg::abi::{
-    JacobianParams, PyramidParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams,
-    SkinWeightsParams, SsdParams,
+    JacobianParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams, ScoreParams,
+    SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
 };
 use posereg::shaders::{locate, source, KERNELS};
 use std::mem::size_of;
@@ -64,7 +64,9 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
-    let pairs: [(&str, &str, usize); 8] = [
+    let pairs: [(&str, &str, usize); 10] = [
+        ("rbf_grad", "RbfGradParams", size_of::<RbfGradParams>()),
+        ("lattice_splat", "SplatParams", size_of::<SplatParams>()),
         ("resample", "ResampleParams", size_of::<ResampleParams>()),
         ("jacobian", "JacobianParams", size_of::<JacobianParams>()),
         ("ssd_cells", "SsdParams", size_of::<SsdParams>()),

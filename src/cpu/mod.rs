@@ -4,7 +4,9 @@
 
 pub mod common;
 pub mod jacobian;
+pub mod lattice_splat;
 pub mod pyramid;
+pub mod rbf_grad;
 pub mod resample;
 pub mod rigid_gn;
 pub mod rigid_score;
@@ -14,8 +16,8 @@ pub mod skin_weights;
 pub mod ssd_cells;
 
 use crate::abi::{
-    Interpolation, JacobianParams, PyramidParams, ResampleParams, RigidParams, ScoreParams,
-    SkinBlendParams, SkinWeightsParams, SsdParams,
+    Interpolation, JacobianParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams,
+    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
 };
 use crate::backend::{check_pair, Backend};
 use crate::error::Result;
@@ -151,6 +153,34 @@ impl Backend for CpuBackend {
         let params = SkinBlendParams::new(target, weight_grid, labels, motions, iterations);
         let mut out = vec![0.0f32; 4 * target.len()];
         skin_blend::skin_blend(&params, weights, bone_of_voxel, &mut out);
+        Ok(out)
+    }
+
+    fn rbf_grad(
+        &self,
+        lattice: &[f32],
+        lattice_dims: [usize; 3],
+        step: usize,
+        moving: &Volume,
+        fixed: &Volume,
+    ) -> Result<Vec<f32>> {
+        check_pair(moving, fixed)?;
+        let params = RbfGradParams::new(&fixed.grid, lattice_dims, step);
+        let mut out = vec![0.0f32; 4 * fixed.grid.len()];
+        rbf_grad::rbf_grad(&params, lattice, &moving.data, &fixed.data, &mut out);
+        Ok(out)
+    }
+
+    fn lattice_splat(
+        &self,
+        values: &[f32],
+        grid: &Grid,
+        lattice_dims: [usize; 3],
+        step: usize,
+    ) -> Result<Vec<f32>> {
+        let params = SplatParams::new(lattice_dims, step, grid.dims);
+        let mut out = vec![0.0f32; 3 * lattice_dims.iter().product::<usize>()];
+        lattice_splat::lattice_splat(&params, values, &mut out);
         Ok(out)
     }
 }

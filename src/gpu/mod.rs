@@ -10,6 +10,7 @@ pub mod context;
 pub mod jacobian;
 pub mod kernel;
 pub mod pyramid;
+pub mod rbf;
 pub mod resample;
 pub mod rigid;
 pub mod run;
@@ -17,8 +18,8 @@ pub mod skinning;
 pub mod ssd_cells;
 
 use crate::abi::{
-    Interpolation, JacobianParams, PyramidParams, ResampleParams, RigidParams, ScoreParams,
-    SkinBlendParams, SkinWeightsParams,
+    Interpolation, JacobianParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams,
+    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
 };
 use crate::backend::{check_pair, Backend};
 use crate::error::{Error, Result};
@@ -39,7 +40,9 @@ pub struct Slab {
 /// The bind group layout of every kernel, by name (the names of crate::shaders::KERNELS).
 pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
     ("jacobian", jacobian::BINDINGS),
+    ("lattice_splat", rbf::SPLAT_BINDINGS),
     ("pyramid", pyramid::BINDINGS),
+    ("rbf_grad", rbf::GRAD_BINDINGS),
     ("resample", resample::BINDINGS),
     ("rigid_gn", rigid::GN_BINDINGS),
     ("rigid_score", rigid::SCORE_BINDINGS),
@@ -75,6 +78,10 @@ pub struct Kernels {
     pub skin_weights: Kernel,
     /// shaders/skin_blend.wgsl
     pub skin_blend: Kernel,
+    /// shaders/rbf_grad.wgsl
+    pub rbf_grad: Kernel,
+    /// shaders/lattice_splat.wgsl
+    pub lattice_splat: Kernel,
 }
 
 /// The GPU backend with its compiled kernels.
@@ -103,6 +110,8 @@ impl GpuBackend {
                 rigid_score: compile(&ctx, "rigid_score")?,
                 skin_weights: compile(&ctx, "skin_weights")?,
                 skin_blend: compile(&ctx, "skin_blend")?,
+                rbf_grad: compile(&ctx, "rbf_grad")?,
+                lattice_splat: compile(&ctx, "lattice_splat")?,
             },
             ctx,
             max_slab_voxels: None,
@@ -260,5 +269,32 @@ impl Backend for GpuBackend {
         crate::skinning::check_bone_count(motions.len())?;
         let params = SkinBlendParams::new(target, weight_grid, labels, motions, iterations);
         skinning::skin_blend(self, &params, weights, bone_of_voxel)
+    }
+
+    fn rbf_grad(
+        &self,
+        lattice: &[f32],
+        lattice_dims: [usize; 3],
+        step: usize,
+        moving: &Volume,
+        fixed: &Volume,
+    ) -> Result<Vec<f32>> {
+        check_pair(moving, fixed)?;
+        let params = RbfGradParams::new(&fixed.grid, lattice_dims, step);
+        rbf::rbf_grad(self, &params, lattice, &moving.data, &fixed.data)
+    }
+
+    fn lattice_splat(
+        &self,
+        values: &[f32],
+        grid: &Grid,
+        lattice_dims: [usize; 3],
+        step: usize,
+    ) -> Result<Vec<f32>> {
+        rbf::lattice_splat(
+            self,
+            &SplatParams::new(lattice_dims, step, grid.dims),
+            values,
+        )
     }
 }

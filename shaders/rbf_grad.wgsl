@@ -1,0 +1,86 @@
+// rbf_grad.wgsl: one evaluation of the non-rigid stage's cost and its gradient field.
+//
+// The cubic-RBF warp R is known at the nodes of a coarse lattice (every `step`-th voxel of the
+// target grid, evaluated on the host) and interpolated trilinearly at each voxel x. The moving
+// image I0 (the source after the articulated initialisation, on the target grid) is sampled at
+// x + R(x): W(x) = I0(x + R(x)). Output per voxel: W and the gradient of (W − T)² with respect
+// to R(x), 2 (W − T) ∇I0(x + R(x)) in world mm. Points outside I0 give W = 0 and no gradient.
+//
+// Bindings (group 0):
+//   0 uniform  RbfGradParams
+//   1 storage  lattice: array<f32>  3 floats (R, mm) per lattice node, whole
+//   2 storage  moving: array<f32>   I0 on the target grid, whole
+//   3 storage  fixed: array<f32>    the target T, this slab
+//   4 storage  out: array<f32>      4 floats per voxel of this slab (read_write)
+// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(depth/4)).
+
+// Keep in sync with abi::RbfGradParams.
+struct RbfGradParams {
+    dims: vec4<u32>,          // nx, ny, nz, z0
+    slab: vec4<u32>,          // depth, lattice step (voxels), unused x2
+    lattice_dims: vec4<u32>,  // lx, ly, lz, unused
+    mm_to_index: array<vec4<f32>, 3>,
+    gradient_to_world: array<vec4<f32>, 3>,
+}
+
+@group(0) @binding(0) var<uniform> params: RbfGradParams;
+@group(0) @binding(1) var<storage, read> lattice: array<f32>;
+@group(0) @binding(2) var<storage, read> moving: array<f32>;
+@group(0) @binding(3) var<storage, read> fixed: array<f32>;
+@group(0) @binding(4) var<storage, read_write> out: array<f32>;
+
+fn sampled_value(index: u32) -> f32 {
+    return moving[index];
+}
+
+fn node(i: u32, j: u32, k: u32) -> vec3<f32> {
+    let n = 3u * voxel_index(i, j, k, params.lattice_dims.xyz);
+    return vec3<f32>(lattice[n], lattice[n + 1u], lattice[n + 2u]);
+}
+
+// Trilinear interpolation of the lattice at voxel (i, j, k).
+fn warp_at(i: u32, j: u32, k: u32) -> vec3<f32> {
+    let s = params.slab.y;
+    let top = params.lattice_dims.xyz - vec3<u32>(1u);
+    let c = vec3<u32>(i, j, k);
+    let i0 = min(c / s, top);
+    let i1 = min(i0 + vec3<u32>(1u), top);
+    let t = vec3<f32>(c - i0 * s) / f32(s);
+    let c00 = (1.0 - t.x) * node(i0.x, i0.y, i0.z) + t.x * node(i1.x, i0.y, i0.z);
+    let c10 = (1.0 - t.x) * node(i0.x, i1.y, i0.z) + t.x * node(i1.x, i1.y, i0.z);
+    let c01 = (1.0 - t.x) * node(i0.x, i0.y, i1.z) + t.x * node(i1.x, i0.y, i1.z);
+    let c11 = (1.0 - t.x) * node(i0.x, i1.y, i1.z) + t.x * node(i1.x, i1.y, i1.z);
+    let c0 = (1.0 - t.y) * c00 + t.y * c10;
+    let c1 = (1.0 - t.y) * c01 + t.y * c11;
+    return (1.0 - t.z) * c0 + t.z * c1;
+}
+
+@compute @workgroup_size(4, 4, 4)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let d = params.dims;
+    let depth = params.slab.x;
+    if (gid.x >= d.x || gid.y >= d.y || gid.z >= depth) {
+        return;
+    }
+    let k = gid.z + d.w;
+    let r = warp_at(gid.x, gid.y, k);
+    let q = vec3<f32>(f32(gid.x), f32(gid.y), f32(k)) + vec3<f32>(
+        linear_row(params.mm_to_index[0], r),
+        linear_row(params.mm_to_index[1], r),
+        linear_row(params.mm_to_index[2], r),
+    );
+    let o = 4u * voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth));
+    if (!inside_source(q, d.xyz)) {
+        out[o] = 0.0;
+        out[o + 1u] = 0.0;
+        out[o + 2u] = 0.0;
+        out[o + 3u] = 0.0;
+        return;
+    }
+    let vg = trilinear_with_gradient(q, d.xyz);
+    let residual = 2.0 * (vg.x - fixed[voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth))]);
+    out[o] = vg.x;
+    out[o + 1u] = residual * linear_row(params.gradient_to_world[0], vg.yzw);
+    out[o + 2u] = residual * linear_row(params.gradient_to_world[1], vg.yzw);
+    out[o + 3u] = residual * linear_row(params.gradient_to_world[2], vg.yzw);
+}

@@ -1,0 +1,56 @@
+//! CPU twin of shaders/lattice_splat.wgsl.
+
+use super::common::voxel_index;
+use crate::abi::SplatParams;
+use rayon::prelude::*;
+
+fn reach_lo(a: u32, s: u32) -> u32 {
+    if a > 0 {
+        (a - 1) * s + 1
+    } else {
+        0
+    }
+}
+
+fn weight(v: u32, a: u32, s: u32) -> f32 {
+    (1.0 - (v as f32 / s as f32 - a as f32).abs()).max(0.0)
+}
+
+/// Fills `out` (3 floats per lattice node of the slab) with Σ_x w_n(x) values(x).
+pub fn lattice_splat(params: &SplatParams, values: &[f32], out: &mut [f32]) {
+    let [lx, ly, _, z0] = params.dims;
+    let s = params.slab[1];
+    let n = [
+        params.volume_dims[0],
+        params.volume_dims[1],
+        params.volume_dims[2],
+    ];
+    out.par_chunks_mut((3 * lx * ly) as usize)
+        .enumerate()
+        .for_each(|(zl, slice)| {
+            let c = zl as u32 + z0;
+            for b in 0..ly {
+                for a in 0..lx {
+                    let mut sum = [0.0f32; 3];
+                    for k in reach_lo(c, s)..((c + 1) * s).min(n[2]) {
+                        let wz = weight(k, c, s);
+                        for j in reach_lo(b, s)..((b + 1) * s).min(n[1]) {
+                            let wy = weight(j, b, s);
+                            for i in reach_lo(a, s)..((a + 1) * s).min(n[0]) {
+                                let wx = weight(i, a, s);
+                                let w = wx * wy * wz;
+                                if w > 0.0 {
+                                    let v = 3 * voxel_index(i, j, k, n) as usize;
+                                    for q in 0..3 {
+                                        sum[q] += w * values[v + q];
+                                    }
+                                }
+                            }
+                        }
+                    }
+                    let o = 3 * (a + lx * b) as usize;
+                    slice[o..o + 3].copy_from_slice(&sum);
+                }
+            }
+        });
+}

@@ -1,0 +1,79 @@
+//! CPU twin of shaders/rbf_grad.wgsl.
+
+use super::common::{linear_row, voxel_index};
+use super::sample::{inside_source, trilinear_with_gradient};
+use crate::abi::RbfGradParams;
+use glam::Vec3;
+use rayon::prelude::*;
+
+fn node(params: &RbfGradParams, lattice: &[f32], i: u32, j: u32, k: u32) -> Vec3 {
+    let l = [
+        params.lattice_dims[0],
+        params.lattice_dims[1],
+        params.lattice_dims[2],
+    ];
+    let n = 3 * voxel_index(i, j, k, l) as usize;
+    Vec3::new(lattice[n], lattice[n + 1], lattice[n + 2])
+}
+
+/// Trilinear interpolation of the lattice at voxel (i, j, k).
+pub fn warp_at(params: &RbfGradParams, lattice: &[f32], i: u32, j: u32, k: u32) -> Vec3 {
+    let s = params.slab[1];
+    let top = [
+        params.lattice_dims[0] - 1,
+        params.lattice_dims[1] - 1,
+        params.lattice_dims[2] - 1,
+    ];
+    let c = [i, j, k];
+    let i0: [u32; 3] = std::array::from_fn(|a| (c[a] / s).min(top[a]));
+    let i1: [u32; 3] = std::array::from_fn(|a| (i0[a] + 1).min(top[a]));
+    let t: [f32; 3] = std::array::from_fn(|a| (c[a] - i0[a] * s) as f32 / s as f32);
+    let n = |x, y, z| node(params, lattice, x, y, z);
+    let c00 = (1.0 - t[0]) * n(i0[0], i0[1], i0[2]) + t[0] * n(i1[0], i0[1], i0[2]);
+    let c10 = (1.0 - t[0]) * n(i0[0], i1[1], i0[2]) + t[0] * n(i1[0], i1[1], i0[2]);
+    let c01 = (1.0 - t[0]) * n(i0[0], i0[1], i1[2]) + t[0] * n(i1[0], i0[1], i1[2]);
+    let c11 = (1.0 - t[0]) * n(i0[0], i1[1], i1[2]) + t[0] * n(i1[0], i1[1], i1[2]);
+    let c0 = (1.0 - t[1]) * c00 + t[1] * c10;
+    let c1 = (1.0 - t[1]) * c01 + t[1] * c11;
+    (1.0 - t[2]) * c0 + t[2] * c1
+}
+
+/// Fills `out` (4 floats per voxel of the slab: W, then the cost gradient in mm).
+pub fn rbf_grad(
+    params: &RbfGradParams,
+    lattice: &[f32],
+    moving: &[f32],
+    fixed: &[f32],
+    out: &mut [f32],
+) {
+    let [nx, ny, nz, z0] = params.dims;
+    let depth = params.slab[0];
+    out.par_chunks_mut((4 * nx * ny) as usize)
+        .enumerate()
+        .for_each(|(zl, slice)| {
+            let k = zl as u32 + z0;
+            for j in 0..ny {
+                for i in 0..nx {
+                    let r = warp_at(params, lattice, i, j, k).to_array();
+                    let q = [
+                        i as f32 + linear_row(params.mm_to_index[0], r),
+                        j as f32 + linear_row(params.mm_to_index[1], r),
+                        k as f32 + linear_row(params.mm_to_index[2], r),
+                    ];
+                    let o = 4 * (i + nx * j) as usize;
+                    if !inside_source(q, [nx, ny, nz]) {
+                        slice[o..o + 4].copy_from_slice(&[0.0; 4]);
+                        continue;
+                    }
+                    let vg = trilinear_with_gradient(moving, q, [nx, ny, nz]);
+                    let g = [vg[1], vg[2], vg[3]];
+                    let residual = 2.0
+                        * (vg[0] - fixed[voxel_index(i, j, zl as u32, [nx, ny, depth]) as usize]);
+                    slice[o] = vg[0];
+                    for c in 0..3 {
+                        slice[o + 1 + c] = residual * linear_row(params.gradient_to_world[c], g);
+                    }
+                }
+            }
+        });
+}

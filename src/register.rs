@@ -1,0 +1,172 @@
+//! The whole pipeline, generic over the backend: articulated initialisation (optional), the
+//! adaptive cubic-RBF stage, the composed field, a fold check, and the source resampled once.
+
+use crate::abi::Interpolation;
+use crate::adaptive::{self, compose, Adaptive, AdaptiveOptions};
+use crate::articulated::{initialise, InitOptions, Initialisation};
+use crate::backend::Backend;
+use crate::error::Result;
+use crate::volume::{Field, Image, Labels, Volume};
+use crate::vsd::maps_into_bone;
+use nalgebra::Vector3;
+
+/// Settings of a registration.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RegisterOptions {
+    /// Articulated initialisation settings; None skips it (the paper's first experiment).
+    pub init: Option<InitOptions>,
+    /// The adaptive stage.
+    pub adaptive: AdaptiveOptions,
+    /// Control points held at zero added displacement on each bone's surface.
+    pub pins_per_bone: usize,
+}
+
+impl Default for RegisterOptions {
+    fn default() -> Self {
+        RegisterOptions {
+            init: Some(InitOptions::default()),
+            adaptive: AdaptiveOptions::default(),
+            pins_per_bone: 8,
+        }
+    }
+}
+
+/// What a registration produces.
+pub struct Registration {
+    /// The articulated initialisation, when run.
+    pub init: Option<Initialisation>,
+    /// The adaptive stage.
+    pub adaptive: Adaptive,
+    /// Total field: target point → source point (RAS mm).
+    pub field: Field,
+    /// The source resampled once through it.
+    pub warped: Volume,
+    /// Smallest Jacobian determinant of the field over the target.
+    pub min_jacobian: f32,
+    /// Share of target voxels with determinant ≤ 0.
+    pub folded_share: f64,
+    /// Factor the RBF warp was scaled by to keep the field from folding (1 when untouched).
+    pub warp_scale: f64,
+}
+
+/// Up to `per_bone` points on each bone's surface in the target: boundary voxels of the region
+/// that the initial field maps into the bone, spread by farthest-point sampling.
+pub fn bone_pins(
+    initial: &Field,
+    labels: &Labels,
+    bones: &[u16],
+    per_bone: usize,
+) -> Vec<Vector3<f64>> {
+    let grid = &initial.grid;
+    let d = grid.dims;
+    let mut pins = Vec::new();
+    for &bone in bones {
+        let inside = maps_into_bone(initial, labels, &[bone]);
+        let boundary: Vec<usize> = (0..grid.len())
+            .filter(|&n| {
+                if !inside[n] {
+                    return false;
+                }
+                let (i, j, k) = (n % d[0], (n / d[0]) % d[1], n / (d[0] * d[1]));
+                let neighbours = [
+                    (i > 0).then(|| n - 1),
+                    (i + 1 < d[0]).then(|| n + 1),
+                    (j > 0).then(|| n - d[0]),
+                    (j + 1 < d[1]).then(|| n + d[0]),
+                    (k > 0).then(|| n - d[0] * d[1]),
+                    (k + 1 < d[2]).then(|| n + d[0] * d[1]),
+                ];
+                neighbours.iter().any(|m| m.is_some_and(|m| !inside[m]))
+            })
+            .collect();
+        let points: Vec<Vector3<f64>> = boundary
+            .iter()
+            .map(|&n| {
+                let w = grid.voxel_to_world([
+                    (n % d[0]) as f64,
+                    ((n / d[0]) % d[1]) as f64,
+                    (n / (d[0] * d[1])) as f64,
+                ]);
+                Vector3::new(w[0], w[1], w[2])
+            })
+            .collect();
+        let Some(first) = points.first() else {
+            continue;
+        };
+        let mut chosen = vec![*first];
+        let mut nearest: Vec<f64> = points.iter().map(|p| (p - first).norm()).collect();
+        while chosen.len() < per_bone {
+            let (k, far) =
+                nearest
+                    .iter()
+                    .enumerate()
+                    .fold((0, 0.0), |b, (k, &v)| if v > b.1 { (k, v) } else { b });
+            if far < 1e-6 {
+                break;
+            }
+            chosen.push(points[k]);
+            for (m, p) in points.iter().enumerate() {
+                nearest[m] = nearest[m].min((p - points[k]).norm());
+            }
+        }
+        pins.extend(chosen);
+    }
+    pins
+}
+
+/// Registers `source` (with its bone `labels`) to `target`.
+pub fn register(
+    backend: &dyn Backend,
+    source: &Volume,
+    labels: &Labels,
+    target: &Volume,
+    options: &RegisterOptions,
+) -> Result<Registration> {
+    let zero = Image::filled(target.grid.clone(), [0.0f32; 3]);
+    let (init, initial, moving) = match &options.init {
+        Some(init_options) => {
+            let init = initialise(backend, source, labels, target, init_options, None)?;
+            let field = init.initial.field.clone();
+            let moving = init.initialised.clone();
+            (Some(init), field, moving)
+        }
+        None => {
+            let moving = backend.resample(source, &zero, 0.0, Interpolation::Linear)?;
+            (None, zero, moving)
+        }
+    };
+    let pins = match &init {
+        Some(i) if options.pins_per_bone > 0 => {
+            bone_pins(&initial, labels, &i.weights.bones, options.pins_per_bone)
+        }
+        _ => Vec::new(),
+    };
+    let adaptive = adaptive::register(backend, &moving, target, &pins, &options.adaptive)?;
+    // Step control: if the added warp makes the field fold (beyond what the initial field
+    // already did), shrink it until it does not.
+    let folds = |det: &Volume| det.data.iter().filter(|&&v| v <= 0.0).count();
+    let folded_initially = folds(&backend.jacobian(&initial)?);
+    let mut scale = 1.0;
+    let (field, det) = loop {
+        let warp = adaptive.warp_field(&target.grid, options.adaptive.lattice_mm, scale);
+        let field = compose(&warp, &initial)?;
+        let det = backend.jacobian(&field)?;
+        if folds(&det) <= folded_initially || scale < 0.1 {
+            break (field, det);
+        }
+        scale *= 0.5;
+    };
+    let warped = backend.resample(source, &field, 0.0, Interpolation::Linear)?;
+    let min_jacobian = det.data.iter().cloned().fold(f32::INFINITY, f32::min);
+    let folded_share =
+        det.data.iter().filter(|&&v| v <= 0.0).count() as f64 / det.data.len() as f64;
+    Ok(Registration {
+        init,
+        adaptive,
+        field,
+        warped,
+        min_jacobian,
+        folded_share,
+        warp_scale: scale,
+    })
+}
