@@ -85,6 +85,54 @@ fn kernels(c: &mut Criterion) {
             });
         }
         group.finish();
+        let mut group = c.benchmark_group("jacobian");
+        group
+            .sample_size(10)
+            .throughput(Throughput::Elements(g.len() as u64));
+        for (name, b) in &backends {
+            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
+                bench.iter(|| b.jacobian(&u).unwrap())
+            });
+        }
+        group.finish();
+        let (coarse, factors) = posereg::pyramid::next_level_grid(&g).unwrap();
+        let mut group = c.benchmark_group("pyramid");
+        group
+            .sample_size(10)
+            .throughput(Throughput::Elements(g.len() as u64));
+        for (name, b) in &backends {
+            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
+                bench.iter(|| b.pyramid_level(&source, &coarse, factors).unwrap())
+            });
+        }
+        group.finish();
+        // The non-rigid stage's per-iteration work: lattice every 4 voxels.
+        let step = 4;
+        let ldims: [usize; 3] = std::array::from_fn(|a| (dims[a] - 1).div_ceil(step) + 1);
+        let lattice: Vec<f32> = (0..3 * ldims.iter().product::<usize>())
+            .map(|k| ((k % 17) as f32 - 8.0) * 0.1)
+            .collect();
+        let mut group = c.benchmark_group("rbf_grad");
+        group
+            .sample_size(10)
+            .throughput(Throughput::Elements(g.len() as u64));
+        for (name, b) in &backends {
+            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
+                bench.iter(|| b.rbf_grad(&lattice, ldims, step, &source, &target).unwrap())
+            });
+        }
+        group.finish();
+        let per_voxel: Vec<f32> = bytemuck::cast_slice(&u.data).to_vec();
+        let mut group = c.benchmark_group("lattice_splat");
+        group
+            .sample_size(10)
+            .throughput(Throughput::Elements(g.len() as u64));
+        for (name, b) in &backends {
+            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
+                bench.iter(|| b.lattice_splat(&per_voxel, &g, ldims, step).unwrap())
+            });
+        }
+        group.finish();
         let mut group = c.benchmark_group("ssd_cells_16");
         group
             .sample_size(10)

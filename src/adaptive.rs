@@ -49,7 +49,7 @@ impl Default for AdaptiveOptions {
         AdaptiveOptions {
             levels: 3,
             cell_levels: vec![2, 4, 8, 16],
-            min_cell_voxels: 4,
+            min_cell_voxels: 3,
             threshold: 1.0,
             iterations: 30,
             tolerance: 1e-5,

@@ -340,3 +340,34 @@ fn skinning_kernels_parity() {
     // where the inversion converges; residual channel included.
     close("skin_blend", &got, &cpu, 2e-3, 1e-4);
 }
+
+#[test]
+fn rbf_kernels_parity() {
+    let Some(gpu) = gpu() else { return };
+    let grid = oblique_grid([27, 22, 17]);
+    let moving = smooth_volume(&grid, 51);
+    let fixed = smooth_volume(&grid, 52);
+    let step = 4;
+    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
+    let lattice: Vec<f32> = (0..3 * ldims.iter().product::<usize>())
+        .map(|k| ((k * 29) % 31) as f32 * 0.2 - 3.0)
+        .collect();
+    let cpu = CpuBackend
+        .rbf_grad(&lattice, ldims, step, &moving, &fixed)
+        .unwrap();
+    let got = gpu
+        .rbf_grad(&lattice, ldims, step, &moving, &fixed)
+        .unwrap();
+    // Gradients are 2 r ∇I0 with r up to ~100 and |∇| up to ~10: relative 1e-4 plus an
+    // absolute allowance for ulp-level changes of the sample point.
+    close("rbf_grad", &got, &cpu, 2e-2, 1e-4);
+    let values: Vec<f32> = cpu
+        .chunks_exact(4)
+        .flat_map(|o| [o[1], o[2], o[3]])
+        .collect();
+    let a = CpuBackend
+        .lattice_splat(&values, &grid, ldims, step)
+        .unwrap();
+    let b = gpu.lattice_splat(&values, &grid, ldims, step).unwrap();
+    close("lattice_splat", &b, &a, 1e-1, 1e-4);
+}
