@@ -5,6 +5,7 @@ pub mod demo;
 pub mod info;
 pub mod init;
 pub mod phantom;
+pub mod register;
 pub mod resample;
 
 use clap::{Parser, Subcommand};
@@ -35,6 +36,8 @@ pub enum Command {
     Init(init::InitArgs),
     /// Make a knee phantom in any flexion, with exact ground truth.
     Phantom(phantom::PhantomArgs),
+    /// Register a straight scan with bone labels to a bent scan: the whole pipeline.
+    Register(register::RegisterArgs),
     /// Resample an image through a displacement field (ITK convention) onto a target grid.
     Resample(resample::ResampleArgs),
 }
@@ -47,6 +50,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Info(args) => info::run(&args),
         Command::Init(args) => init::run(&args, cli.device),
         Command::Phantom(args) => phantom::run(&args),
+        Command::Register(args) => register::run(&args, cli.device),
         Command::Resample(args) => resample::run(&args, cli.device),
     }
 }
