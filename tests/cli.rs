@@ -166,6 +166,29 @@ fn info_on_a_missing_or_corrupt_file_fails_cleanly() {
     assert_fails_naming(&posereg(&["info", "/no/such/file.nii.gz"]), "file.nii.gz");
 }
 
+/// Runs `verb` (init or register) on the demo folder's source, labels and target into `out`,
+/// on the CPU, and checks it succeeded.
+fn run_on_pair(verb: &str, demo: &Path, out: &Path) {
+    let result = posereg(&[
+        verb,
+        "--source",
+        s(&demo.join("source.nii.gz")),
+        "--source-labels",
+        s(&demo.join("source_labels.nii.gz")),
+        "--target",
+        s(&demo.join("target.nii.gz")),
+        "-o",
+        s(out),
+        "--device",
+        "cpu",
+    ]);
+    assert!(
+        result.status.success(),
+        "{verb}: {}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+}
+
 #[test]
 fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
     let dir = tempfile::tempdir().unwrap();
@@ -202,24 +225,7 @@ fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
     }
     // init on the demo's pair writes its three outputs.
     let init = dir.path().join("init");
-    let out = posereg(&[
-        "init",
-        "--source",
-        s(&demo.join("source.nii.gz")),
-        "--source-labels",
-        s(&demo.join("source_labels.nii.gz")),
-        "--target",
-        s(&demo.join("target.nii.gz")),
-        "-o",
-        s(&init),
-        "--device",
-        "cpu",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    run_on_pair("init", &demo, &init);
     for file in ["init.json", "init_field.nii.gz", "initialised.nii.gz"] {
         assert!(init.join(file).exists(), "init did not write {file}");
     }
@@ -252,6 +258,58 @@ fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
         .to_degrees();
     assert!((angle - 20.0).abs() < 1e-6, "tibia turned {angle}°");
     assert!(bent.join("target.nii.gz").exists() && bent.join("truth_field.nii.gz").exists());
+    // register runs the whole pipeline on the demo's 30° pair: its outputs and report.
+    let reg = dir.path().join("reg");
+    run_on_pair("register", &demo, &reg);
+    for file in [
+        "warped.nii.gz",
+        "field.nii.gz",
+        "transform.json",
+        "jacobian.nii.gz",
+        "report.json",
+    ] {
+        assert!(reg.join(file).exists(), "register did not write {file}");
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(reg.join("report.json")).unwrap()).unwrap();
+    let (before, after) = (
+        report["correlation"]["before"].as_f64().unwrap(),
+        report["correlation"]["after"].as_f64().unwrap(),
+    );
+    assert!(after > before, "correlation {before} -> {after}");
+    let warped = load_volume(&reg.join("warped.nii.gz")).unwrap();
+    let target = load_volume(&demo.join("target.nii.gz")).unwrap();
+    assert_eq!(warped.grid, target.grid, "warped is on the target's grid");
+}
+
+#[test]
+fn register_refuses_images_with_nan_voxels() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = oblique_grid([10, 9, 8]);
+    let src = dir.path().join("source.nii.gz");
+    save_volume(&src, &smooth_volume(&grid, 1), DataType::F32).unwrap();
+    let labels = dir.path().join("labels.nii.gz");
+    posereg::io::nifti::save_labels(&labels, &posereg::Image::filled(grid.clone(), 2u16)).unwrap();
+    let mut bad = smooth_volume(&grid, 2);
+    bad.data[17] = f32::NAN;
+    let nan = dir.path().join("nan_target.nii.gz");
+    save_volume(&nan, &bad, DataType::F32).unwrap();
+    let out = dir.path().join("out");
+    let result = posereg(&[
+        "register",
+        "--source",
+        s(&src),
+        "--source-labels",
+        s(&labels),
+        "--target",
+        s(&nan),
+        "-o",
+        s(&out),
+        "--device",
+        "cpu",
+    ]);
+    assert_fails_naming(&result, "nan_target.nii.gz");
+    assert!(!out.exists());
 }
 
 #[test]

@@ -44,7 +44,10 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice) -> anyhow::Result<()> {
     let (backend, line) = open_backend(device)?;
     eprintln!("{line}");
     let options = RegisterOptions {
-        init: (!args.no_init).then(|| InitOptions { bones: args.bones.clone(), ..Default::default() }),
+        init: (!args.no_init).then(|| InitOptions {
+            bones: args.bones.clone(),
+            ..Default::default()
+        }),
         ..Default::default()
     };
     let started = std::time::Instant::now();
@@ -56,7 +59,11 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice) -> anyhow::Result<()> {
     save_field(&out("field.nii.gz"), &result.field)?;
     let det = backend.jacobian(&result.field)?;
     save_volume(&out("jacobian.nii.gz"), &det, DataType::F32)?;
-    let mut transform = result.init.as_ref().map(|i| i.transforms()).unwrap_or_else(|| BoneTransforms::new(Vec::new()));
+    let mut transform = result
+        .init
+        .as_ref()
+        .map(|i| i.transforms())
+        .unwrap_or_else(|| BoneTransforms::new(Vec::new()));
     transform.extra.insert(
         "rbf".into(),
         serde_json::json!({
@@ -88,7 +95,9 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice) -> anyhow::Result<()> {
         "jacobian": { "min": result.min_jacobian, "folded_share": result.folded_share },
     });
     let text = serde_json::to_string_pretty(&report)?;
-    posereg::io::write_atomically(&out("report.json"), |tmp| std::fs::write(tmp, text + "\n").map_err(|e| Error::io(tmp, e)))?;
+    posereg::io::write_atomically(&out("report.json"), |tmp| {
+        std::fs::write(tmp, text + "\n").map_err(|e| Error::io(tmp, e))
+    })?;
     println!(
         "registered in {seconds:.1} s: correlation {:.3} -> {:.3}, {} control points, Jacobian min {:.3}; outputs in {}",
         report["correlation"]["before"].as_f64().unwrap_or(f64::NAN),
