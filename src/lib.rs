@@ -38,6 +38,7 @@ pub mod metric;
 pub mod optim;
 pub mod phantom;
 pub mod picture;
+pub mod points;
 pub mod pyramid;
 pub mod rbf;
 pub mod register;

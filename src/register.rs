@@ -170,3 +170,29 @@ pub fn register(
         warp_scale: scale,
     })
 }
+
+impl Registration {
+    /// The registration in the bone-transform format: bone motions (none without the
+    /// initialisation) plus the RBF stage's control points and solved coefficients, and how
+    /// the total field is composed. field.nii.gz beside it holds that total field sampled on the
+    /// target grid.
+    pub fn transforms(&self, options: &RegisterOptions) -> crate::io::transform::BoneTransforms {
+        let mut transform = self
+            .init
+            .as_ref()
+            .map(|i| i.transforms())
+            .unwrap_or_else(|| crate::io::transform::BoneTransforms::new(Vec::new()));
+        transform.extra.insert(
+            "rbf".into(),
+            serde_json::json!({
+                "basis": "cubic, phi(r) = r^3, world RAS mm, on the target grid",
+                "lattice_mm": options.adaptive.lattice_mm,
+                "control_points": self.adaptive.points,
+                "coefficients": self.adaptive.coefficients,
+                "scale": self.warp_scale,
+                "composition": "u(x) = R(x) + u0(x + R(x)); u0 = inverted skinning of the bone motions",
+            }),
+        );
+        transform
+    }
+}

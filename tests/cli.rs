@@ -348,3 +348,164 @@ fn init_refuses_labels_on_another_grid_and_label_maps_without_bones() {
     }
     assert!(!out.exists(), "no output folder on failure");
 }
+
+#[test]
+fn apply_apply_points_and_eval_use_a_registration_folder() {
+    // A "registration" whose field is a phantom's exact truth, so every answer is known.
+    let dir = tempfile::tempdir().unwrap();
+    let spec = |flexion_degrees, seed| posereg::phantom::PhantomSpec {
+        size: posereg::phantom::PhantomSize::Small,
+        flexion_degrees,
+        seed,
+        ..Default::default()
+    };
+    let straight = posereg::phantom::generate(&spec(0.0, 1)).unwrap();
+    let bent = posereg::phantom::generate(&spec(30.0, 2)).unwrap();
+    let reg = dir.path().join("reg");
+    std::fs::create_dir_all(&reg).unwrap();
+    save_field(&reg.join("field.nii.gz"), &bent.truth_field).unwrap();
+    bent.truth.save(&reg.join("transform.json")).unwrap();
+    let target = dir.path().join("target.nii.gz");
+    save_volume(&target, &bent.image, DataType::F32).unwrap();
+    let labels = dir.path().join("labels.nii.gz");
+    posereg::io::nifti::save_labels(&labels, &straight.labels).unwrap();
+
+    // apply --nearest carries the straight labels onto the bent ones.
+    let moved = dir.path().join("moved_labels.nii.gz");
+    let out = posereg(&[
+        "apply",
+        s(&reg.join("transform.json")),
+        s(&labels),
+        "--like",
+        s(&target),
+        "-o",
+        s(&moved),
+        "--nearest",
+        "--device",
+        "cpu",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let moved = posereg::io::nifti::load_labels(&moved).unwrap();
+    let d = posereg::metric::dice(&moved.data, &bent.labels.data, 3u16);
+    assert!(d > 0.9, "tibia Dice {d}");
+
+    // apply-points: the patella's centre on the straight scan lands on the bent patella's
+    // centre (the truth's rigid motion of it), and comes back.
+    let grid = &straight.labels.grid;
+    let dims = grid.dims;
+    let (mut sum, mut n) = (nalgebra::Vector3::zeros(), 0.0);
+    for (k, &l) in straight.labels.data.iter().enumerate() {
+        if l == 4 {
+            let w = grid.voxel_to_world([
+                (k % dims[0]) as f64,
+                ((k / dims[0]) % dims[1]) as f64,
+                (k / (dims[0] * dims[1])) as f64,
+            ]);
+            sum += nalgebra::Vector3::new(w[0], w[1], w[2]);
+            n += 1.0;
+        }
+    }
+    let centre = sum / n;
+    let csv = dir.path().join("points.csv");
+    std::fs::write(
+        &csv,
+        format!(
+            "name,x,y,z\npatella,{},{},{}\n",
+            centre.x, centre.y, centre.z
+        ),
+    )
+    .unwrap();
+    let there = dir.path().join("there.csv");
+    let out = posereg(&[
+        "apply-points",
+        s(&reg.join("transform.json")),
+        s(&csv),
+        "-o",
+        s(&there),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let row = |path: &Path| -> nalgebra::Vector3<f64> {
+        let text = std::fs::read_to_string(path).unwrap();
+        let cells: Vec<f64> = text
+            .lines()
+            .nth(1)
+            .unwrap()
+            .split(',')
+            .skip(1)
+            .take(3)
+            .map(|c| c.parse().unwrap())
+            .collect();
+        nalgebra::Vector3::new(cells[0], cells[1], cells[2])
+    };
+    let m = bent
+        .truth
+        .bones
+        .iter()
+        .find(|b| b.label == 4)
+        .unwrap()
+        .affine();
+    let expected = (m * centre.push(1.0)).xyz();
+    let got = row(&there);
+    assert!(
+        (got - expected).norm() < 0.5,
+        "patella centre mapped to {got:?}, truth {expected:?}"
+    );
+    assert!(std::fs::read_to_string(&there)
+        .unwrap()
+        .starts_with("name,x,y,z,inversion_residual_mm\npatella,"));
+    let back = dir.path().join("back.csv");
+    let out = posereg(&[
+        "apply-points",
+        s(&reg.join("transform.json")),
+        s(&there),
+        "-o",
+        s(&back),
+        "--direction",
+        "target-to-source",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!((row(&back) - centre).norm() < 0.5);
+
+    // eval of the truth against itself.
+    let out = posereg(&[
+        "eval",
+        "--field",
+        s(&reg.join("field.nii.gz")),
+        "--truth",
+        s(&reg.join("field.nii.gz")),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["mean_mm"].as_f64(), Some(0.0));
+    assert_eq!(v["within_2_voxels"].as_f64(), Some(1.0));
+    // A points file without a z column is refused, naming the file.
+    let bad = dir.path().join("bad_points.csv");
+    std::fs::write(&bad, "x,y\n1,2\n").unwrap();
+    assert_fails_naming(
+        &posereg(&[
+            "apply-points",
+            s(&reg.join("transform.json")),
+            s(&bad),
+            "-o",
+            s(&there),
+        ]),
+        "bad_points.csv",
+    );
+}

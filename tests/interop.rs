@@ -24,14 +24,34 @@ fn simpleitk_applies_our_field_and_nibabel_reads_our_outputs() {
     }
     let dir = tempfile::tempdir().unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_posereg"))
-        .args(["demo", "--size", "small", "--flexion", "20", "--device", "cpu", "-o"])
+        .args([
+            "demo",
+            "--size",
+            "small",
+            "--flexion",
+            "20",
+            "--device",
+            "cpu",
+            "-o",
+        ])
         .arg(dir.path())
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/interop.py");
-    let check = Command::new("python3").arg(script).arg(dir.path()).output().unwrap();
+    let check = Command::new("python3")
+        .arg(script)
+        .arg(dir.path())
+        .output()
+        .unwrap();
     let text = String::from_utf8_lossy(&check.stdout);
     eprintln!("{text}{}", String::from_utf8_lossy(&check.stderr));
-    assert!(check.status.success() && text.contains("interop ok"), "interop check failed");
+    assert!(
+        check.status.success() && text.contains("interop ok"),
+        "interop check failed"
+    );
 }

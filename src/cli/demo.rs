@@ -73,9 +73,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice) -> anyhow::Result<()> {
     target.truth.save(&out("truth.json"))?;
     save_volume(&out("warped.nii.gz"), &result.warped, DataType::F32)?;
     save_field(&out("field.nii.gz"), &result.field)?;
-    if let Some(init) = &result.init {
-        init.transforms().save(&out("transform.json"))?;
-    }
+    result.transforms(&options).save(&out("transform.json"))?;
     let knee = posereg::phantom::flexion::Flexion::knee(0.0)
         .axis_point
         .as_dvec3()

@@ -1,10 +1,13 @@
 //! The command-line verbs: each parses its arguments, calls the library, and prints.
 
+pub mod apply;
 pub mod bend;
 pub mod demo;
+pub mod eval;
 pub mod info;
 pub mod init;
 pub mod phantom;
+pub mod points;
 pub mod register;
 pub mod resample;
 
@@ -26,10 +29,16 @@ pub struct Cli {
 /// The verbs.
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// Apply a registration to another image (a label map with --nearest).
+    Apply(apply::ApplyArgs),
+    /// Carry points (CSV, world mm) through a registration.
+    ApplyPoints(points::PointsArgs),
     /// Bend a labelled straight volume by volume skeletal deformation, with the truth.
     Bend(bend::BendArgs),
     /// Make a phantom pair, register it, and print the figures against the truth.
     Demo(demo::DemoArgs),
+    /// The paper's figures for an estimated field against a true one.
+    Eval(eval::EvalArgs),
     /// Print a NIfTI file's grid, world affine, orientation and intensity range.
     Info(info::InfoArgs),
     /// Articulated initialisation alone: per-bone rigid, skinning, volume skeletal deformation.
@@ -45,8 +54,11 @@ pub enum Command {
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Apply(args) => apply::run(&args, cli.device),
+        Command::ApplyPoints(args) => points::run(&args),
         Command::Bend(args) => bend::run(&args, cli.device),
         Command::Demo(args) => demo::run(&args, cli.device),
+        Command::Eval(args) => eval::run(&args),
         Command::Info(args) => info::run(&args),
         Command::Init(args) => init::run(&args, cli.device),
         Command::Phantom(args) => phantom::run(&args),

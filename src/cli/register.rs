@@ -9,7 +9,6 @@ use posereg::articulated::InitOptions;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::save_field;
 use posereg::io::nifti::{save_volume, DataType};
-use posereg::io::transform::BoneTransforms;
 use posereg::metric::correlation;
 use posereg::register::{register, RegisterOptions};
 use posereg::Error;
@@ -59,22 +58,7 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice) -> anyhow::Result<()> {
     save_field(&out("field.nii.gz"), &result.field)?;
     let det = backend.jacobian(&result.field)?;
     save_volume(&out("jacobian.nii.gz"), &det, DataType::F32)?;
-    let mut transform = result
-        .init
-        .as_ref()
-        .map(|i| i.transforms())
-        .unwrap_or_else(|| BoneTransforms::new(Vec::new()));
-    transform.extra.insert(
-        "rbf".into(),
-        serde_json::json!({
-            "basis": "cubic, phi(r) = r^3, world RAS mm, on the target grid",
-            "lattice_mm": options.adaptive.lattice_mm,
-            "control_points": result.adaptive.points,
-            "coefficients": result.adaptive.coefficients,
-            "scale": result.warp_scale,
-            "composition": "u(x) = R(x) + u0(x + R(x)), u0 = the initial field (field.nii.gz holds u)",
-        }),
-    );
+    let transform = result.transforms(&options);
     transform.save(&out("transform.json"))?;
     let zero = posereg::Image::filled(target.grid.clone(), [0.0f32; 3]);
     let before = backend.resample(&source, &zero, 0.0, Interpolation::Linear)?;
