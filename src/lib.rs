@@ -40,6 +40,7 @@ pub mod phantom;
 pub mod picture;
 pub mod points;
 pub mod pyramid;
+pub mod quicklook;
 pub mod rbf;
 pub mod register;
 pub mod rigid;

@@ -20,7 +20,7 @@ pub struct Panel {
 }
 
 /// World bounding box of the grid's voxel centres.
-fn world_bounds(volume: &Volume) -> ([f64; 3], [f64; 3]) {
+pub(crate) fn world_bounds(volume: &Volume) -> ([f64; 3], [f64; 3]) {
     let d = volume.grid.dims;
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
@@ -43,7 +43,14 @@ fn world_bounds(volume: &Volume) -> ([f64; 3], [f64; 3]) {
 
 /// The plane through `centre` spanned by world axes `h` (left to right of the picture, running
 /// in direction `h_sign`) and `v` (top to bottom, running towards −v: up is +v).
-fn plane(volume: &Volume, centre: [f64; 3], h: usize, h_sign: f64, v: usize, pixel: f64) -> Panel {
+pub(crate) fn plane(
+    volume: &Volume,
+    centre: [f64; 3],
+    h: usize,
+    h_sign: f64,
+    v: usize,
+    pixel: f64,
+) -> Panel {
     let (lo, hi) = world_bounds(volume);
     let width = ((hi[h] - lo[h]) / pixel).ceil() as usize + 1;
     let height = ((hi[v] - lo[v]) / pixel).ceil() as usize + 1;
@@ -80,23 +87,29 @@ fn plane(volume: &Volume, centre: [f64; 3], h: usize, h_sign: f64, v: usize, pix
 pub fn orthogonal_planes(volume: &Volume, centre: Option<[f64; 3]>) -> [Panel; 3] {
     let (lo, hi) = world_bounds(volume);
     let centre = centre.unwrap_or([0, 1, 2].map(|a| (lo[a] + hi[a]) / 2.0));
-    let pixel = volume
+    let pixel = pixel_size(volume);
+    PLANES.map(|(h, h_sign, v)| plane(volume, centre, h, h_sign, v, pixel))
+}
+
+/// The three planes as (horizontal world axis, its direction, vertical world axis): sagittal
+/// with anterior (+y) on the left, coronal with the subject's right (+x) on the left, axial with
+/// anterior up.
+pub const PLANES: [(usize, f64, usize); 3] = [(1, -1.0, 2), (0, -1.0, 2), (0, -1.0, 1)];
+
+/// The finest voxel spacing: the pixel size of every picture.
+pub fn pixel_size(volume: &Volume) -> f64 {
+    volume
         .grid
         .spacing()
         .iter()
         .cloned()
-        .fold(f64::INFINITY, f64::min);
-    [
-        plane(volume, centre, 1, -1.0, 2, pixel), // sagittal: anterior (+y) on the left
-        plane(volume, centre, 0, -1.0, 2, pixel), // coronal: right (+x) on the left
-        plane(volume, centre, 0, -1.0, 1, pixel), // axial: anterior up
-    ]
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// Display window: 0 to the 99.5th percentile of the finite, positive values.
-pub fn window(panels: &[Panel]) -> (f32, f32) {
+pub fn window<'a>(panels: impl IntoIterator<Item = &'a Panel>) -> (f32, f32) {
     let mut v: Vec<f32> = panels
-        .iter()
+        .into_iter()
         .flat_map(|p| p.values.iter().copied())
         .filter(|v| v.is_finite() && *v > 0.0)
         .collect();

@@ -78,8 +78,20 @@ pub fn run(args: &DemoArgs, device: DeviceChoice) -> anyhow::Result<()> {
         .axis_point
         .as_dvec3()
         .to_array();
-    posereg::picture::save_planes_png(&out("warped.png"), &result.warped, Some(knee))?;
-    posereg::picture::save_planes_png(&out("target.png"), &target.image, Some(knee))?;
+    let unregistered = backend.resample(
+        &source.image,
+        &posereg::Image::filled(target.image.grid.clone(), [0.0f32; 3]),
+        0.0,
+        posereg::abi::Interpolation::Linear,
+    )?;
+    posereg::quicklook::save(
+        &out("quicklook.png"),
+        &target.image,
+        &unregistered,
+        &result.warped,
+        &result.adaptive.points,
+        knee,
+    )?;
 
     println!("done in {seconds:.1} s on {}", backend.describe());
     let motions = result
@@ -166,6 +178,9 @@ pub fn run(args: &DemoArgs, device: DeviceChoice) -> anyhow::Result<()> {
         result.min_jacobian,
         100.0 * result.folded_share
     );
-    println!("outputs in {}: warped.nii.gz, field.nii.gz, transform.json, warped.png, target.png, and the inputs", args.output.display());
+    println!(
+        "outputs in {}: warped.nii.gz, field.nii.gz, transform.json, quicklook.png, and the inputs",
+        args.output.display()
+    );
     Ok(())
 }

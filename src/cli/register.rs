@@ -1,6 +1,6 @@
 //! `posereg register --source S --source-labels L --target T -o DIR [--no-init]`: the whole
-//! pipeline, writing warped.nii.gz, field.nii.gz, transform.json, jacobian.nii.gz and
-//! report.json.
+//! pipeline, writing warped.nii.gz, field.nii.gz, transform.json, jacobian.nii.gz,
+//! report.json and quicklook.png.
 
 use super::init::load_inputs;
 use clap::Args;
@@ -78,6 +78,20 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice) -> anyhow::Result<()> {
         "correlation": { "before": correlation(&before.data, &target.data, body), "after": correlation(&result.warped.data, &target.data, body) },
         "jacobian": { "min": result.min_jacobian, "folded_share": result.folded_share },
     });
+    let centre = match &result.init {
+        Some(init) => [init.axis.point.x, init.axis.point.y, init.axis.point.z],
+        None => target
+            .grid
+            .voxel_to_world(target.grid.dims.map(|d| (d as f64 - 1.0) / 2.0)),
+    };
+    posereg::quicklook::save(
+        &out("quicklook.png"),
+        &target,
+        &before,
+        &result.warped,
+        &result.adaptive.points,
+        centre,
+    )?;
     let text = serde_json::to_string_pretty(&report)?;
     posereg::io::write_atomically(&out("report.json"), |tmp| {
         std::fs::write(tmp, text + "\n").map_err(|e| Error::io(tmp, e))
