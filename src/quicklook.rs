@@ -88,7 +88,7 @@ pub fn save(
             for x in 0..w {
                 let i = y * w + x;
                 let (t, s, wv) = (row[0].values[i], row[1].values[i], row[2].values[i]);
-                let check = if (x / SQUARE + y / SQUARE) % 2 == 0 {
+                let check = if (x / SQUARE + y / SQUARE).is_multiple_of(2) {
                     t
                 } else {
                     wv
