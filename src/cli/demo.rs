@@ -26,7 +26,7 @@ pub struct DemoArgs {
     #[arg(long, value_enum, default_value_t = PhantomSize::Half)]
     pub size: PhantomSize,
     /// Flexion of the target (degrees).
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 30.0)]
     pub flexion: f64,
     /// Skip the articulated initialisation (the paper's first experiment, small bends).
     #[arg(long)]
