@@ -133,6 +133,83 @@ fn kernels(c: &mut Criterion) {
             });
         }
         group.finish();
+        // Articulated initialisation: a whole-volume bone region, a small motion.
+        let mask: posereg::Volume = Image::filled(g.clone(), 1.0);
+        let motion = posereg::rigid::small_motion(
+            &nalgebra::Vector6::new(0.02, -0.01, 0.03, 1.0, -0.5, 0.2),
+            &nalgebra::Vector3::zeros(),
+        );
+        let mut group = c.benchmark_group("rigid_gn");
+        group
+            .sample_size(10)
+            .throughput(Throughput::Elements(g.len() as u64));
+        for (name, b) in &backends {
+            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
+                bench.iter(|| {
+                    b.rigid_sums(&source, &mask, &target, &motion, [0.0; 3])
+                        .unwrap()
+                })
+            });
+        }
+        group.finish();
+        let candidates: Vec<posereg::Affine> = (0..32)
+            .map(|k| {
+                posereg::rigid::small_motion(
+                    &nalgebra::Vector6::new(0.0, 0.0, 0.01 * k as f64, 0.0, 0.0, 0.0),
+                    &nalgebra::Vector3::zeros(),
+                )
+            })
+            .collect();
+        let mut group = c.benchmark_group("rigid_score_32_candidates");
+        group
+            .sample_size(10)
+            .throughput(Throughput::Elements(32 * g.len() as u64));
+        for (name, b) in &backends {
+            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
+                bench.iter(|| {
+                    b.rigid_scores(&source, &mask, &target, &candidates)
+                        .unwrap()
+                })
+            });
+        }
+        group.finish();
+        let bones = 4;
+        let distances: Vec<f32> = (0..g.len() * bones)
+            .map(|k| 1.0 + (k % 37) as f32)
+            .collect();
+        let mut group = c.benchmark_group("skin_weights_4_bones");
+        group
+            .sample_size(10)
+            .throughput(Throughput::Elements(g.len() as u64));
+        for (name, b) in &backends {
+            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
+                bench.iter(|| b.skin_weights(&distances, &g, bones, 2).unwrap())
+            });
+        }
+        group.finish();
+        let weights = CpuBackend.skin_weights(&distances, &g, bones, 2).unwrap();
+        let soft_tissue = vec![0.0f32; g.len()];
+        let motions: Vec<posereg::Affine> = (0..bones)
+            .map(|k| {
+                posereg::rigid::small_motion(
+                    &nalgebra::Vector6::new(0.1 * k as f64, 0.0, 0.0, 0.0, 0.0, 0.0),
+                    &nalgebra::Vector3::new(0.0, 0.0, 10.0),
+                )
+            })
+            .collect();
+        let mut group = c.benchmark_group("skin_blend_4_bones");
+        group
+            .sample_size(10)
+            .throughput(Throughput::Elements(g.len() as u64));
+        for (name, b) in &backends {
+            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
+                bench.iter(|| {
+                    b.skin_blend(&weights, &g, &soft_tissue, &g, &g, &motions, 8)
+                        .unwrap()
+                })
+            });
+        }
+        group.finish();
         let mut group = c.benchmark_group("ssd_cells_16");
         group
             .sample_size(10)

@@ -47,6 +47,19 @@ pub struct Registration {
     pub folded_share: f64,
     /// Factor the RBF warp was scaled by to keep the field from folding (1 when untouched).
     pub warp_scale: f64,
+    /// Wall time of each stage.
+    pub timings: StageTimes,
+}
+
+/// Seconds spent in each stage of a registration.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct StageTimes {
+    /// Articulated initialisation (0 when skipped).
+    pub initialisation: f64,
+    /// Adaptive RBF stage.
+    pub adaptive: f64,
+    /// Composition, fold check and the final resampling.
+    pub finish: f64,
 }
 
 /// Up to `per_bone` points on each bone's surface in the target: boundary voxels of the region
@@ -123,6 +136,7 @@ pub fn register(
     options: &RegisterOptions,
 ) -> Result<Registration> {
     let zero = Image::filled(target.grid.clone(), [0.0f32; 3]);
+    let clock = std::time::Instant::now();
     let (init, initial, moving) = match &options.init {
         Some(init_options) => {
             let init = initialise(backend, source, labels, target, init_options, None)?;
@@ -141,7 +155,9 @@ pub fn register(
         }
         _ => Vec::new(),
     };
+    let initialisation = clock.elapsed().as_secs_f64();
     let adaptive = adaptive::register(backend, &moving, target, &pins, &options.adaptive)?;
+    let adaptive_seconds = clock.elapsed().as_secs_f64() - initialisation;
     // Step control: if the added warp makes the field fold (beyond what the initial field
     // already did), shrink it until it does not.
     let folds = |det: &Volume| det.data.iter().filter(|&&v| v <= 0.0).count();
@@ -157,6 +173,11 @@ pub fn register(
         scale *= 0.5;
     };
     let warped = backend.resample(source, &field, 0.0, Interpolation::Linear)?;
+    let timings = StageTimes {
+        initialisation,
+        adaptive: adaptive_seconds,
+        finish: clock.elapsed().as_secs_f64() - initialisation - adaptive_seconds,
+    };
     let min_jacobian = det.data.iter().cloned().fold(f32::INFINITY, f32::min);
     let folded_share =
         det.data.iter().filter(|&&v| v <= 0.0).count() as f64 / det.data.len() as f64;
@@ -168,6 +189,7 @@ pub fn register(
         min_jacobian,
         folded_share,
         warp_scale: scale,
+        timings,
     })
 }
 

@@ -1,6 +1,7 @@
 //! The command-line verbs: each parses its arguments, calls the library, and prints.
 
 pub mod apply;
+pub mod bench;
 pub mod bend;
 pub mod demo;
 pub mod eval;
@@ -33,6 +34,8 @@ pub enum Command {
     Apply(apply::ApplyArgs),
     /// Carry points (CSV, world mm) through a registration.
     ApplyPoints(points::PointsArgs),
+    /// Time the whole registration of a phantom pair on each backend.
+    Bench(bench::BenchArgs),
     /// Bend a labelled straight volume by volume skeletal deformation, with the truth.
     Bend(bend::BendArgs),
     /// Make a phantom pair, register it, and print the figures against the truth.
@@ -56,6 +59,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Apply(args) => apply::run(&args, cli.device),
         Command::ApplyPoints(args) => points::run(&args),
+        Command::Bench(args) => bench::run(&args),
         Command::Bend(args) => bend::run(&args, cli.device),
         Command::Demo(args) => demo::run(&args, cli.device),
         Command::Eval(args) => eval::run(&args),

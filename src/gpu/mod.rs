@@ -90,6 +90,7 @@ pub struct GpuBackend {
     /// The compiled kernels.
     pub kernels: Kernels,
     max_slab_voxels: Option<usize>,
+    peak_dispatch_bytes: std::sync::atomic::AtomicU64,
 }
 
 impl GpuBackend {
@@ -115,6 +116,7 @@ impl GpuBackend {
             },
             ctx,
             max_slab_voxels: None,
+            peak_dispatch_bytes: Default::default(),
         })
     }
 
@@ -128,6 +130,19 @@ impl GpuBackend {
     /// The device this backend runs on.
     pub fn context(&self) -> &GpuContext {
         &self.ctx
+    }
+
+    /// Largest total of buffer bytes bound to one dispatch so far: the device memory a
+    /// registration needs at once (buffers are released after each call).
+    pub fn peak_dispatch_bytes(&self) -> u64 {
+        self.peak_dispatch_bytes
+            .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Records the bytes bound to one dispatch.
+    pub(crate) fn note_dispatch_bytes(&self, bytes: u64) {
+        self.peak_dispatch_bytes
+            .fetch_max(bytes, std::sync::atomic::Ordering::Relaxed);
     }
 
     /// Splits `dims` into slabs whose per-voxel buffers (`bytes_per_voxel` for the largest,

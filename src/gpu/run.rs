@@ -102,6 +102,7 @@ pub fn run_slabs<P: SlabParams>(
         }
         let len = out_per_slice * slab.depth;
         buffers.push(storage_output::<f32>(ctx, "kernel output", len)?);
+        gpu.note_dispatch_bytes(buffers.iter().map(|b| b.size()).sum());
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         let refs: Vec<&wgpu::Buffer> = buffers.iter().collect();
         kernel.dispatch(ctx, &mut encoder, &refs, workgroups(slab.depth))?;
