@@ -32,7 +32,9 @@ pub struct AdaptiveOptions {
     /// A cell keeps at least this many voxels per axis at the level it is used on.
     pub min_cell_voxels: usize,
     /// Cells whose mean squared residual exceeds this multiple of the mean over all cells get a
-    /// control point.
+    /// control point (the 2³ cells always do). Measured on the phantom: raising it from 1 to 8
+    /// cut the points from ~900 to ~180 and lowered the error (10°, small: 2.70 → 1.40 mm) —
+    /// fewer, well-placed points keep the optimisation well conditioned.
     pub threshold: f64,
     /// L-BFGS iterations per refinement.
     pub iterations: usize,
@@ -50,7 +52,7 @@ impl Default for AdaptiveOptions {
             levels: 3,
             cell_levels: vec![2, 4, 8, 16],
             min_cell_voxels: 3,
-            threshold: 1.0,
+            threshold: 8.0,
             iterations: 30,
             tolerance: 1e-5,
             lattice_mm: 5.0,
