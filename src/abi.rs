@@ -175,6 +175,30 @@ impl SlabParams for JacobianParams {
     }
 }
 
+/// Parameter structs laid out as `dims: [nx, ny, nz, z0]` and `slab: [depth, …]` get their
+/// slab restriction here, once.
+macro_rules! slab_by_dims_and_slab {
+    ($($t:ty),*) => {$(
+        impl SlabParams for $t {
+            fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
+                let mut p = *self;
+                p.dims[3] = z0;
+                p.slab[0] = depth;
+                p
+            }
+        }
+    )*};
+}
+slab_by_dims_and_slab!(
+    PyramidParams,
+    RigidParams,
+    ScoreParams,
+    SkinWeightsParams,
+    SkinBlendParams,
+    RbfGradParams,
+    SplatParams
+);
+
 /// Rows 0..3 of a 4×4 affine as f32 [x, y, z, w] (w = translation).
 fn rows(m: &Affine) -> [[f32; 4]; 3] {
     std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)] as f32))
@@ -220,15 +244,6 @@ impl PyramidParams {
     }
 }
 
-impl SlabParams for PyramidParams {
-    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
-        let mut p = *self;
-        p.dims[3] = z0;
-        p.slab[0] = depth;
-        p
-    }
-}
-
 /// Keep in sync with `RigidParams` in shaders/rigid_gn.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
@@ -271,15 +286,6 @@ impl RigidParams {
     }
 }
 
-impl SlabParams for RigidParams {
-    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
-        let mut p = *self;
-        p.dims[3] = z0;
-        p.slab[0] = depth;
-        p
-    }
-}
-
 /// Keep in sync with `ScoreParams` in shaders/rigid_score.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
@@ -309,15 +315,6 @@ impl ScoreParams {
     }
 }
 
-impl SlabParams for ScoreParams {
-    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
-        let mut p = *self;
-        p.dims[3] = z0;
-        p.slab[0] = depth;
-        p
-    }
-}
-
 /// Keep in sync with `SkinWeightsParams` in shaders/skin_weights.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
@@ -335,15 +332,6 @@ impl SkinWeightsParams {
             dims: dims4(grid, 0),
             slab: [grid.dims[2] as u32, bones as u32, power, 0],
         }
-    }
-}
-
-impl SlabParams for SkinWeightsParams {
-    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
-        let mut p = *self;
-        p.dims[3] = z0;
-        p.slab[0] = depth;
-        p
     }
 }
 
@@ -406,15 +394,6 @@ impl SkinBlendParams {
     }
 }
 
-impl SlabParams for SkinBlendParams {
-    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
-        let mut p = *self;
-        p.dims[3] = z0;
-        p.slab[0] = depth;
-        p
-    }
-}
-
 /// Keep in sync with `RbfGradParams` in shaders/rbf_grad.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
@@ -451,15 +430,6 @@ impl RbfGradParams {
     }
 }
 
-impl SlabParams for RbfGradParams {
-    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
-        let mut p = *self;
-        p.dims[3] = z0;
-        p.slab[0] = depth;
-        p
-    }
-}
-
 /// Keep in sync with `SplatParams` in shaders/lattice_splat.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
@@ -485,14 +455,5 @@ impl SplatParams {
             slab: [lattice_dims[2] as u32, step as u32, 0, 0],
             volume_dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, 0],
         }
-    }
-}
-
-impl SlabParams for SplatParams {
-    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
-        let mut p = *self;
-        p.dims[3] = z0;
-        p.slab[0] = depth;
-        p
     }
 }

@@ -58,3 +58,33 @@ pub fn field_error(
         within_4_voxels: share(4.0 * voxel),
     })
 }
+
+/// Target voxels whose true source point (p + u_true(p)) lies inside the source grid, at least
+/// `margin` voxels from its faces: the voxels both scans saw. Elsewhere the target shows anatomy
+/// outside the source's field of view, which no registration can recover.
+pub fn seen_by_both(truth: &Field, source: &crate::volume::Grid, margin: f64) -> Vec<bool> {
+    let grid = &truth.grid;
+    let to_source = source.world_to_voxel_affine();
+    let d = grid.dims;
+    (0..grid.len())
+        .map(|n| {
+            let w = grid.voxel_to_world([
+                (n % d[0]) as f64,
+                ((n / d[0]) % d[1]) as f64,
+                (n / (d[0] * d[1])) as f64,
+            ]);
+            let u = truth.data[n];
+            let q = to_source
+                * nalgebra::Vector4::new(
+                    w[0] + u[0] as f64,
+                    w[1] + u[1] as f64,
+                    w[2] + u[2] as f64,
+                    1.0,
+                );
+            [q.x, q.y, q.z]
+                .iter()
+                .zip(source.dims)
+                .all(|(v, n)| *v >= margin && *v <= (n - 1) as f64 - margin)
+        })
+        .collect()
+}

@@ -26,30 +26,10 @@ fn pair() -> (Phantom, Phantom) {
 
 /// Body voxels whose true source point lies inside the source's field of view.
 fn evaluation_mask(source: &Phantom, target: &Phantom) -> Vec<bool> {
-    let grid = &target.image.grid;
-    let to_source = source.image.grid.world_to_voxel_affine();
-    let d = grid.dims;
-    (0..grid.len())
-        .map(|n| {
-            let w = grid.voxel_to_world([
-                (n % d[0]) as f64,
-                ((n / d[0]) % d[1]) as f64,
-                (n / (d[0] * d[1])) as f64,
-            ]);
-            let u = target.truth_field.data[n];
-            let q = to_source
-                * nalgebra::Vector4::new(
-                    w[0] + u[0] as f64,
-                    w[1] + u[1] as f64,
-                    w[2] + u[2] as f64,
-                    1.0,
-                );
-            target.labels.data[n] != label::OUTSIDE
-                && [q.x, q.y, q.z]
-                    .iter()
-                    .zip(source.image.grid.dims)
-                    .all(|(v, n)| *v >= 0.0 && *v <= (n - 1) as f64)
-        })
+    let seen = posereg::evaluate::seen_by_both(&target.truth_field, &source.image.grid, 0.0);
+    seen.iter()
+        .zip(&target.labels.data)
+        .map(|(s, l)| *s && *l != label::OUTSIDE)
         .collect()
 }
 

@@ -33,34 +33,10 @@ fn pair() -> &'static (Phantom, Phantom) {
     })
 }
 
-/// Bent voxels whose straight-pose point lies inside the straight image, at least `margin`
-/// voxels from its faces. Beyond them the bent image shows anatomy the straight scan never saw
-/// (the bent shank brings in tissue from below the straight field of view).
+/// Bent voxels whose straight-pose point lies inside the straight image (see
+/// evaluate::seen_by_both).
 fn seen_in_both(straight: &Phantom, bent: &Phantom, margin: f64) -> Vec<bool> {
-    let g = &bent.image.grid;
-    let to_straight = straight.image.grid.world_to_voxel_affine();
-    let d = g.dims;
-    (0..g.len())
-        .map(|n| {
-            let w = g.voxel_to_world([
-                (n % d[0]) as f64,
-                ((n / d[0]) % d[1]) as f64,
-                (n / (d[0] * d[1])) as f64,
-            ]);
-            let u = bent.truth_field.data[n];
-            let q = to_straight
-                * nalgebra::Vector4::new(
-                    w[0] + u[0] as f64,
-                    w[1] + u[1] as f64,
-                    w[2] + u[2] as f64,
-                    1.0,
-                );
-            [q.x, q.y, q.z]
-                .iter()
-                .zip(straight.image.grid.dims)
-                .all(|(v, n)| *v >= margin && *v <= n as f64 - 1.0 - margin)
-        })
-        .collect()
+    posereg::evaluate::seen_by_both(&bent.truth_field, &straight.image.grid, margin)
 }
 
 /// Voxels at least `margin` voxels from every face.

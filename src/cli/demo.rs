@@ -124,30 +124,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice) -> anyhow::Result<()> {
     }
     // Inside the body and seen by both scans: where the true source point lies in the source's
     // field of view (the bent shank brings in anatomy the straight scan never saw).
-    let grid = &target.image.grid;
-    let to_source = source.image.grid.world_to_voxel_affine();
-    let seen: Vec<bool> = (0..grid.len())
-        .map(|n| {
-            let d = grid.dims;
-            let w = grid.voxel_to_world([
-                (n % d[0]) as f64,
-                ((n / d[0]) % d[1]) as f64,
-                (n / (d[0] * d[1])) as f64,
-            ]);
-            let u = target.truth_field.data[n];
-            let q = to_source
-                * nalgebra::Vector4::new(
-                    w[0] + u[0] as f64,
-                    w[1] + u[1] as f64,
-                    w[2] + u[2] as f64,
-                    1.0,
-                );
-            [q.x, q.y, q.z]
-                .iter()
-                .zip(source.image.grid.dims)
-                .all(|(v, n)| *v >= 0.0 && *v <= (n - 1) as f64)
-        })
-        .collect();
+    let seen = posereg::evaluate::seen_by_both(&target.truth_field, &source.image.grid, 0.0);
     let body = |n: usize| target.labels.data[n] != label::OUTSIDE && seen[n];
     let zero = posereg::Image::filled(target.image.grid.clone(), [0.0f32; 3]);
     let before = field_error(&zero, &target.truth_field, body)?;
