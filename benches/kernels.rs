@@ -67,6 +67,27 @@ fn backends() -> Vec<(&'static str, Box<dyn Backend>)> {
     list
 }
 
+/// One benchmark group: `run` on every backend at one size.
+fn group<R>(
+    c: &mut Criterion,
+    title: &str,
+    elements: u64,
+    label: &str,
+    backends: &[(&'static str, Box<dyn Backend>)],
+    run: impl Fn(&dyn Backend) -> R,
+) {
+    let mut group = c.benchmark_group(title);
+    group
+        .sample_size(10)
+        .throughput(Throughput::Elements(elements));
+    for (name, b) in backends {
+        group.bench_with_input(BenchmarkId::new(*name, label), &(), |bench, _| {
+            bench.iter(|| run(b.as_ref()))
+        });
+    }
+    group.finish();
+}
+
 fn kernels(c: &mut Criterion) {
     let backends = backends();
     for dims in sizes() {
@@ -75,83 +96,39 @@ fn kernels(c: &mut Criterion) {
         let target = volume(&g, 0.5);
         let u = field(&g);
         let label = format!("{}x{}x{}", dims[0], dims[1], dims[2]);
-        let mut group = c.benchmark_group("resample");
-        group
-            .sample_size(10)
-            .throughput(Throughput::Elements(g.len() as u64));
-        for (name, b) in &backends {
-            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
-                bench.iter(|| b.resample(&source, &u, 0.0, Interpolation::Linear).unwrap())
-            });
-        }
-        group.finish();
-        let mut group = c.benchmark_group("jacobian");
-        group
-            .sample_size(10)
-            .throughput(Throughput::Elements(g.len() as u64));
-        for (name, b) in &backends {
-            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
-                bench.iter(|| b.jacobian(&u).unwrap())
-            });
-        }
-        group.finish();
+        group(c, "resample", g.len() as u64, &label, &backends, |b| {
+            b.resample(&source, &u, 0.0, Interpolation::Linear).unwrap()
+        });
+        group(c, "jacobian", g.len() as u64, &label, &backends, |b| {
+            b.jacobian(&u).unwrap()
+        });
         let (coarse, factors) = posereg::pyramid::next_level_grid(&g).unwrap();
-        let mut group = c.benchmark_group("pyramid");
-        group
-            .sample_size(10)
-            .throughput(Throughput::Elements(g.len() as u64));
-        for (name, b) in &backends {
-            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
-                bench.iter(|| b.pyramid_level(&source, &coarse, factors).unwrap())
-            });
-        }
-        group.finish();
+        group(c, "pyramid", g.len() as u64, &label, &backends, |b| {
+            b.pyramid_level(&source, &coarse, factors).unwrap()
+        });
         // The non-rigid stage's per-iteration work: lattice every 4 voxels.
         let step = 4;
         let ldims: [usize; 3] = std::array::from_fn(|a| (dims[a] - 1).div_ceil(step) + 1);
         let lattice: Vec<f32> = (0..3 * ldims.iter().product::<usize>())
             .map(|k| ((k % 17) as f32 - 8.0) * 0.1)
             .collect();
-        let mut group = c.benchmark_group("rbf_grad");
-        group
-            .sample_size(10)
-            .throughput(Throughput::Elements(g.len() as u64));
-        for (name, b) in &backends {
-            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
-                bench.iter(|| b.rbf_grad(&lattice, ldims, step, &source, &target).unwrap())
-            });
-        }
-        group.finish();
+        group(c, "rbf_grad", g.len() as u64, &label, &backends, |b| {
+            b.rbf_grad(&lattice, ldims, step, &source, &target).unwrap()
+        });
         let per_voxel: Vec<f32> = bytemuck::cast_slice(&u.data).to_vec();
-        let mut group = c.benchmark_group("lattice_splat");
-        group
-            .sample_size(10)
-            .throughput(Throughput::Elements(g.len() as u64));
-        for (name, b) in &backends {
-            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
-                bench.iter(|| b.lattice_splat(&per_voxel, &g, ldims, step).unwrap())
-            });
-        }
-        group.finish();
+        group(c, "lattice_splat", g.len() as u64, &label, &backends, |b| {
+            b.lattice_splat(&per_voxel, &g, ldims, step).unwrap()
+        });
         // Articulated initialisation: a whole-volume bone region, a small motion.
         let mask: posereg::Volume = Image::filled(g.clone(), 1.0);
         let motion = posereg::rigid::small_motion(
             &nalgebra::Vector6::new(0.02, -0.01, 0.03, 1.0, -0.5, 0.2),
             &nalgebra::Vector3::zeros(),
         );
-        let mut group = c.benchmark_group("rigid_gn");
-        group
-            .sample_size(10)
-            .throughput(Throughput::Elements(g.len() as u64));
-        for (name, b) in &backends {
-            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
-                bench.iter(|| {
-                    b.rigid_sums(&source, &mask, &target, &motion, [0.0; 3])
-                        .unwrap()
-                })
-            });
-        }
-        group.finish();
+        group(c, "rigid_gn", g.len() as u64, &label, &backends, |b| {
+            b.rigid_sums(&source, &mask, &target, &motion, [0.0; 3])
+                .unwrap()
+        });
         let candidates: Vec<posereg::Affine> = (0..32)
             .map(|k| {
                 posereg::rigid::small_motion(
@@ -160,33 +137,29 @@ fn kernels(c: &mut Criterion) {
                 )
             })
             .collect();
-        let mut group = c.benchmark_group("rigid_score_32_candidates");
-        group
-            .sample_size(10)
-            .throughput(Throughput::Elements(32 * g.len() as u64));
-        for (name, b) in &backends {
-            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
-                bench.iter(|| {
-                    b.rigid_scores(&source, &mask, &target, &candidates)
-                        .unwrap()
-                })
-            });
-        }
-        group.finish();
+        group(
+            c,
+            "rigid_score_32_candidates",
+            32 * g.len() as u64,
+            &label,
+            &backends,
+            |b| {
+                b.rigid_scores(&source, &mask, &target, &candidates)
+                    .unwrap()
+            },
+        );
         let bones = 4;
         let distances: Vec<f32> = (0..g.len() * bones)
             .map(|k| 1.0 + (k % 37) as f32)
             .collect();
-        let mut group = c.benchmark_group("skin_weights_4_bones");
-        group
-            .sample_size(10)
-            .throughput(Throughput::Elements(g.len() as u64));
-        for (name, b) in &backends {
-            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
-                bench.iter(|| b.skin_weights(&distances, &g, bones, 2).unwrap())
-            });
-        }
-        group.finish();
+        group(
+            c,
+            "skin_weights_4_bones",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| b.skin_weights(&distances, &g, bones, 2).unwrap(),
+        );
         let weights = CpuBackend.skin_weights(&distances, &g, bones, 2).unwrap();
         let soft_tissue = vec![0.0f32; g.len()];
         let motions: Vec<posereg::Affine> = (0..bones)
@@ -197,29 +170,20 @@ fn kernels(c: &mut Criterion) {
                 )
             })
             .collect();
-        let mut group = c.benchmark_group("skin_blend_4_bones");
-        group
-            .sample_size(10)
-            .throughput(Throughput::Elements(g.len() as u64));
-        for (name, b) in &backends {
-            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
-                bench.iter(|| {
-                    b.skin_blend(&weights, &g, &soft_tissue, &g, &g, &motions, 8)
-                        .unwrap()
-                })
-            });
-        }
-        group.finish();
-        let mut group = c.benchmark_group("ssd_cells_16");
-        group
-            .sample_size(10)
-            .throughput(Throughput::Elements(g.len() as u64));
-        for (name, b) in &backends {
-            group.bench_with_input(BenchmarkId::new(*name, &label), &(), |bench, _| {
-                bench.iter(|| b.ssd_cells(&source, &target, [16, 16, 16]).unwrap())
-            });
-        }
-        group.finish();
+        group(
+            c,
+            "skin_blend_4_bones",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| {
+                b.skin_blend(&weights, &g, &soft_tissue, &g, &g, &motions, 8)
+                    .unwrap()
+            },
+        );
+        group(c, "ssd_cells_16", g.len() as u64, &label, &backends, |b| {
+            b.ssd_cells(&source, &target, [16, 16, 16]).unwrap()
+        });
     }
 }
 
