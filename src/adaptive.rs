@@ -135,16 +135,6 @@ impl Lattice {
     }
 }
 
-fn world(grid: &Grid, n: usize) -> Vector3<f64> {
-    let d = grid.dims;
-    let w = grid.voxel_to_world([
-        (n % d[0]) as f64,
-        ((n / d[0]) % d[1]) as f64,
-        (n / (d[0] * d[1])) as f64,
-    ]);
-    Vector3::new(w[0], w[1], w[2])
-}
-
 /// Centre (world) of cell `c` of a grid split into `cells`.
 fn cell_centre(grid: &Grid, cells: [usize; 3], c: [usize; 3]) -> Vector3<f64> {
     let ijk: [f64; 3] = std::array::from_fn(|a| {
@@ -363,7 +353,7 @@ pub fn compose(warp: &Field, initial: &Field) -> Result<Field> {
     let data = (0..grid.len())
         .into_par_iter()
         .map(|n| {
-            let x = world(grid, n);
+            let x = grid.world_of(n);
             let r = warp.data[n];
             let y = x + Vector3::new(r[0] as f64, r[1] as f64, r[2] as f64);
             let q = to_index * y.push(1.0);

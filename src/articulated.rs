@@ -176,16 +176,10 @@ fn region_masks(
 }
 
 fn region_centroid(mask: &Volume) -> Vector3<f64> {
-    let d = mask.grid.dims;
     let (mut sum, mut n) = (Vector3::zeros(), 0.0f64);
     for (i, &m) in mask.data.iter().enumerate() {
         if m >= 0.5 {
-            let w = mask.grid.voxel_to_world([
-                (i % d[0]) as f64,
-                ((i / d[0]) % d[1]) as f64,
-                (i / (d[0] * d[1])) as f64,
-            ]);
-            sum += Vector3::new(w[0], w[1], w[2]);
+            sum += mask.grid.world_of(i);
             n += 1.0;
         }
     }
@@ -388,14 +382,9 @@ pub fn rigid_field(motion: &Affine, grid: &crate::volume::Grid) -> Result<Field>
     let inverse = motion
         .try_inverse()
         .ok_or_else(|| Error::InvalidInput("motion is singular".into()))?;
-    let d = grid.dims;
     let data = (0..grid.len())
         .map(|n| {
-            let w = grid.voxel_to_world([
-                (n % d[0]) as f64,
-                ((n / d[0]) % d[1]) as f64,
-                (n / (d[0] * d[1])) as f64,
-            ]);
+            let w = grid.world_of(n);
             let q = inverse * nalgebra::Vector4::new(w[0], w[1], w[2], 1.0);
             [
                 (q.x - w[0]) as f32,

@@ -111,3 +111,10 @@ pub fn check_pair(a: &Volume, b: &Volume) -> Result<()> {
         )))
     }
 }
+
+/// `volume` sampled on `grid` without any displacement (trilinear, 0 outside): the unregistered
+/// source seen on the target's grid.
+pub fn resample_onto(backend: &dyn Backend, volume: &Volume, grid: &Grid) -> Result<Volume> {
+    let zero = crate::volume::Image::filled(grid.clone(), [0.0f32; 3]);
+    backend.resample(volume, &zero, 0.0, Interpolation::Linear)
+}

@@ -65,14 +65,9 @@ pub fn field_error(
 pub fn seen_by_both(truth: &Field, source: &crate::volume::Grid, margin: f64) -> Vec<bool> {
     let grid = &truth.grid;
     let to_source = source.world_to_voxel_affine();
-    let d = grid.dims;
     (0..grid.len())
         .map(|n| {
-            let w = grid.voxel_to_world([
-                (n % d[0]) as f64,
-                ((n / d[0]) % d[1]) as f64,
-                (n / (d[0] * d[1])) as f64,
-            ]);
+            let w = grid.world_of(n);
             let u = truth.data[n];
             let q = to_source
                 * nalgebra::Vector4::new(

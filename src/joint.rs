@@ -24,20 +24,12 @@ pub struct JointAxis {
 const CONDYLE_SLAB_MM: f64 = 25.0;
 
 fn world_points(labels: &Labels, code: u16) -> Vec<Vector3<f64>> {
-    let d = labels.grid.dims;
     labels
         .data
         .iter()
         .enumerate()
         .filter(|(_, &l)| l == code)
-        .map(|(n, _)| {
-            let w = labels.grid.voxel_to_world([
-                (n % d[0]) as f64,
-                ((n / d[0]) % d[1]) as f64,
-                (n / (d[0] * d[1])) as f64,
-            ]);
-            Vector3::new(w[0], w[1], w[2])
-        })
+        .map(|(n, _)| labels.grid.world_of(n))
         .collect()
 }
 

@@ -39,16 +39,10 @@ pub fn target_to_source(field: &Field, points: &[Vector3<f64>]) -> Vec<Vector3<f
 pub fn source_to_target(field: &Field, points: &[Vector3<f64>]) -> Vec<(Vector3<f64>, f64)> {
     let comps = components(field);
     let grid = &field.grid;
-    let d = grid.dims;
     let voxel_source: Vec<(Vector3<f64>, Vector3<f64>)> = (0..grid.len())
         .into_par_iter()
         .map(|n| {
-            let w = grid.voxel_to_world([
-                (n % d[0]) as f64,
-                ((n / d[0]) % d[1]) as f64,
-                (n / (d[0] * d[1])) as f64,
-            ]);
-            let p = Vector3::new(w[0], w[1], w[2]);
+            let p = grid.world_of(n);
             let u = field.data[n];
             (p, p + Vector3::new(u[0] as f64, u[1] as f64, u[2] as f64))
         })

@@ -4,7 +4,7 @@
 use crate::abi::Interpolation;
 use crate::adaptive::{self, compose, Adaptive, AdaptiveOptions};
 use crate::articulated::{initialise, InitOptions, Initialisation};
-use crate::backend::Backend;
+use crate::backend::{resample_onto, Backend};
 use crate::error::Result;
 use crate::volume::{Field, Image, Labels, Volume};
 use crate::vsd::maps_into_bone;
@@ -92,17 +92,7 @@ pub fn bone_pins(
                 neighbours.iter().any(|m| m.is_some_and(|m| !inside[m]))
             })
             .collect();
-        let points: Vec<Vector3<f64>> = boundary
-            .iter()
-            .map(|&n| {
-                let w = grid.voxel_to_world([
-                    (n % d[0]) as f64,
-                    ((n / d[0]) % d[1]) as f64,
-                    (n / (d[0] * d[1])) as f64,
-                ]);
-                Vector3::new(w[0], w[1], w[2])
-            })
-            .collect();
+        let points: Vec<Vector3<f64>> = boundary.iter().map(|&n| grid.world_of(n)).collect();
         let Some(first) = points.first() else {
             continue;
         };
@@ -135,7 +125,6 @@ pub fn register(
     target: &Volume,
     options: &RegisterOptions,
 ) -> Result<Registration> {
-    let zero = Image::filled(target.grid.clone(), [0.0f32; 3]);
     let clock = std::time::Instant::now();
     let (init, initial, moving) = match &options.init {
         Some(init_options) => {
@@ -145,8 +134,12 @@ pub fn register(
             (Some(init), field, moving)
         }
         None => {
-            let moving = backend.resample(source, &zero, 0.0, Interpolation::Linear)?;
-            (None, zero, moving)
+            let moving = resample_onto(backend, source, &target.grid)?;
+            (
+                None,
+                Image::filled(target.grid.clone(), [0.0f32; 3]),
+                moving,
+            )
         }
     };
     let pins = match &init {

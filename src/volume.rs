@@ -80,6 +80,19 @@ impl Grid {
         [p.x, p.y, p.z]
     }
 
+    /// World position (RAS mm) of the voxel with flat index n (x fastest).
+    pub fn world_of(&self, n: usize) -> nalgebra::Vector3<f64> {
+        let [nx, ny, _] = self.dims;
+        let p = self.affine
+            * Vector4::new(
+                (n % nx) as f64,
+                ((n / nx) % ny) as f64,
+                (n / (nx * ny)) as f64,
+                1.0,
+            );
+        nalgebra::Vector3::new(p.x, p.y, p.z)
+    }
+
     /// World (RAS mm) → continuous voxel index.
     pub fn world_to_voxel_affine(&self) -> Affine {
         self.affine

@@ -147,14 +147,9 @@ pub fn repair_folds(
 /// Target voxels whose source point (p + u) lies in a bone of `labels` (nearest voxel).
 pub fn maps_into_bone(field: &Field, labels: &Labels, bones: &[u16]) -> Vec<bool> {
     let to_label = labels.grid.world_to_voxel_affine();
-    let d = field.grid.dims;
     (0..field.grid.len())
         .map(|n| {
-            let w = field.grid.voxel_to_world([
-                (n % d[0]) as f64,
-                ((n / d[0]) % d[1]) as f64,
-                (n / (d[0] * d[1])) as f64,
-            ]);
+            let w = field.grid.world_of(n);
             let u = field.data[n];
             let q = to_label
                 * nalgebra::Vector4::new(

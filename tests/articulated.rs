@@ -40,16 +40,10 @@ fn bent(degrees: f64) -> &'static Phantom {
 }
 
 fn centroid(labels: &posereg::Labels, code: u16) -> nalgebra::Vector4<f64> {
-    let d = labels.grid.dims;
     let (mut sum, mut n) = (nalgebra::Vector3::zeros(), 0.0);
     for (i, &l) in labels.data.iter().enumerate() {
         if l == code {
-            let w = labels.grid.voxel_to_world([
-                (i % d[0]) as f64,
-                ((i / d[0]) % d[1]) as f64,
-                (i / (d[0] * d[1])) as f64,
-            ]);
-            sum += nalgebra::Vector3::new(w[0], w[1], w[2]);
+            sum += labels.grid.world_of(i);
             n += 1.0;
         }
     }

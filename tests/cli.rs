@@ -396,16 +396,10 @@ fn apply_apply_points_and_eval_use_a_registration_folder() {
     // apply-points: the patella's centre on the straight scan lands on the bent patella's
     // centre (the truth's rigid motion of it), and comes back.
     let grid = &straight.labels.grid;
-    let dims = grid.dims;
     let (mut sum, mut n) = (nalgebra::Vector3::zeros(), 0.0);
     for (k, &l) in straight.labels.data.iter().enumerate() {
         if l == 4 {
-            let w = grid.voxel_to_world([
-                (k % dims[0]) as f64,
-                ((k / dims[0]) % dims[1]) as f64,
-                (k / (dims[0] * dims[1])) as f64,
-            ]);
-            sum += nalgebra::Vector3::new(w[0], w[1], w[2]);
+            sum += grid.world_of(k);
             n += 1.0;
         }
     }

@@ -137,17 +137,12 @@ fn truth_json_and_truth_field_agree_inside_every_bone() {
     // matrix in truth.json: the bones move rigidly and the two files say the same thing.
     let (_, bent) = pair();
     let g = &bent.labels.grid;
-    let d = g.dims;
     for b in &bent.truth.bones {
         let inverse = b.affine().try_inverse().unwrap();
         let mut worst = 0.0f64;
         let mut count = 0;
         for n in (0..g.len()).filter(|&n| bent.labels.data[n] == b.label) {
-            let w = g.voxel_to_world([
-                (n % d[0]) as f64,
-                ((n / d[0]) % d[1]) as f64,
-                (n / (d[0] * d[1])) as f64,
-            ]);
+            let w = g.world_of(n);
             let q = inverse * nalgebra::Vector4::new(w[0], w[1], w[2], 1.0);
             let u = bent.truth_field.data[n];
             let err = ((w[0] + u[0] as f64 - q.x).powi(2)
@@ -197,18 +192,13 @@ fn flexion_never_folds_inside_the_body() {
         let flexion = posereg::phantom::flexion::Flexion::knee(degrees);
         let inverse = flexion.inverse_rotations();
         let g = &bent.labels.grid;
-        let d = g.dims;
         let body: Vec<usize> = (0..g.len())
             .filter(|&n| bent.labels.data[n] != label::OUTSIDE)
             .collect();
         let min_continuous = body
             .par_iter()
             .map(|&n| {
-                let w = g.voxel_to_world([
-                    (n % d[0]) as f64,
-                    ((n / d[0]) % d[1]) as f64,
-                    (n / (d[0] * d[1])) as f64,
-                ]);
+                let w = g.world_of(n);
                 flexion.jacobian_determinant(
                     glam::Vec3::new(w[0] as f32, w[1] as f32, w[2] as f32),
                     0.1,

@@ -383,18 +383,13 @@ fn skin_blend_inverts_a_common_rigid_motion_exactly() {
     );
     let target = oblique_grid([7, 6, 5]);
     let inv = m.try_inverse().unwrap();
-    let d = target.dims;
     // Soft tissue everywhere, then a label grid where every voxel is bone 1: both blend to M.
     for bone_of_voxel in [vec![0.0f32; grid.len()], vec![2.0f32; grid.len()]] {
         let out = CpuBackend
             .skin_blend(&weights, &grid, &bone_of_voxel, &grid, &target, &[m, m], 4)
             .unwrap();
         for n in 0..target.len() {
-            let w = target.voxel_to_world([
-                (n % d[0]) as f64,
-                ((n / d[0]) % d[1]) as f64,
-                (n / (d[0] * d[1])) as f64,
-            ]);
+            let w = target.world_of(n);
             let q = inv * nalgebra::Vector4::new(w[0], w[1], w[2], 1.0);
             for a in 0..3 {
                 assert!((out[4 * n + a] as f64 - (q[a] - w[a])).abs() < 1e-3);
@@ -593,14 +588,9 @@ fn lattice_interpolation_error_of_a_cubic_rbf_warp_is_small() {
         stages: Vec::new(),
     };
     let field = adaptive.warp_field(&grid, 5.0, 1.0);
-    let d = grid.dims;
     let (mut worst, mut sum) = (0.0f64, 0.0f64);
     for n in 0..grid.len() {
-        let w = grid.voxel_to_world([
-            (n % d[0]) as f64,
-            ((n / d[0]) % d[1]) as f64,
-            (n / (d[0] * d[1])) as f64,
-        ]);
+        let w = grid.world_of(n);
         let exact = coefficients.eval(&centres, &Vector3::new(w[0], w[1], w[2]));
         let got = field.data[n];
         let e = (0..3)

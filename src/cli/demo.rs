@@ -3,8 +3,8 @@
 //! against the known truth.
 
 use clap::Args;
-use posereg::abi::Interpolation;
 use posereg::articulated::{bone_name, InitOptions};
+use posereg::backend::resample_onto;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::evaluate::field_error;
 use posereg::io::field::save_field;
@@ -78,12 +78,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice) -> anyhow::Result<()> {
         .axis_point
         .as_dvec3()
         .to_array();
-    let unregistered = backend.resample(
-        &source.image,
-        &posereg::Image::filled(target.image.grid.clone(), [0.0f32; 3]),
-        0.0,
-        posereg::abi::Interpolation::Linear,
-    )?;
+    let unregistered = resample_onto(backend.as_ref(), &source.image, &target.image.grid)?;
     posereg::quicklook::save(
         &out("quicklook.png"),
         &target.image,
@@ -129,7 +124,6 @@ pub fn run(args: &DemoArgs, device: DeviceChoice) -> anyhow::Result<()> {
     let zero = posereg::Image::filled(target.image.grid.clone(), [0.0f32; 3]);
     let before = field_error(&zero, &target.truth_field, body)?;
     let after = field_error(&result.field, &target.truth_field, body)?;
-    let identity = backend.resample(&source.image, &zero, 0.0, Interpolation::Linear)?;
     println!(
         "inside the body, where both scans see it ({} voxels):",
         after.voxels
@@ -145,7 +139,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice) -> anyhow::Result<()> {
     );
     println!(
         "  correlation     {:.3} -> {:.3}",
-        correlation(&identity.data, &target.image.data, body),
+        correlation(&unregistered.data, &target.image.data, body),
         correlation(&result.warped.data, &target.image.data, body)
     );
     let free = result.adaptive.points.iter().filter(|p| !p.pinned).count();

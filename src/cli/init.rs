@@ -4,6 +4,7 @@
 use clap::Args;
 use posereg::abi::Interpolation;
 use posereg::articulated::{bone_name, initialise, rigid_field, InitOptions};
+use posereg::backend::resample_onto;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::save_field;
 use posereg::io::nifti::{load_labels, load_volume, save_volume, DataType};
@@ -129,14 +130,7 @@ pub fn run(args: &InitArgs, device: DeviceChoice) -> anyhow::Result<()> {
         .map(|m| m.1);
     let body = |n: usize| target.data[n] > 0.0;
     let corr_identity = correlation(
-        &backend
-            .resample(
-                &source,
-                &posereg::Image::filled(target.grid.clone(), [0.0; 3]),
-                0.0,
-                Interpolation::Linear,
-            )?
-            .data,
+        &resample_onto(backend.as_ref(), &source, &target.grid)?.data,
         &target.data,
         body,
     );

@@ -4,8 +4,8 @@
 
 use super::init::load_inputs;
 use clap::Args;
-use posereg::abi::Interpolation;
 use posereg::articulated::InitOptions;
+use posereg::backend::resample_onto;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::save_field;
 use posereg::io::nifti::{save_volume, DataType};
@@ -60,8 +60,7 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice) -> anyhow::Result<()> {
     save_volume(&out("jacobian.nii.gz"), &det, DataType::F32)?;
     let transform = result.transforms(&options);
     transform.save(&out("transform.json"))?;
-    let zero = posereg::Image::filled(target.grid.clone(), [0.0f32; 3]);
-    let before = backend.resample(&source, &zero, 0.0, Interpolation::Linear)?;
+    let before = resample_onto(backend.as_ref(), &source, &target.grid)?;
     let body = |n: usize| target.data[n] > 0.0;
     let report = serde_json::json!({
         "posereg": env!("CARGO_PKG_VERSION"),

@@ -184,11 +184,6 @@ pub fn generate(spec: &PhantomSpec) -> Result<Phantom> {
 
 /// World position of flat voxel index n.
 fn world_of(grid: &Grid, n: usize) -> Vec3 {
-    let [nx, ny, _] = grid.dims;
-    let w = grid.voxel_to_world([
-        (n % nx) as f64,
-        ((n / nx) % ny) as f64,
-        (n / (nx * ny)) as f64,
-    ]);
+    let w = grid.world_of(n);
     Vec3::new(w[0] as f32, w[1] as f32, w[2] as f32)
 }
