@@ -14,7 +14,9 @@ use crate::backend::Backend;
 use crate::cpu::rbf_grad::warp_at;
 use crate::cpu::sample::trilinear;
 use crate::error::{Error, Result};
+use crate::levels::PerLevel;
 use crate::optim::lbfgs;
+use crate::progress::Progress;
 use crate::pyramid;
 use crate::rbf::{coefficient_gradients, RbfCoefficients, RbfSystem};
 use crate::volume::{Field, Grid, Image, Volume};
@@ -23,7 +25,8 @@ use rayon::prelude::*;
 
 /// Settings of the adaptive stage; every threshold is relative, so the defaults hold across
 /// intensity scales.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct AdaptiveOptions {
     /// Pyramid levels.
     pub levels: usize,
@@ -35,9 +38,10 @@ pub struct AdaptiveOptions {
     /// control point (the 2³ cells always do). Measured on the phantom: raising it from 1 to 8
     /// cut the points from ~900 to ~180 and lowered the error (10°, small: 2.70 → 1.40 mm) —
     /// fewer, well-placed points keep the optimisation well conditioned.
-    pub threshold: f64,
-    /// L-BFGS iterations per refinement.
-    pub iterations: usize,
+    /// Per pyramid level, coarse to fine.
+    pub threshold: PerLevel<f64>,
+    /// L-BFGS iterations per refinement, per pyramid level, coarse to fine.
+    pub iterations: PerLevel<usize>,
     /// Relative cost decrease below which an optimisation stops.
     pub tolerance: f64,
     /// Lattice spacing the warp is evaluated on (mm).
@@ -52,12 +56,39 @@ impl Default for AdaptiveOptions {
             levels: 3,
             cell_levels: vec![2, 4, 8, 16],
             min_cell_voxels: 3,
-            threshold: 8.0,
-            iterations: 30,
+            threshold: PerLevel::all(8.0),
+            iterations: PerLevel::all(30),
             tolerance: 1e-5,
             lattice_mm: 5.0,
             smoothing: 0.0,
         }
+    }
+}
+
+impl AdaptiveOptions {
+    /// Rejects settings the stage cannot run with, naming the setting.
+    pub fn check(&self) -> Result<()> {
+        // Written so NaN fails too.
+        let positive = |v: f64| v > 0.0;
+        let non_negative = |v: f64| v >= 0.0;
+        let bad = |what: &str| Err(Error::InvalidInput(format!("adaptive.{what}")));
+        if self.levels == 0 {
+            return bad("levels must be at least 1");
+        }
+        if self.cell_levels.is_empty() || self.cell_levels.contains(&0) {
+            return bad("cell_levels must be a non-empty list of positive cell counts");
+        }
+        if self.min_cell_voxels == 0 {
+            return bad("min_cell_voxels must be at least 1");
+        }
+        if !positive(self.lattice_mm) {
+            return bad("lattice_mm must be positive");
+        }
+        if !non_negative(self.smoothing) || !non_negative(self.tolerance) {
+            return bad("smoothing and tolerance must be zero or positive");
+        }
+        self.threshold.check("adaptive.threshold", self.levels)?;
+        self.iterations.check("adaptive.iterations", self.levels)
     }
 }
 
@@ -154,8 +185,10 @@ pub fn register(
     target: &Volume,
     pins: &[Vector3<f64>],
     options: &AdaptiveOptions,
+    progress: &dyn Progress,
 ) -> Result<Adaptive> {
     crate::backend::check_pair(moving, target)?;
+    options.check()?;
     let target_levels = pyramid::build(backend, target, options.levels)?;
     let moving_levels = pyramid::build_like(backend, moving, &target_levels)?;
     let mut points: Vec<ControlPoint> = pins
@@ -168,6 +201,10 @@ pub fn register(
         })
         .collect();
     let mut stages = Vec::new();
+    progress.begin(
+        "adaptive RBF",
+        target_levels.len() * options.cell_levels.len(),
+    );
     for level in (0..target_levels.len()).rev() {
         let (moving, fixed) = (&moving_levels[level], &target_levels[level]);
         let lattice = Lattice::new(&fixed.grid, options.lattice_mm);
@@ -211,7 +248,8 @@ pub fn register(
                     k / (cells[0] * cells[1]),
                 ];
                 let centre = cell_centre(&fixed.grid, cells, c);
-                let poor = *mean > options.threshold * overall || wanted == options.cell_levels[0];
+                let poor = *mean > options.threshold.at_level(level) * overall
+                    || wanted == options.cell_levels[0];
                 let crowded = points
                     .iter()
                     .any(|p| (Vector3::from(p.position) - centre).norm() < 0.5 * cell_size);
@@ -226,7 +264,12 @@ pub fn register(
                     added += 1;
                 }
             }
+            let refinement = format!(
+                "level {level}, {}x{}x{} cells",
+                cells[0], cells[1], cells[2]
+            );
             if added == 0 {
+                progress.step(&format!("{refinement}: no new points"));
                 continue;
             }
             let centres: Vec<Vector3<f64>> =
@@ -272,11 +315,22 @@ pub fn register(
                         .collect(),
                 ))
             };
-            let result = lbfgs(cost_grad, x0, options.iterations, options.tolerance)?;
+            let result = lbfgs(
+                cost_grad,
+                x0,
+                options.iterations.at_level(level),
+                options.tolerance,
+            )?;
             for (k, &i) in free.iter().enumerate() {
                 points[i].displacement =
                     [result.x[3 * k], result.x[3 * k + 1], result.x[3 * k + 2]];
             }
+            progress.step(&format!(
+                "{refinement}: +{added} points ({} in all), cost {:.4} -> {:.4}",
+                points.len(),
+                result.start_cost,
+                result.cost
+            ));
             stages.push(StageReport {
                 level,
                 cells,
@@ -293,6 +347,7 @@ pub fn register(
         .map(|p| Vector3::from(p.displacement))
         .collect();
     let coefficients = RbfSystem::new(centres, options.smoothing)?.coefficients(&values)?;
+    progress.end();
     Ok(Adaptive {
         points,
         coefficients,

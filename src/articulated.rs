@@ -5,8 +5,9 @@ use crate::abi::Interpolation;
 use crate::backend::Backend;
 use crate::error::{Error, Result};
 use crate::io::transform::{BoneTransform, BoneTransforms};
-use crate::joint::{flexion_axis, rotation_about, JointAxis};
+use crate::joint::{flexion_axis, rotation_about, rotation_degrees, JointAxis};
 use crate::phantom::anatomy::label;
+use crate::progress::Progress;
 use crate::pyramid;
 use crate::rigid::{refine, score_candidates, LevelReport, RefineOptions};
 use crate::skinning::{self, distance_map, SkinningWeights};
@@ -26,7 +27,8 @@ pub fn bone_name(code: u16) -> String {
 }
 
 /// Settings of the initialisation.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct InitOptions {
     /// Bone labels to register (default: every bone label 2..=5 present).
     pub bones: Vec<u16>,
@@ -43,6 +45,30 @@ pub struct InitOptions {
     pub search_degrees: [f64; 3],
     /// Tilts of the search axis away from the labels' flexion axis (degrees).
     pub search_tilt_degrees: f64,
+}
+
+impl InitOptions {
+    /// Rejects settings the stage cannot run with, naming the setting.
+    pub fn check(&self) -> Result<()> {
+        // Written so NaN fails too.
+        let positive = |v: f64| v > 0.0;
+        let non_negative = |v: f64| v >= 0.0;
+        let bad = |what: &str| Err(Error::InvalidInput(format!("init.{what}")));
+        if self.levels == 0 {
+            return bad("levels must be at least 1");
+        }
+        if !positive(self.finest_spacing_mm) || !non_negative(self.dilation_mm) {
+            return bad("finest_spacing_mm must be positive and dilation_mm zero or positive");
+        }
+        let [from, to, step] = self.search_degrees;
+        if !positive(step) || !non_negative(to - from) || (to - from) / step > 1000.0 {
+            return bad("search_degrees must be from, to, step with to >= from, step > 0 and at most 1000 steps");
+        }
+        if !non_negative(self.search_tilt_degrees) {
+            return bad("search_tilt_degrees must be zero or positive");
+        }
+        Ok(())
+    }
 }
 
 impl Default for InitOptions {
@@ -269,7 +295,9 @@ pub fn initialise(
     target: &Volume,
     options: &InitOptions,
     given: Option<&BoneTransforms>,
+    progress: &dyn Progress,
 ) -> Result<Initialisation> {
+    options.check()?;
     if !labels.grid.same_as(&source.grid, 1e-3) {
         return Err(Error::InvalidInput(
             "the label map is not on the source image's grid".into(),
@@ -294,6 +322,8 @@ pub fn initialise(
     }
     skinning::check_bone_count(bones.len())?;
     let axis = flexion_axis(labels)?;
+    let rigid_steps = if given.is_some() { 0 } else { bones.len() };
+    progress.begin("initialisation", rigid_steps + 1);
     let motions: Vec<(u16, Affine)>;
     let mut reports = Vec::new();
     if let Some(given) = given {
@@ -354,6 +384,8 @@ pub fn initialise(
             if is_reference {
                 reference = motion;
             }
+            let turned = rotation_degrees(&motion);
+            progress.step(&format!("{} turned {turned:.1}°", bone_name(code)));
             found.push((code, motion));
             reports.push(report);
         }
@@ -366,6 +398,8 @@ pub fn initialise(
     let matrices: Vec<Affine> = motions.iter().map(|m| m.1).collect();
     let initial = initial_field(backend, &weights, labels, &matrices, &target.grid)?;
     let initialised = backend.resample(source, &initial.field, 0.0, Interpolation::Linear)?;
+    progress.step("skinning weights and volume skeletal deformation");
+    progress.end();
     Ok(Initialisation {
         motions,
         axis,

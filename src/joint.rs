@@ -115,3 +115,11 @@ pub fn rotation_about(axis: &JointAxis, degrees: f64) -> crate::volume::Affine {
     m.fixed_view_mut::<3, 1>(0, 3).copy_from(&t);
     m
 }
+
+/// The angle (degrees) of the rotation part of a rigid motion.
+pub fn rotation_degrees(m: &crate::volume::Affine) -> f64 {
+    ((m[(0, 0)] + m[(1, 1)] + m[(2, 2)] - 1.0) / 2.0)
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees()
+}

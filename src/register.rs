@@ -6,15 +6,20 @@ use crate::adaptive::{self, compose, Adaptive, AdaptiveOptions};
 use crate::articulated::{initialise, InitOptions, Initialisation};
 use crate::backend::{resample_onto, Backend};
 use crate::error::Result;
+use crate::progress::Progress;
 use crate::volume::{Field, Image, Labels, Volume};
 use crate::vsd::maps_into_bone;
 use nalgebra::Vector3;
 
-/// Settings of a registration.
-#[derive(Clone, Debug, serde::Serialize)]
+/// Settings of a registration: what a config file holds (io::config), every field optional
+/// there.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct RegisterOptions {
-    /// Articulated initialisation settings; None skips it (the paper's first experiment).
-    pub init: Option<InitOptions>,
+    /// Run the articulated initialisation; false is the paper's first experiment (small bends).
+    pub initialise: bool,
+    /// Articulated initialisation settings.
+    pub init: InitOptions,
     /// The adaptive stage.
     pub adaptive: AdaptiveOptions,
     /// Control points held at zero added displacement on each bone's surface.
@@ -24,7 +29,8 @@ pub struct RegisterOptions {
 impl Default for RegisterOptions {
     fn default() -> Self {
         RegisterOptions {
-            init: Some(InitOptions::default()),
+            initialise: true,
+            init: InitOptions::default(),
             adaptive: AdaptiveOptions::default(),
             pins_per_bone: 8,
         }
@@ -124,11 +130,21 @@ pub fn register(
     labels: &Labels,
     target: &Volume,
     options: &RegisterOptions,
+    progress: &dyn Progress,
 ) -> Result<Registration> {
     let clock = std::time::Instant::now();
-    let (init, initial, moving) = match &options.init {
+    options.adaptive.check()?;
+    let (init, initial, moving) = match options.initialise.then_some(&options.init) {
         Some(init_options) => {
-            let init = initialise(backend, source, labels, target, init_options, None)?;
+            let init = initialise(
+                backend,
+                source,
+                labels,
+                target,
+                init_options,
+                None,
+                progress,
+            )?;
             let field = init.initial.field.clone();
             let moving = init.initialised.clone();
             (Some(init), field, moving)
@@ -149,10 +165,12 @@ pub fn register(
         _ => Vec::new(),
     };
     let initialisation = clock.elapsed().as_secs_f64();
-    let adaptive = adaptive::register(backend, &moving, target, &pins, &options.adaptive)?;
+    let adaptive =
+        adaptive::register(backend, &moving, target, &pins, &options.adaptive, progress)?;
     let adaptive_seconds = clock.elapsed().as_secs_f64() - initialisation;
     // Step control: if the added warp makes the field fold (beyond what the initial field
     // already did), shrink it until it does not.
+    progress.begin("composition and resampling", 1);
     let folds = |det: &Volume| det.data.iter().filter(|&&v| v <= 0.0).count();
     let folded_initially = folds(&backend.jacobian(&initial)?);
     let mut scale = 1.0;
@@ -166,6 +184,8 @@ pub fn register(
         scale *= 0.5;
     };
     let warped = backend.resample(source, &field, 0.0, Interpolation::Linear)?;
+    progress.step(&format!("warp scale {scale}"));
+    progress.end();
     let timings = StageTimes {
         initialisation,
         adaptive: adaptive_seconds,

@@ -100,6 +100,26 @@ impl Grid {
             .expect("validated grids have invertible affines")
     }
 
+    /// Share of this grid's voxel centres (sampled every few voxels) that lie inside `other`'s
+    /// field of view: 0 when the two scans do not overlap in the world.
+    pub fn share_inside(&self, other: &Grid) -> f64 {
+        let to_other = other.world_to_voxel_affine() * self.affine;
+        let stride = self.dims.map(|d| (d / 16).max(1));
+        let (mut inside, mut total) = (0usize, 0usize);
+        for k in (0..self.dims[2]).step_by(stride[2]) {
+            for j in (0..self.dims[1]).step_by(stride[1]) {
+                for i in (0..self.dims[0]).step_by(stride[0]) {
+                    let q = to_other * nalgebra::Vector4::new(i as f64, j as f64, k as f64, 1.0);
+                    total += 1;
+                    if (0..3).all(|a| q[a] > -0.5 && q[a] < other.dims[a] as f64 - 0.5) {
+                        inside += 1;
+                    }
+                }
+            }
+        }
+        inside as f64 / total.max(1) as f64
+    }
+
     /// True when both grids have the same dims and affines equal to `tol` (mm).
     pub fn same_as(&self, other: &Grid, tol: f64) -> bool {
         self.dims == other.dims

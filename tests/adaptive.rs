@@ -4,6 +4,8 @@
 
 mod common;
 
+use posereg::progress::Silent;
+
 use posereg::evaluate::field_error;
 use posereg::metric::correlation;
 use posereg::phantom::anatomy::label;
@@ -36,7 +38,7 @@ fn evaluation_mask(source: &Phantom, target: &Phantom) -> Vec<bool> {
 fn ten_degrees_without_initialisation(backend: &dyn Backend, name: &str) {
     let (source, target) = pair();
     let options = RegisterOptions {
-        init: None,
+        initialise: false,
         ..Default::default()
     };
     let result = register(
@@ -45,6 +47,7 @@ fn ten_degrees_without_initialisation(backend: &dyn Backend, name: &str) {
         &source.labels,
         &target.image,
         &options,
+        &Silent,
     )
     .unwrap();
     let mask = evaluation_mask(&source, &target);

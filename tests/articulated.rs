@@ -2,6 +2,8 @@
 
 mod common;
 
+use posereg::progress::Silent;
+
 use posereg::abi::Interpolation;
 use posereg::articulated::{initialise, rigid_field, InitOptions, Initialisation};
 use posereg::cpu::CpuBackend;
@@ -212,6 +214,7 @@ fn run_all(backend: &dyn Backend, name: &str) {
             &bent(degrees).image,
             &InitOptions::default(),
             None,
+            &Silent,
         )
         .unwrap();
         eprintln!(
@@ -252,6 +255,7 @@ fn at_the_papers_resolution_bones_overlap_the_target_labels() {
         &b.image,
         &InitOptions::default(),
         None,
+        &Silent,
     )
     .unwrap();
     eprintln!("{}", check(&CpuBackend, "cpu paper", &s, &b, &init, true));
@@ -267,6 +271,7 @@ fn given_transforms_skip_the_rigid_stage() {
         &b.image,
         &InitOptions::default(),
         Some(&b.truth),
+        &Silent,
     )
     .unwrap();
     assert!(init.reports.is_empty());
@@ -296,6 +301,7 @@ fn missing_bones_are_refused() {
         &bent(30.0).image,
         &options,
         None,
+        &Silent,
     )
     .err()
     .unwrap();

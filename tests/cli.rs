@@ -167,26 +167,28 @@ fn info_on_a_missing_or_corrupt_file_fails_cleanly() {
 }
 
 /// Runs `verb` (init or register) on the demo folder's source, labels and target into `out`,
-/// on the CPU, and checks it succeeded.
-fn run_on_pair(verb: &str, demo: &Path, out: &Path) {
-    let result = posereg(&[
+/// on the CPU, with `extra` flags, checks it succeeded and returns its stderr.
+fn run_on_pair(verb: &str, demo: &Path, out: &Path, extra: &[&str]) -> String {
+    let [source, labels, target] =
+        ["source.nii.gz", "source_labels.nii.gz", "target.nii.gz"].map(|f| demo.join(f));
+    let mut args = vec![
         verb,
         "--source",
-        s(&demo.join("source.nii.gz")),
+        s(&source),
         "--source-labels",
-        s(&demo.join("source_labels.nii.gz")),
+        s(&labels),
         "--target",
-        s(&demo.join("target.nii.gz")),
+        s(&target),
         "-o",
         s(out),
         "--device",
         "cpu",
-    ]);
-    assert!(
-        result.status.success(),
-        "{verb}: {}",
-        String::from_utf8_lossy(&result.stderr)
-    );
+    ];
+    args.extend(extra);
+    let result = posereg(&args);
+    let stderr = String::from_utf8_lossy(&result.stderr).into_owned();
+    assert!(result.status.success(), "{verb}: {stderr}");
+    stderr
 }
 
 #[test]
@@ -214,6 +216,15 @@ fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
         stdout.contains("mean error") && stdout.contains("correlation"),
         "{stdout}"
     );
+    // Off a terminal, progress is one stderr line per step.
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    for stage in [
+        "initialisation [1/",
+        "adaptive RBF [1/",
+        "adaptive RBF: done in",
+    ] {
+        assert!(stderr.contains(stage), "no '{stage}' in stderr: {stderr}");
+    }
     for file in [
         "warped.nii.gz",
         "field.nii.gz",
@@ -225,7 +236,8 @@ fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
     }
     // init on the demo's pair writes its three outputs.
     let init = dir.path().join("init");
-    run_on_pair("init", &demo, &init);
+    let stderr = run_on_pair("init", &demo, &init, &["--quiet"]);
+    assert!(stderr.is_empty(), "--quiet printed: {stderr}");
     for file in ["init.json", "init_field.nii.gz", "initialised.nii.gz"] {
         assert!(init.join(file).exists(), "init did not write {file}");
     }
@@ -259,8 +271,16 @@ fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
     assert!((angle - 20.0).abs() < 1e-6, "tibia turned {angle}°");
     assert!(bent.join("target.nii.gz").exists() && bent.join("truth_field.nii.gz").exists());
     // register runs the whole pipeline on the demo's 30° pair: its outputs and report.
+    // Settings: a config file's value, and a flag over the file's.
     let reg = dir.path().join("reg");
-    run_on_pair("register", &demo, &reg);
+    let settings = dir.path().join("settings.toml");
+    std::fs::write(
+        &settings,
+        "[adaptive]\niterations = \"20x20x10\"\nthreshold = 6.0\n",
+    )
+    .unwrap();
+    let flags = ["--config", s(&settings), "--threshold", "9x8x8"];
+    run_on_pair("register", &demo, &reg, &flags);
     for file in [
         "warped.nii.gz",
         "field.nii.gz",
@@ -277,76 +297,95 @@ fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
         report["correlation"]["after"].as_f64().unwrap(),
     );
     assert!(after > before, "correlation {before} -> {after}");
+    let used = &report["options"]["adaptive"];
+    assert_eq!(used["iterations"], "20x20x10", "from the config file");
+    assert_eq!(used["threshold"], "9x8x8", "the flag overrides the file");
     let warped = load_volume(&reg.join("warped.nii.gz")).unwrap();
     let target = load_volume(&demo.join("target.nii.gz")).unwrap();
     assert_eq!(warped.grid, target.grid, "warped is on the target's grid");
 }
 
+/// Every bad input of issue 6 — missing file, NaN voxels, labels on another grid, labels
+/// without bones, scans that do not overlap, a misspelt setting — fails in one line naming the
+/// file, with a non-zero exit and no output folder.
 #[test]
-fn register_refuses_images_with_nan_voxels() {
+fn register_refuses_each_bad_input_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name);
     let grid = oblique_grid([10, 9, 8]);
-    let src = dir.path().join("source.nii.gz");
-    save_volume(&src, &smooth_volume(&grid, 1), DataType::F32).unwrap();
-    let labels = dir.path().join("labels.nii.gz");
-    posereg::io::nifti::save_labels(&labels, &posereg::Image::filled(grid.clone(), 2u16)).unwrap();
-    let mut bad = smooth_volume(&grid, 2);
-    bad.data[17] = f32::NAN;
-    let nan = dir.path().join("nan_target.nii.gz");
-    save_volume(&nan, &bad, DataType::F32).unwrap();
-    let out = dir.path().join("out");
-    let result = posereg(&[
-        "register",
-        "--source",
-        s(&src),
-        "--source-labels",
-        s(&labels),
-        "--target",
-        s(&nan),
-        "-o",
-        s(&out),
-        "--device",
-        "cpu",
-    ]);
-    assert_fails_naming(&result, "nan_target.nii.gz");
-    assert!(!out.exists());
-}
-
-#[test]
-fn init_refuses_labels_on_another_grid_and_label_maps_without_bones() {
-    let dir = tempfile::tempdir().unwrap();
-    let grid = oblique_grid([10, 9, 8]);
-    let src = dir.path().join("source.nii.gz");
-    save_volume(&src, &smooth_volume(&grid, 1), DataType::F32).unwrap();
-    let wrong = dir.path().join("wrong_labels.nii.gz");
-    posereg::io::nifti::save_labels(
-        &wrong,
-        &posereg::Image::filled(oblique_grid([10, 9, 9]), 2u16),
+    save_volume(
+        &path("source.nii.gz"),
+        &smooth_volume(&grid, 1),
+        DataType::F32,
     )
     .unwrap();
-    let empty = dir.path().join("empty_labels.nii.gz");
-    posereg::io::nifti::save_labels(&empty, &posereg::Image::filled(grid.clone(), 1u16)).unwrap();
-    let out = dir.path().join("out");
-    for (labels, name) in [
-        (&wrong, "wrong_labels.nii.gz"),
-        (&empty, "empty_labels.nii.gz"),
-    ] {
-        let result = posereg(&[
-            "init",
+    let bones = posereg::Image::filled(grid.clone(), 2u16);
+    posereg::io::nifti::save_labels(&path("labels.nii.gz"), &bones).unwrap();
+    let mut nan = smooth_volume(&grid, 2);
+    nan.data[17] = f32::NAN;
+    save_volume(&path("nan_target.nii.gz"), &nan, DataType::F32).unwrap();
+    let other_grid = posereg::Image::filled(oblique_grid([10, 9, 9]), 2u16);
+    posereg::io::nifti::save_labels(&path("wrong_labels.nii.gz"), &other_grid).unwrap();
+    let no_bones = posereg::Image::filled(grid.clone(), 1u16);
+    posereg::io::nifti::save_labels(&path("empty_labels.nii.gz"), &no_bones).unwrap();
+    let mut far = smooth_volume(&grid, 3);
+    far.grid.affine[(0, 3)] += 1000.0;
+    save_volume(&path("far_target.nii.gz"), &far, DataType::F32).unwrap();
+    std::fs::write(path("typo.toml"), "[adaptive]\niteratoins = 5\n").unwrap();
+    let out = path("out");
+    let cases = [
+        ("missing.nii.gz", "labels.nii.gz", "source.nii.gz", None),
+        ("source.nii.gz", "labels.nii.gz", "nan_target.nii.gz", None),
+        (
+            "source.nii.gz",
+            "wrong_labels.nii.gz",
+            "source.nii.gz",
+            None,
+        ),
+        (
+            "source.nii.gz",
+            "empty_labels.nii.gz",
+            "source.nii.gz",
+            None,
+        ),
+        ("source.nii.gz", "labels.nii.gz", "far_target.nii.gz", None),
+        (
+            "source.nii.gz",
+            "labels.nii.gz",
+            "source.nii.gz",
+            Some("typo.toml"),
+        ),
+    ];
+    for (source, labels, target, config) in cases {
+        let (src, lab, tgt) = (path(source), path(labels), path(target));
+        let mut args = vec![
+            "register",
             "--source",
             s(&src),
             "--source-labels",
-            s(labels),
+            s(&lab),
             "--target",
-            s(&src),
+            s(&tgt),
             "-o",
             s(&out),
             "--device",
             "cpu",
-        ]);
-        assert_fails_naming(&result, name);
+        ];
+        let settings = config.map(path);
+        if let Some(settings) = &settings {
+            args.extend(["--config", s(settings)]);
+        }
+        let culprit = config.unwrap_or(match (source, labels, target) {
+            (s, _, _) if s != "source.nii.gz" => s,
+            (_, l, _) if l != "labels.nii.gz" => l,
+            (_, _, t) => t,
+        });
+        assert_fails_naming(&posereg(&args), culprit);
+        assert!(
+            !out.exists(),
+            "no output folder after a failure on {culprit}"
+        );
     }
-    assert!(!out.exists(), "no output folder on failure");
 }
 
 #[test]

@@ -7,6 +7,7 @@ use posereg::backend::Backend;
 use posereg::cpu::CpuBackend;
 use posereg::gpu::GpuBackend;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
+use posereg::progress::Silent;
 use posereg::register::{register, RegisterOptions, StageTimes};
 
 /// Which backends to time.
@@ -63,6 +64,7 @@ fn time(
             &pair.0.labels,
             &pair.1.image,
             &RegisterOptions::default(),
+            &Silent,
         )?;
         all.push(r.timings);
     }

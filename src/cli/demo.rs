@@ -2,13 +2,15 @@
 //! registered (articulated initialisation, then adaptive cubic-RBF), with its figures
 //! against the known truth.
 
+use super::progress::Reporter;
 use clap::Args;
-use posereg::articulated::{bone_name, InitOptions};
+use posereg::articulated::bone_name;
 use posereg::backend::resample_onto;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::evaluate::field_error;
 use posereg::io::field::save_field;
 use posereg::io::nifti::{save_labels, save_volume, DataType};
+use posereg::joint::rotation_degrees;
 use posereg::metric::correlation;
 use posereg::phantom::anatomy::label;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
@@ -34,9 +36,9 @@ pub struct DemoArgs {
 }
 
 /// Makes the pair, registers it, prints the figures and where the outputs are.
-pub fn run(args: &DemoArgs, device: DeviceChoice) -> anyhow::Result<()> {
+pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
     let (backend, line) = open_backend(device)?;
-    eprintln!("{line}");
+    reporter.say(&line);
     let spec = |flexion_degrees, seed| PhantomSpec {
         size: args.size,
         flexion_degrees,
@@ -52,7 +54,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice) -> anyhow::Result<()> {
     println!("registering ...");
     let started = std::time::Instant::now();
     let options = RegisterOptions {
-        init: (!args.no_init).then(InitOptions::default),
+        initialise: !args.no_init,
         ..Default::default()
     };
     let result = register(
@@ -61,6 +63,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice) -> anyhow::Result<()> {
         &source.labels,
         &target.image,
         &options,
+        reporter,
     )?;
     let seconds = started.elapsed().as_secs_f64();
 
@@ -105,11 +108,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice) -> anyhow::Result<()> {
             .find(|t| t.label == *code)
             .map(|t| t.affine());
         if let Some(truth) = truth {
-            let r = m.fixed_view::<3, 3>(0, 0).transpose() * truth.fixed_view::<3, 3>(0, 0);
-            let angle = ((r.trace() - 1.0) / 2.0)
-                .clamp(-1.0, 1.0)
-                .acos()
-                .to_degrees();
+            let angle = rotation_degrees(&(m.try_inverse().unwrap_or(*m) * truth));
             let shift = (m.fixed_view::<3, 1>(0, 3) - truth.fixed_view::<3, 1>(0, 3)).norm();
             println!(
                 "  {:<8} rotation error {angle:.2}°, translation difference {shift:.2} mm",

@@ -1,6 +1,7 @@
 //! `posereg init --source S --source-labels L --target T -o DIR`: the articulated
 //! initialisation alone (per-bone rigid, skinning weights, volume skeletal deformation).
 
+use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Interpolation;
 use posereg::articulated::{bone_name, initialise, rigid_field, InitOptions};
@@ -9,6 +10,7 @@ use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::save_field;
 use posereg::io::nifti::{load_labels, load_volume, save_volume, DataType};
 use posereg::io::transform::BoneTransforms;
+use posereg::joint::rotation_degrees;
 use posereg::metric::correlation;
 use posereg::Error;
 use std::path::{Path, PathBuf};
@@ -60,6 +62,18 @@ pub fn load_inputs(
         )
         .into());
     }
+    let overlap = t.grid.share_inside(&s.grid);
+    if overlap < 0.01 {
+        return Err(Error::bad_file(
+            target,
+            format!(
+                "its field of view does not overlap the source's ({}; {:.1}% of it inside): the scans must share a world frame",
+                source.display(),
+                100.0 * overlap
+            ),
+        )
+        .into());
+    }
     if posereg::articulated::present_bones(&l).is_empty() {
         return Err(Error::bad_file(
             labels,
@@ -71,7 +85,7 @@ pub fn load_inputs(
 }
 
 /// Runs the initialisation and writes init.json, init_field.nii.gz, initialised.nii.gz.
-pub fn run(args: &InitArgs, device: DeviceChoice) -> anyhow::Result<()> {
+pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
     let (source, labels, target) = load_inputs(&args.source, &args.source_labels, &args.target)?;
     let given = args
         .init
@@ -79,7 +93,7 @@ pub fn run(args: &InitArgs, device: DeviceChoice) -> anyhow::Result<()> {
         .map(|p| BoneTransforms::load(p))
         .transpose()?;
     let (backend, line) = open_backend(device)?;
-    eprintln!("{line}");
+    reporter.say(&line);
     let options = InitOptions {
         bones: args.bones.clone(),
         reference: args.reference,
@@ -93,6 +107,7 @@ pub fn run(args: &InitArgs, device: DeviceChoice) -> anyhow::Result<()> {
         &target,
         &options,
         given.as_ref(),
+        reporter,
     )?;
     let seconds = started.elapsed().as_secs_f64();
     std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
@@ -148,11 +163,11 @@ pub fn run(args: &InitArgs, device: DeviceChoice) -> anyhow::Result<()> {
         );
     }
     for (code, m) in &init.motions {
-        let angle = ((m[(0, 0)] + m[(1, 1)] + m[(2, 2)] - 1.0) / 2.0)
-            .clamp(-1.0, 1.0)
-            .acos()
-            .to_degrees();
-        println!("  {:<8} rotation {angle:.2}°", bone_name(*code));
+        println!(
+            "  {:<8} rotation {:.2}°",
+            bone_name(*code),
+            rotation_degrees(m)
+        );
     }
     let residual = &init.initial.residual.data;
     let worst = residual.iter().cloned().fold(0.0f32, f32::max);

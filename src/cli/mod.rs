@@ -9,6 +9,7 @@ pub mod info;
 pub mod init;
 pub mod phantom;
 pub mod points;
+pub mod progress;
 pub mod register;
 pub mod resample;
 
@@ -22,6 +23,9 @@ pub struct Cli {
     /// Where kernels run: auto picks a hardware GPU when present, else the CPU backend.
     #[arg(long, value_enum, global = true, default_value_t = DeviceChoice::Auto)]
     pub device: DeviceChoice,
+    /// No progress bars or log lines on stderr (errors and the result line still print).
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
     /// The verb.
     #[command(subcommand)]
     pub command: Command,
@@ -56,17 +60,18 @@ pub enum Command {
 
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
+    let reporter = progress::Reporter::new(cli.quiet);
     match cli.command {
         Command::Apply(args) => apply::run(&args, cli.device),
         Command::ApplyPoints(args) => points::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Bend(args) => bend::run(&args, cli.device),
-        Command::Demo(args) => demo::run(&args, cli.device),
+        Command::Demo(args) => demo::run(&args, cli.device, &reporter),
         Command::Eval(args) => eval::run(&args),
         Command::Info(args) => info::run(&args),
-        Command::Init(args) => init::run(&args, cli.device),
+        Command::Init(args) => init::run(&args, cli.device, &reporter),
         Command::Phantom(args) => phantom::run(&args),
-        Command::Register(args) => register::run(&args, cli.device),
+        Command::Register(args) => register::run(&args, cli.device, &reporter),
         Command::Resample(args) => resample::run(&args, cli.device),
     }
 }

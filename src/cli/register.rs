@@ -3,12 +3,14 @@
 //! report.json and quicklook.png.
 
 use super::init::load_inputs;
+use super::progress::Reporter;
 use clap::Args;
-use posereg::articulated::InitOptions;
 use posereg::backend::resample_onto;
 use posereg::device::{open_backend, DeviceChoice};
+use posereg::io::config::{load_options, options_toml};
 use posereg::io::field::save_field;
 use posereg::io::nifti::{save_volume, DataType};
+use posereg::levels::PerLevel;
 use posereg::metric::correlation;
 use posereg::register::{register, RegisterOptions};
 use posereg::Error;
@@ -16,6 +18,7 @@ use std::path::PathBuf;
 
 /// Arguments of `posereg register`.
 #[derive(Args, Debug)]
+#[command(after_help = settings_help())]
 pub struct RegisterArgs {
     /// Source (straight pose) image.
     #[arg(long)]
@@ -29,28 +32,79 @@ pub struct RegisterArgs {
     /// Output folder (created if missing).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Settings file (.toml or .json) holding any of the settings listed below; flags given
+    /// here override it.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
     /// Skip the articulated initialisation (the paper's first experiment: small bends only).
     #[arg(long)]
     pub no_init: bool,
     /// Bone labels to use, e.g. 2,3,4 (default: every bone label present).
     #[arg(long, value_delimiter = ',')]
-    pub bones: Vec<u16>,
+    pub bones: Option<Vec<u16>>,
+    /// The reference bone, registered first from the identity.
+    #[arg(long)]
+    pub reference: Option<u16>,
+    /// Adaptive stage: L-BFGS iterations per refinement, per level coarse to fine, e.g. 40x30x20.
+    #[arg(long)]
+    pub iterations: Option<PerLevel<usize>>,
+    /// Adaptive stage: cells whose residual exceeds this multiple of the mean get a control
+    /// point, per level coarse to fine, e.g. 8x8x12.
+    #[arg(long)]
+    pub threshold: Option<PerLevel<f64>>,
+}
+
+/// The settings a config file may hold, with their defaults, for --help.
+fn settings_help() -> String {
+    format!(
+        "Settings (config file keys; unknown keys are refused) and their defaults:\n\n{}",
+        options_toml(&RegisterOptions::default())
+    )
+}
+
+impl RegisterArgs {
+    /// Defaults, overridden by the config file, overridden by the flags.
+    fn options(&self) -> anyhow::Result<RegisterOptions> {
+        let mut options = match &self.config {
+            Some(path) => load_options(path)?,
+            None => RegisterOptions::default(),
+        };
+        if self.no_init {
+            options.initialise = false;
+        }
+        if let Some(bones) = &self.bones {
+            options.init.bones = bones.clone();
+        }
+        if let Some(reference) = self.reference {
+            options.init.reference = reference;
+        }
+        if let Some(iterations) = &self.iterations {
+            options.adaptive.iterations = iterations.clone();
+        }
+        if let Some(threshold) = &self.threshold {
+            options.adaptive.threshold = threshold.clone();
+        }
+        options.init.check()?;
+        options.adaptive.check()?;
+        Ok(options)
+    }
 }
 
 /// Runs the registration and writes its outputs.
-pub fn run(args: &RegisterArgs, device: DeviceChoice) -> anyhow::Result<()> {
+pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
+    let options = args.options()?;
     let (source, labels, target) = load_inputs(&args.source, &args.source_labels, &args.target)?;
     let (backend, line) = open_backend(device)?;
-    eprintln!("{line}");
-    let options = RegisterOptions {
-        init: (!args.no_init).then(|| InitOptions {
-            bones: args.bones.clone(),
-            ..Default::default()
-        }),
-        ..Default::default()
-    };
+    reporter.say(&line);
     let started = std::time::Instant::now();
-    let result = register(backend.as_ref(), &source, &labels, &target, &options)?;
+    let result = register(
+        backend.as_ref(),
+        &source,
+        &labels,
+        &target,
+        &options,
+        reporter,
+    )?;
     let seconds = started.elapsed().as_secs_f64();
     std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
     let out = |name: &str| args.output.join(name);

@@ -1,6 +1,7 @@
 //! Files on disk: NIfTI images and labels, displacement fields (ITK convention), and the
 //! atomic write every output goes through.
 
+pub mod config;
 pub mod field;
 pub mod nifti;
 pub mod transform;

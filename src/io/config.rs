@@ -1,0 +1,73 @@
+//! Registration settings files: TOML or JSON (chosen by the extension), holding any subset of
+//! [`RegisterOptions`]; what a file leaves out keeps its default, and an unknown key is an
+//! error (a misspelt setting must not be silently ignored).
+
+use crate::error::{Error, Result};
+use crate::register::RegisterOptions;
+use std::path::Path;
+
+/// Reads a settings file over the defaults.
+pub fn load_options(path: &Path) -> Result<RegisterOptions> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let extension = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    let parsed = match extension.as_deref() {
+        Some("toml") => toml::from_str(&text).map_err(|e| e.message().to_string()),
+        Some("json") => serde_json::from_str(&text).map_err(|e| e.to_string()),
+        _ => Err("a settings file must end in .toml or .json".to_string()),
+    };
+    parsed.map_err(|problem| Error::bad_file(path, problem))
+}
+
+/// The settings as TOML, in the form [`load_options`] reads back.
+pub fn options_toml(options: &RegisterOptions) -> String {
+    toml::to_string_pretty(options).unwrap_or_else(|e| format!("# cannot show settings: {e}\n"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_written_as_toml_read_back_unchanged() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("settings.toml");
+        let defaults = RegisterOptions::default();
+        std::fs::write(&path, options_toml(&defaults)).unwrap();
+        let back = load_options(&path).unwrap();
+        assert_eq!(options_toml(&back), options_toml(&defaults));
+    }
+
+    #[test]
+    fn a_partial_file_overrides_only_what_it_names() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("settings.json");
+        std::fs::write(&path, r#"{"adaptive": {"iterations": "40x30x20"}}"#).unwrap();
+        let got = load_options(&path).unwrap();
+        assert_eq!(got.adaptive.iterations.to_string(), "40x30x20");
+        assert_eq!(
+            got.adaptive.threshold,
+            RegisterOptions::default().adaptive.threshold
+        );
+        assert!(got.initialise);
+    }
+
+    #[test]
+    fn unknown_keys_and_bad_values_name_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("typo.toml");
+        for text in [
+            "[adaptive]\niteratoins = 3\n",
+            "[adaptive]\niterations = \"3xx\"\n",
+        ] {
+            std::fs::write(&path, text).unwrap();
+            let err = load_options(&path).unwrap_err().to_string();
+            assert!(err.contains("typo.toml"), "{err}");
+        }
+        let err = load_options(&dir.path().join("settings.yaml"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("settings.yaml"), "{err}");
+    }
+}

@@ -1,0 +1,153 @@
+//! Settings that vary by pyramid level, written coarse to fine in the registration community's
+//! style (ANTs, elastix): `30x20x10` is 30 at the coarsest level and 10 at the finest; a single
+//! value holds at every level.
+
+use crate::error::{Error, Result};
+use serde::{de, Deserialize, Deserializer, Serialize, Serializer};
+use std::fmt;
+use std::str::FromStr;
+
+/// One value per pyramid level, coarse to fine (or one value for all levels).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PerLevel<T>(Vec<T>);
+
+impl<T: Copy> PerLevel<T> {
+    /// The same value at every level.
+    pub fn all(value: T) -> Self {
+        PerLevel(vec![value])
+    }
+
+    /// Values coarse to fine; at least one.
+    pub fn coarse_to_fine(values: Vec<T>) -> Result<Self> {
+        if values.is_empty() {
+            return Err(Error::InvalidInput(
+                "a per-level setting needs at least one value".into(),
+            ));
+        }
+        Ok(PerLevel(values))
+    }
+
+    /// The value at pyramid level `level` counted from the finest (0): the last value is the
+    /// finest level's, so a pyramid that came out shallower than asked for (a small image)
+    /// uses the finer levels' values.
+    pub fn at_level(&self, level: usize) -> T {
+        let n = self.0.len();
+        self.0[n - 1 - level.min(n - 1)]
+    }
+
+    /// Checks the value count against the number of levels (`name` names the setting).
+    pub fn check(&self, name: &str, levels: usize) -> Result<()>
+    where
+        T: fmt::Display,
+    {
+        if self.0.len() == 1 || self.0.len() == levels {
+            Ok(())
+        } else {
+            Err(Error::InvalidInput(format!(
+                "{name} has {} values ({self}) for {levels} pyramid levels: give one value or {levels}",
+                self.0.len()
+            )))
+        }
+    }
+}
+
+impl<T: fmt::Display> fmt::Display for PerLevel<T> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let parts: Vec<String> = self.0.iter().map(|v| v.to_string()).collect();
+        f.write_str(&parts.join("x"))
+    }
+}
+
+impl<T: FromStr + Copy> FromStr for PerLevel<T> {
+    type Err = String;
+
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        let values = text
+            .split('x')
+            .map(|part| {
+                part.trim()
+                    .parse::<T>()
+                    .map_err(|_| format!("'{part}' in '{text}' is not a number"))
+            })
+            .collect::<std::result::Result<Vec<T>, String>>()?;
+        PerLevel::coarse_to_fine(values).map_err(|e| e.to_string())
+    }
+}
+
+/// Writes one value as itself and several as `"30x20x10"`.
+impl<T: fmt::Display + Serialize> Serialize for PerLevel<T> {
+    fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        match self.0.as_slice() {
+            [one] => one.serialize(s),
+            _ => s.serialize_str(&self.to_string()),
+        }
+    }
+}
+
+/// Accepts `"30x20x10"`, `[30, 20, 10]` or `30`.
+impl<'de, T> Deserialize<'de> for PerLevel<T>
+where
+    T: FromStr + Copy + Deserialize<'de>,
+{
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Written<T> {
+            Text(String),
+            List(Vec<T>),
+            One(T),
+        }
+        match Written::<T>::deserialize(d)? {
+            Written::Text(text) => text.parse().map_err(de::Error::custom),
+            Written::List(values) => PerLevel::coarse_to_fine(values).map_err(de::Error::custom),
+            Written::One(value) => Ok(PerLevel::all(value)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_last_value_is_the_finest_levels() {
+        let p: PerLevel<usize> = "40x30x20".parse().unwrap();
+        assert_eq!([p.at_level(2), p.at_level(1), p.at_level(0)], [40, 30, 20]);
+        assert_eq!(
+            p.at_level(5),
+            40,
+            "levels beyond the list use the coarsest value"
+        );
+        assert_eq!(PerLevel::all(7).at_level(3), 7);
+        assert!(p.check("iterations", 3).is_ok());
+        let err = p.check("iterations", 4).unwrap_err().to_string();
+        assert!(
+            err.contains("40x30x20") && err.contains("4 pyramid levels"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn reads_text_lists_and_single_numbers_and_writes_text() {
+        #[derive(Deserialize, Serialize)]
+        struct S {
+            v: PerLevel<f64>,
+        }
+        for (json, want) in [
+            (r#"{"v":"8x4.5x2"}"#, vec![8.0, 4.5, 2.0]),
+            (r#"{"v":[8,4.5,2]}"#, vec![8.0, 4.5, 2.0]),
+            (r#"{"v":3}"#, vec![3.0]),
+        ] {
+            let s: S = serde_json::from_str(json).unwrap();
+            assert_eq!(s.v.0, want, "{json}");
+        }
+        let s: S = serde_json::from_str(r#"{"v":[8,4.5,2]}"#).unwrap();
+        assert_eq!(serde_json::to_string(&s).unwrap(), r#"{"v":"8x4.5x2"}"#);
+        let one = S {
+            v: PerLevel::all(3.5),
+        };
+        assert_eq!(serde_json::to_string(&one).unwrap(), r#"{"v":3.5}"#);
+        assert!("8xx2".parse::<PerLevel<f64>>().is_err());
+        assert!(serde_json::from_str::<S>(r#"{"v":[]}"#).is_err());
+    }
+}
