@@ -162,14 +162,18 @@ fn kernels(c: &mut Criterion) {
         );
         let weights = CpuBackend.skin_weights(&distances, &g, bones, 2).unwrap();
         let soft_tissue = vec![0.0f32; g.len()];
-        let motions: Vec<posereg::Affine> = (0..bones)
-            .map(|k| {
-                posereg::rigid::small_motion(
-                    &nalgebra::Vector6::new(0.1 * k as f64, 0.0, 0.0, 0.0, 0.0, 0.0),
-                    &nalgebra::Vector3::new(0.0, 0.0, 10.0),
-                )
-            })
-            .collect();
+        let blend = posereg::vsd::BoneBlend {
+            motions: (0..bones)
+                .map(|k| {
+                    posereg::rigid::small_motion(
+                        &nalgebra::Vector6::new(0.1 * k as f64, 0.0, 0.0, 0.0, 0.0, 0.0),
+                        &nalgebra::Vector3::new(0.0, 0.0, 10.0),
+                    )
+                })
+                .collect(),
+            blending: posereg::vsd::Blending::Linear,
+            iterations: 8,
+        };
         group(
             c,
             "skin_blend_4_bones",
@@ -177,7 +181,7 @@ fn kernels(c: &mut Criterion) {
             &label,
             &backends,
             |b| {
-                b.skin_blend(&weights, &g, &soft_tissue, &g, &g, &motions, 8)
+                b.skin_blend(&weights, &g, &soft_tissue, &g, &g, &blend)
                     .unwrap()
             },
         );

@@ -1,10 +1,15 @@
 #!/usr/bin/env bash
 # Side-by-side of posereg and elastix on the same pairs, same machine, same threads.
-#   scripts/compare_elastix.sh [OUT_DIR]      (default ./compare-elastix; DEVICES="cpu gpu", THREADS=2)
-# Pairs: the half-size phantom bent 10° and 60° (2% noise, 15% bias), each registered straight
-# → bent. elastix runs affine + multi-resolution B-spline (scripts/elastix/*.txt); its field comes
-# from transformix (-def all), which is in the same ITK convention as posereg's field.nii.gz, so
-# both are scored by `posereg eval` against the phantom's truth over the target's body.
+#   scripts/compare_elastix.sh [OUT_DIR]      (default ./compare-elastix; DEVICES="cpu gpu", THREADS=2,
+#                                               PAIRS="phantom10 phantom60 knee10")
+# Pairs: the half-size phantom bent 10° and 60° (2% noise, 15% bias), and the real knee of
+# ../shared/data/knee-dess averaged 2×2 in-plane (256×256×80 at 0.625×0.625×1.5 mm, by SimpleITK's
+# BinShrink; labels by nearest neighbour) and bent 10° by `posereg bend` (the paper's synthetic
+# experiment); each registered straight → bent. elastix runs affine + multi-resolution B-spline
+# (scripts/elastix/*.txt); its field comes from transformix (-def all), which is in the same ITK
+# convention as posereg's field.nii.gz, so both are scored by `posereg eval` against the truth
+# field (phantoms: over the target's body; the knee: over every voxel, the scan has no background
+# to leave out).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-compare-elastix}"
@@ -18,30 +23,64 @@ bin=target/release/posereg
 mkdir -p "$out"
 seconds() { /usr/bin/time -f %e "$@" 2>&1 >/dev/null | tail -1; }
 printf '| pair | method | wall s | mean error mm | within 2 vox | within 4 vox | correlation |\n|---|---|---|---|---|---|---|\n' > "$out/table.md"
-for deg in 10 60; do
-    pair="$out/pair$deg"
-    $bin phantom --size half -o "$pair/straight" --seed 1 >/dev/null
-    $bin phantom --size half --flexion "$deg" -o "$pair/bent" --seed 2 >/dev/null
-    score() { # method, field, warped
+
+# compare DIR NAME SOURCE LABELS TARGET TRUTH MASK(or "") [posereg runs: "label|flags" ...]
+# (DIR without spaces: elastix cannot write into folders with spaces in their names)
+compare() {
+    local dir=$1 name=$2 source=$3 labels=$4 target=$5 truth=$6 mask=$7
+    shift 7
+    score() { # method, field, warped, seconds
         local json
-        json=$($bin eval --field "$2" --truth "$pair/bent/truth_field.nii.gz" --mask "$pair/bent/labels.nii.gz" \
-            --warped "$3" --target "$pair/bent/image.nii.gz" --json)
-        python3 - "$json" "$deg" "$1" "$4" >> "$out/table.md" <<'PY'
+        json=$($bin eval --field "$2" --truth "$truth" ${mask:+--mask "$mask"} \
+            --warped "$3" --target "$target" --json)
+        python3 - "$json" "$name" "$1" "$4" >> "$out/table.md" <<'PY'
 import json, sys
 v = json.loads(sys.argv[1])
-print(f"| half phantom {sys.argv[2]}° | {sys.argv[3]} | {float(sys.argv[4]):.1f} | {v['mean_mm']:.2f} | "
+print(f"| {sys.argv[2]} | {sys.argv[3]} | {float(sys.argv[4]):.1f} | {v['mean_mm']:.2f} | "
       f"{100 * v['within_2_voxels']:.1f}% | {100 * v['within_4_voxels']:.1f}% | {v['correlation']:.3f} |")
 PY
     }
     for device in ${DEVICES:-cpu gpu}; do
-        t=$(seconds $bin register --device "$device" --source "$pair/straight/image.nii.gz" \
-            --source-labels "$pair/straight/labels.nii.gz" --target "$pair/bent/image.nii.gz" -o "$pair/posereg-$device")
-        score "posereg ($device$( [ $device = gpu ] && echo ', lavapipe'))" "$pair/posereg-$device/field.nii.gz" "$pair/posereg-$device/warped.nii.gz" "$t"
+        for run in "$@"; do
+            local label=${run%%|*} flags=${run#*|}
+            local to="$dir/posereg-$device-${label// /-}"
+            t=$(seconds $bin register --quiet --device "$device" --source "$source" --source-labels "$labels" \
+                --target "$target" -o "$to" $flags)
+            score "posereg $label ($device$( [ $device = gpu ] && echo ', lavapipe'))" "$to/field.nii.gz" "$to/warped.nii.gz" "$t"
+        done
     done
-    mkdir -p "$pair/elastix"
-    t=$(seconds elastix -f "$pair/bent/image.nii.gz" -m "$pair/straight/image.nii.gz" \
-        -p scripts/elastix/affine.txt -p scripts/elastix/bspline.txt -out "$pair/elastix" -threads "$threads")
-    transformix -def all -tp "$pair/elastix/TransformParameters.1.txt" -out "$pair/elastix" -threads "$threads" >/dev/null
-    score "elastix affine + B-spline" "$pair/elastix/deformationField.nii" "$pair/elastix/result.1.nii" "$t"
+    mkdir -p "$dir/elastix"
+    t=$(seconds elastix -f "$target" -m "$source" \
+        -p scripts/elastix/affine.txt -p scripts/elastix/bspline.txt -out "$dir/elastix" -threads "$threads")
+    transformix -def all -tp "$dir/elastix/TransformParameters.1.txt" -out "$dir/elastix" -threads "$threads" >/dev/null
+    score "elastix affine + B-spline" "$dir/elastix/deformationField.nii" "$dir/elastix/result.1.nii" "$t"
+}
+
+for pair in ${PAIRS:-phantom10 phantom60 knee10}; do
+    case $pair in
+    phantom*)
+        deg=${pair#phantom} dir="$out/$pair"
+        $bin phantom --size half -o "$dir/straight" --seed 1 >/dev/null
+        $bin phantom --size half --flexion "$deg" -o "$dir/bent" --seed 2 >/dev/null
+        compare "$dir" "half phantom $deg°" "$dir/straight/image.nii.gz" "$dir/straight/labels.nii.gz" \
+            "$dir/bent/image.nii.gz" "$dir/bent/truth_field.nii.gz" "$dir/bent/labels.nii.gz" "with init|"
+        ;;
+    knee*)
+        deg=${pair#knee} dir="$out/$pair" data=../shared/data/knee-dess
+        mkdir -p "$dir"
+        python3 - "$data" "$dir" <<'PY'
+import sys, SimpleITK as sitk
+data, out = sys.argv[1:]
+image = sitk.BinShrink(sitk.Cast(sitk.ReadImage(f"{data}/image.nii.gz"), sitk.sitkFloat32), [2, 2, 1])
+labels = sitk.Resample(sitk.ReadImage(f"{data}/labels.nii.gz"), image, sitk.Transform(),
+                       sitk.sitkNearestNeighbor, 0, sitk.sitkUInt8)
+sitk.WriteImage(image, f"{out}/straight.nii.gz")
+sitk.WriteImage(labels, f"{out}/straight_labels.nii.gz")
+PY
+        $bin bend "$dir/straight.nii.gz" --labels "$dir/straight_labels.nii.gz" --degrees "$deg" -o "$dir/bent" >/dev/null
+        compare "$dir" "real knee $deg°" "$dir/straight.nii.gz" "$dir/straight_labels.nii.gz" \
+            "$dir/bent/target.nii.gz" "$dir/bent/truth_field.nii.gz" "" "no init|--no-init" "with init|"
+        ;;
+    esac
 done
 cat "$out/table.md"

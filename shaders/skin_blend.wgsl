@@ -1,7 +1,8 @@
 // skin_blend.wgsl: volume skeletal deformation (paper eq. 1) inverted for pull-back resampling.
 //
 // The blend maps a source point x to B(x) = Σ_j w_j(x) M_j x (linear blend skinning of the
-// whole volume). Inside a bone (nearest voxel of the source label grid) the weights are that
+// whole volume), or with slab.w = 1 to D(x) x where D(x) is the normalised blend Σ_j w_j(x) q_j
+// of the motions' unit dual quaternions (a rigid motion again; see src/vsd.rs). Inside a bone (nearest voxel of the source label grid) the weights are that
 // bone's alone, so bones move exactly rigidly up to their labelled surface; elsewhere w_j is
 // trilinear from the coarser weight grid, clamped to its edge. For each target voxel
 // p this finds the source point x with B(x) = p: start from the bone whose inverse M_j⁻¹ p
@@ -21,7 +22,7 @@
 // Keep in sync with abi::SkinBlendParams.
 struct SkinBlendParams {
     dims: vec4<u32>,        // target nx, ny, nz, z0
-    slab: vec4<u32>,        // depth, bones, iterations, unused
+    slab: vec4<u32>,        // depth, bones, iterations, blending (0 linear, 1 dual quaternion)
     weight_dims: vec4<u32>, // weight grid nx, ny, nz, unused
     label_dims: vec4<u32>,  // source label grid nx, ny, nz, unused
     target_to_world: array<vec4<f32>, 3>,
@@ -29,6 +30,7 @@ struct SkinBlendParams {
     world_to_label: array<vec4<f32>, 3>,
     forward: array<vec4<f32>, 24>,   // 3 rows of M_j per bone
     inverse: array<vec4<f32>, 24>,   // 3 rows of M_j⁻¹ per bone
+    dual: array<vec4<f32>, 16>,      // unit dual quaternion of M_j per bone: real, dual (x, y, z, w)
 }
 
 @group(0) @binding(0) var<uniform> params: SkinBlendParams;
@@ -94,6 +96,9 @@ fn blend(x: vec3<f32>) -> Blend {
     b.r0 = vec3<f32>(0.0);
     b.r1 = vec3<f32>(0.0);
     b.r2 = vec3<f32>(0.0);
+    let dual_quaternion = params.slab.w == 1u;
+    var real = vec4<f32>(0.0);
+    var dual = vec4<f32>(0.0);
     for (var j = 0u; j < bones; j = j + 1u) {
         let v000 = weight[voxel_index(i0.x, i0.y, i0.z, n) * bones + j];
         let v100 = weight[voxel_index(i1.x, i0.y, i0.z, n) * bones + j];
@@ -110,14 +115,37 @@ fn blend(x: vec3<f32>) -> Blend {
         let c0 = (1.0 - t.y) * c00 + t.y * c10;
         let c1 = (1.0 - t.y) * c01 + t.y * c11;
         let w = (1.0 - t.z) * c0 + t.z * c1;
-        let m0 = params.forward[3u * j];
-        let m1 = params.forward[3u * j + 1u];
-        let m2 = params.forward[3u * j + 2u];
-        b.point = b.point + w * vec3<f32>(affine_row(m0, x), affine_row(m1, x), affine_row(m2, x));
-        b.r0 = b.r0 + w * m0.xyz;
-        b.r1 = b.r1 + w * m1.xyz;
-        b.r2 = b.r2 + w * m2.xyz;
+        if (dual_quaternion) {
+            real = real + w * params.dual[2u * j];
+            dual = dual + w * params.dual[2u * j + 1u];
+        } else {
+            let m0 = params.forward[3u * j];
+            let m1 = params.forward[3u * j + 1u];
+            let m2 = params.forward[3u * j + 2u];
+            b.point = b.point + w * vec3<f32>(affine_row(m0, x), affine_row(m1, x), affine_row(m2, x));
+            b.r0 = b.r0 + w * m0.xyz;
+            b.r1 = b.r1 + w * m1.xyz;
+            b.r2 = b.r2 + w * m2.xyz;
+        }
     }
+    if (dual_quaternion) {
+        return dual_quaternion_motion(real, dual, x);
+    }
+    return b;
+}
+
+// The rigid motion of the blended dual quaternion (real, dual), applied to x: normalised by the
+// real part's length, rotation from the real part, translation 2 (dual · conj(real)).
+fn dual_quaternion_motion(real_sum: vec4<f32>, dual_sum: vec4<f32>, x: vec3<f32>) -> Blend {
+    let norm = length(real_sum);
+    let r = real_sum / norm;
+    let d = dual_sum / norm;
+    let t = 2.0 * (r.w * d.xyz - d.w * r.xyz + cross(r.xyz, d.xyz));
+    var b: Blend;
+    b.r0 = vec3<f32>(1.0 - 2.0 * (r.y * r.y + r.z * r.z), 2.0 * (r.x * r.y - r.z * r.w), 2.0 * (r.x * r.z + r.y * r.w));
+    b.r1 = vec3<f32>(2.0 * (r.x * r.y + r.z * r.w), 1.0 - 2.0 * (r.x * r.x + r.z * r.z), 2.0 * (r.y * r.z - r.x * r.w));
+    b.r2 = vec3<f32>(2.0 * (r.x * r.z - r.y * r.w), 2.0 * (r.y * r.z + r.x * r.w), 1.0 - 2.0 * (r.x * r.x + r.y * r.y));
+    b.point = vec3<f32>(dot(b.r0, x), dot(b.r1, x), dot(b.r2, x)) + t;
     return b;
 }
 

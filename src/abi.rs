@@ -7,6 +7,7 @@
 
 use crate::gpu::run::SlabParams;
 use crate::volume::{Affine, Grid};
+use crate::vsd::{Blending, BoneBlend};
 use bytemuck::{Pod, Zeroable};
 
 /// How a resample reads the source between voxel centres.
@@ -344,7 +345,7 @@ pub const MAX_SKIN_BONES: usize = 8;
 pub struct SkinBlendParams {
     /// Target nx, ny, nz, first slice of this slab.
     pub dims: [u32; 4],
-    /// Slices in this slab, bones, inversion iterations, unused.
+    /// Slices in this slab, bones, inversion iterations, blending (0 linear, 1 dual quaternion).
     pub slab: [u32; 4],
     /// Weight grid nx, ny, nz, unused.
     pub weight_dims: [u32; 4],
@@ -360,29 +361,37 @@ pub struct SkinBlendParams {
     pub forward: [[f32; 4]; 3 * MAX_SKIN_BONES],
     /// Three rows of M_j⁻¹ per bone.
     pub inverse: [[f32; 4]; 3 * MAX_SKIN_BONES],
+    /// Unit dual quaternion of M_j per bone: real part (x, y, z, w), then dual part.
+    pub dual: [[f32; 4]; 2 * MAX_SKIN_BONES],
 }
 
 impl SkinBlendParams {
-    /// For bones moving by `motions` (at most [`MAX_SKIN_BONES`]), weights on `weights`, bone
-    /// labels on `labels`.
-    pub fn new(
-        target: &Grid,
-        weights: &Grid,
-        labels: &Grid,
-        motions: &[Affine],
-        iterations: u32,
-    ) -> Self {
+    /// For bones moving as `blend` says (at most [`MAX_SKIN_BONES`]), weights on `weights`,
+    /// bone labels on `labels`.
+    pub fn new(target: &Grid, weights: &Grid, labels: &Grid, blend: &BoneBlend) -> Self {
+        let motions = &blend.motions;
         assert!(motions.len() <= MAX_SKIN_BONES, "checked by the caller");
         let mut forward = [[0.0f32; 4]; 3 * MAX_SKIN_BONES];
         let mut inverse = [[0.0f32; 4]; 3 * MAX_SKIN_BONES];
+        let mut dual = [[0.0f32; 4]; 2 * MAX_SKIN_BONES];
         for (j, m) in motions.iter().enumerate() {
             let inv = m.try_inverse().unwrap_or_else(Affine::identity);
             forward[3 * j..3 * j + 3].copy_from_slice(&rows(m));
             inverse[3 * j..3 * j + 3].copy_from_slice(&rows(&inv));
+            dual[2 * j..2 * j + 2].copy_from_slice(&dual_quaternion(m));
         }
+        let blending = match blend.blending {
+            Blending::Linear => 0,
+            Blending::DualQuaternion => 1,
+        };
         SkinBlendParams {
             dims: dims4(target, 0),
-            slab: [target.dims[2] as u32, motions.len() as u32, iterations, 0],
+            slab: [
+                target.dims[2] as u32,
+                motions.len() as u32,
+                blend.iterations,
+                blending,
+            ],
             weight_dims: dims4(weights, 0),
             label_dims: dims4(labels, 0),
             target_to_world: rows(&target.affine),
@@ -390,8 +399,24 @@ impl SkinBlendParams {
             world_to_label: rows(&labels.world_to_voxel_affine()),
             forward,
             inverse,
+            dual,
         }
     }
+}
+
+/// The unit dual quaternion (real part, dual part; each x, y, z, w) of a rigid motion, real
+/// part in the w ≥ 0 hemisphere: every motion is then on the identity's side, so blending with
+/// a bone that barely moves (the femur) takes the short way round for turns below 180°.
+fn dual_quaternion(m: &Affine) -> [[f32; 4]; 2] {
+    let rotation = nalgebra::Rotation3::from_matrix(&m.fixed_view::<3, 3>(0, 0).into_owned());
+    let mut real = nalgebra::UnitQuaternion::from_rotation_matrix(&rotation).into_inner();
+    if real.w < 0.0 {
+        real = -real;
+    }
+    let t = nalgebra::Quaternion::from_imag(m.fixed_view::<3, 1>(0, 3).into_owned());
+    let dual = t * real * 0.5;
+    let q = |q: nalgebra::Quaternion<f64>| [q.i as f32, q.j as f32, q.k as f32, q.w as f32];
+    [q(real), q(dual)]
 }
 
 /// Keep in sync with `RbfGradParams` in shaders/rbf_grad.wgsl.

@@ -12,7 +12,7 @@ use crate::pyramid;
 use crate::rigid::{refine, score_candidates, LevelReport, RefineOptions};
 use crate::skinning::{self, distance_map, SkinningWeights};
 use crate::volume::{Affine, Field, Image, Labels, Volume};
-use crate::vsd::{initial_field, InitialField};
+use crate::vsd::{initial_field, Blending, InitialField};
 use nalgebra::{Rotation3, Unit, Vector3};
 
 /// Name of a bone label code.
@@ -45,6 +45,10 @@ pub struct InitOptions {
     pub search_degrees: [f64; 3],
     /// Tilts of the search axis away from the labels' flexion axis (degrees).
     pub search_tilt_degrees: f64,
+    /// How the bone motions are blended across the soft tissue. Dual quaternions by default:
+    /// on the half phantom they lowered the initial field's mean error from 6.7 to 6.0 mm at
+    /// 60° and from 14.1 to 12.2 mm at 90°, with fewer folds, than the paper's linear blend.
+    pub blending: Blending,
 }
 
 impl InitOptions {
@@ -81,6 +85,7 @@ impl Default for InitOptions {
             dilation_mm: 3.0,
             search_degrees: [-30.0, 150.0, 4.0],
             search_tilt_degrees: 15.0,
+            blending: Blending::DualQuaternion,
         }
     }
 }
@@ -396,7 +401,14 @@ pub fn initialise(
     }
     let weights = skinning::weights(backend, labels, &bones)?;
     let matrices: Vec<Affine> = motions.iter().map(|m| m.1).collect();
-    let initial = initial_field(backend, &weights, labels, &matrices, &target.grid)?;
+    let initial = initial_field(
+        backend,
+        &weights,
+        labels,
+        &matrices,
+        options.blending,
+        &target.grid,
+    )?;
     let initialised = backend.resample(source, &initial.field, 0.0, Interpolation::Linear)?;
     progress.step("skinning weights and volume skeletal deformation");
     progress.end();
@@ -452,6 +464,7 @@ pub fn bend(
     labels: &Labels,
     degrees: f64,
     axis: Option<JointAxis>,
+    blending: Blending,
 ) -> Result<Bend> {
     if !degrees.is_finite() || degrees.abs() > 150.0 {
         return Err(Error::InvalidInput(format!(
@@ -472,7 +485,7 @@ pub fn bend(
         })
         .collect();
     let weights = skinning::weights(backend, labels, &bones)?;
-    let initial = initial_field(backend, &weights, labels, &motions, &source.grid)?;
+    let initial = initial_field(backend, &weights, labels, &motions, blending, &source.grid)?;
     let mut truth = BoneTransforms::new(
         bones
             .iter()

@@ -6,6 +6,7 @@ use crate::abi::Interpolation;
 use crate::error::Result;
 use crate::metric::CellSsd;
 use crate::volume::{Affine, Field, Grid, Volume};
+use crate::vsd::BoneBlend;
 
 /// A place kernels run.
 pub trait Backend {
@@ -63,9 +64,8 @@ pub trait Backend {
     ) -> Result<Vec<f32>>;
 
     /// The inverted blend on `target`: 4 floats per voxel (u in mm, inversion residual in mm)
-    /// for bones moving by `motions`, weights (bones per voxel) on `weight_grid`, and
+    /// for bones moving and blended as `blend` says, weights (bones per voxel) on `weight_grid`, and
     /// `bone_of_voxel` (1 + bone index, 0 for soft tissue) on the source label grid `labels`.
-    #[allow(clippy::too_many_arguments)]
     fn skin_blend(
         &self,
         weights: &[f32],
@@ -73,8 +73,7 @@ pub trait Backend {
         bone_of_voxel: &[f32],
         labels: &Grid,
         target: &Grid,
-        motions: &[Affine],
-        iterations: u32,
+        blend: &BoneBlend,
     ) -> Result<Vec<f32>>;
 
     /// The non-rigid cost's per-voxel terms: 4 floats per voxel of `fixed`'s grid — the moving

@@ -1,11 +1,50 @@
 //! Volume skeletal deformation (paper §2): the blend v_a = (Σ_j w_j M_j) v_s of every source
 //! point, inverted per target voxel (skin_blend kernel) into the initial displacement field u0
 //! on the target grid, target point → source point.
+//!
+//! Two blends: linear (the paper's; blending matrices shortens the radius of tissue turning
+//! with a bone — a point halfway between a still femur and a tibia turned θ moves along the
+//! chord, to cos(θ/2) of its radius — the "candy wrapper" collapse that folds tissue at large
+//! flexion) and dual-quaternion (Kavan et al. 2008: blended unit dual quaternions are again
+//! rigid motions, so tissue between the bones turns by a blended angle about a blended axis
+//! and keeps its distance to the joint).
 
 use crate::backend::Backend;
 use crate::error::Result;
 use crate::skinning::SkinningWeights;
 use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
+
+/// How the bones' rigid motions are blended across soft tissue.
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum Blending {
+    /// Σ_j w_j M_j (the paper's linear blend skinning).
+    #[default]
+    Linear,
+    /// The normalised blend of the motions' unit dual quaternions.
+    DualQuaternion,
+}
+
+/// Bone motions (source → target world) and how to blend and invert them.
+#[derive(Clone, Debug)]
+pub struct BoneBlend {
+    /// One rigid motion per weight bone.
+    pub motions: Vec<Affine>,
+    /// Linear or dual-quaternion.
+    pub blending: Blending,
+    /// Newton-like inversion steps per voxel.
+    pub iterations: u32,
+}
 
 /// Newton-like inversion steps per voxel.
 pub const INVERSION_ITERATIONS: u32 = 30;
@@ -27,6 +66,7 @@ pub fn initial_field(
     weights: &SkinningWeights,
     labels: &Labels,
     motions: &[Affine],
+    blending: Blending,
     target: &Grid,
 ) -> Result<InitialField> {
     // 1 + the weight index of the bone each source label voxel belongs to; 0 for soft tissue.
@@ -47,8 +87,11 @@ pub fn initial_field(
         &bone_of_voxel,
         &labels.grid,
         target,
-        motions,
-        INVERSION_ITERATIONS,
+        &BoneBlend {
+            motions: motions.to_vec(),
+            blending,
+            iterations: INVERSION_ITERATIONS,
+        },
     )?;
     let field = out.chunks_exact(4).map(|c| [c[0], c[1], c[2]]).collect();
     let residual = out.chunks_exact(4).map(|c| c[3]).collect();

@@ -13,6 +13,7 @@ use common::*;
 use posereg::abi::Interpolation;
 use posereg::cpu::CpuBackend;
 use posereg::volume::{Field, Grid, Volume};
+use posereg::vsd::{Blending, BoneBlend};
 use posereg::Backend;
 
 const RESAMPLE_TOLERANCE: f32 = 1e-3;
@@ -331,14 +332,44 @@ fn skinning_kernels_parity() {
     let bone_of_voxel: Vec<f32> = (0..label_grid.len())
         .map(|n| ((n / 7) % 4) as f32)
         .collect();
-    let blend = |b: &dyn Backend, w: &[f32]| {
-        b.skin_blend(w, &grid, &bone_of_voxel, &label_grid, &target, &motions, 8)
-            .unwrap()
-    };
-    let (cpu, got) = (blend(&CpuBackend, &cpu), blend(gpu, &got));
-    // Eight Newton steps on mm-sized coordinates: ulp-level differences stay below 1e-3 mm
-    // where the inversion converges; residual channel included.
-    close("skin_blend", &got, &cpu, 2e-3, 1e-4);
+    for blending in [Blending::Linear, Blending::DualQuaternion] {
+        let spec = BoneBlend {
+            motions: motions.to_vec(),
+            blending,
+            iterations: 8,
+        };
+        let blend = |b: &dyn Backend, w: &[f32]| {
+            b.skin_blend(w, &grid, &bone_of_voxel, &label_grid, &target, &spec)
+                .unwrap()
+        };
+        let (cpu, got) = (blend(&CpuBackend, &cpu), blend(gpu, &got));
+        // This fixture's labels alternate every 7 voxels, so the blend is discontinuous and
+        // does not invert everywhere; where it does not, eight steps of a non-converging
+        // iteration amplify ulp differences (sqrt, division) into different iterates. Where
+        // the CPU's inversion converged (residual < 0.01 mm), every channel agrees to ulp-level
+        // differences in mm-sized coordinates; and both converge on the same voxels.
+        let converged = |out: &[f32]| out.chunks(4).filter(|c| c[3] < 0.01).count();
+        let (cpu_converged, gpu_converged) = (converged(&cpu), converged(&got));
+        assert!(
+            cpu_converged > cpu.len() / 8
+                && cpu_converged.abs_diff(gpu_converged) <= cpu.len() / 400,
+            "{blending:?}: converged on {cpu_converged} (cpu) and {gpu_converged} (gpu) voxels"
+        );
+        let keep = |out: &[f32]| -> Vec<f32> {
+            out.chunks(4)
+                .zip(cpu.chunks(4))
+                .filter(|(_, c)| c[3] < 0.01)
+                .flat_map(|(o, _)| o.to_vec())
+                .collect()
+        };
+        close(
+            &format!("skin_blend {blending:?}"),
+            &keep(&got),
+            &keep(&cpu),
+            2e-3,
+            1e-4,
+        );
+    }
 }
 
 #[test]

@@ -6,6 +6,7 @@ use common::*;
 use posereg::abi::Interpolation;
 use posereg::cpu::CpuBackend;
 use posereg::volume::{Affine, Grid, Image};
+use posereg::vsd::{Blending, BoneBlend};
 use posereg::Backend;
 
 /// A linear ramp with dyadic coefficients: every value and every trilinear weight used below
@@ -383,10 +384,20 @@ fn skin_blend_inverts_a_common_rigid_motion_exactly() {
     );
     let target = oblique_grid([7, 6, 5]);
     let inv = m.try_inverse().unwrap();
-    // Soft tissue everywhere, then a label grid where every voxel is bone 1: both blend to M.
-    for bone_of_voxel in [vec![0.0f32; grid.len()], vec![2.0f32; grid.len()]] {
+    // Soft tissue everywhere, then a label grid where every voxel is bone 1: both blend to M,
+    // linearly or by dual quaternions.
+    for (bone_of_voxel, blending) in [
+        (vec![0.0f32; grid.len()], Blending::Linear),
+        (vec![2.0f32; grid.len()], Blending::Linear),
+        (vec![0.0f32; grid.len()], Blending::DualQuaternion),
+    ] {
+        let blend = BoneBlend {
+            motions: vec![m, m],
+            blending,
+            iterations: 4,
+        };
         let out = CpuBackend
-            .skin_blend(&weights, &grid, &bone_of_voxel, &grid, &target, &[m, m], 4)
+            .skin_blend(&weights, &grid, &bone_of_voxel, &grid, &target, &blend)
             .unwrap();
         for n in 0..target.len() {
             let w = target.world_of(n);
@@ -396,6 +407,58 @@ fn skin_blend_inverts_a_common_rigid_motion_exactly() {
             }
             assert!(out[4 * n + 3] < 1e-3, "residual {}", out[4 * n + 3]);
         }
+    }
+}
+
+#[test]
+fn dual_quaternion_blending_turns_halfway_where_linear_blending_shortens_the_radius() {
+    // Two bones, one still and one turned θ about the z axis through the origin, weighted ½
+    // each everywhere. The linear blend B(x) = ½(x + R_θ x) turns by θ/2 and shrinks distances
+    // to the axis by cos(θ/2) (z unchanged); the dual-quaternion blend is the rotation by θ/2
+    // itself. The inverted fields must be exactly those maps' inverses.
+    let grid = Grid::new(
+        [9, 8, 7],
+        Affine::identity().append_translation(&nalgebra::Vector3::new(5.0, -3.0, 1.0)),
+    )
+    .unwrap();
+    let distances = vec![2.0f32; grid.len() * 2];
+    let weights = CpuBackend.skin_weights(&distances, &grid, 2, 2).unwrap();
+    let theta = 70f64.to_radians();
+    let turn = |angle: f64| {
+        nalgebra::Rotation3::from_axis_angle(&nalgebra::Vector3::z_axis(), angle).to_homogeneous()
+    };
+    let soft_tissue = vec![0.0f32; grid.len()];
+    let half = turn(-theta / 2.0);
+    let shrink = (theta / 2.0).cos();
+    for (blending, inverse) in [
+        (
+            Blending::Linear,
+            Affine::from_diagonal(&nalgebra::Vector4::new(
+                1.0 / shrink,
+                1.0 / shrink,
+                1.0,
+                1.0,
+            )) * half,
+        ),
+        (Blending::DualQuaternion, half),
+    ] {
+        let blend = BoneBlend {
+            motions: vec![Affine::identity(), turn(theta)],
+            blending,
+            iterations: 30,
+        };
+        let out = CpuBackend
+            .skin_blend(&weights, &grid, &soft_tissue, &grid, &grid, &blend)
+            .unwrap();
+        let mut worst = 0.0f64;
+        for n in 0..grid.len() {
+            let p = grid.world_of(n);
+            let want = inverse.fixed_view::<3, 3>(0, 0) * p - p;
+            for a in 0..3 {
+                worst = worst.max((out[4 * n + a] as f64 - want[a]).abs());
+            }
+        }
+        assert!(worst < 1e-3, "{blending:?}: worst difference {worst} mm");
     }
 }
 

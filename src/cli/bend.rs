@@ -8,6 +8,7 @@ use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::save_field;
 use posereg::io::nifti::{load_labels, load_volume, save_labels, save_volume, DataType};
 use posereg::joint::JointAxis;
+use posereg::vsd::Blending;
 use posereg::Error;
 use std::path::PathBuf;
 
@@ -26,6 +27,9 @@ pub struct BendArgs {
     /// found from the labels, through the femoral condyles.
     #[arg(long, value_delimiter = ',', num_args = 6)]
     pub axis: Option<Vec<f64>>,
+    /// How the bone motions are blended across the soft tissue.
+    #[arg(long, value_enum, default_value_t = Blending::Linear)]
+    pub blending: Blending,
     /// Output folder.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -58,7 +62,14 @@ pub fn run(args: &BendArgs, device: DeviceChoice) -> anyhow::Result<()> {
     }
     let (backend, line) = open_backend(device)?;
     eprintln!("{line}");
-    let bent = bend(backend.as_ref(), &source, &labels, args.degrees, axis)?;
+    let bent = bend(
+        backend.as_ref(),
+        &source,
+        &labels,
+        args.degrees,
+        axis,
+        args.blending,
+    )?;
     std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
     let out = |name: &str| args.output.join(name);
     let target = backend.resample(&source, &bent.field, 0.0, Interpolation::Linear)?;

@@ -12,6 +12,7 @@ use posereg::io::nifti::{load_labels, load_volume, save_volume, DataType};
 use posereg::io::transform::BoneTransforms;
 use posereg::joint::rotation_degrees;
 use posereg::metric::correlation;
+use posereg::vsd::Blending;
 use posereg::Error;
 use std::path::{Path, PathBuf};
 
@@ -36,6 +37,9 @@ pub struct InitArgs {
     /// The reference bone, registered first from the identity.
     #[arg(long, default_value_t = 2)]
     pub reference: u16,
+    /// How the bone motions are blended across the soft tissue [default: dual-quaternion].
+    #[arg(long, value_enum)]
+    pub blending: Option<Blending>,
     /// Bone transforms to start from instead of registering (bone-transform JSON).
     #[arg(long)]
     pub init: Option<PathBuf>,
@@ -94,10 +98,12 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         .transpose()?;
     let (backend, line) = open_backend(device)?;
     reporter.say(&line);
+    let defaults = InitOptions::default();
     let options = InitOptions {
         bones: args.bones.clone(),
         reference: args.reference,
-        ..Default::default()
+        blending: args.blending.unwrap_or(defaults.blending),
+        ..defaults
     };
     let started = std::time::Instant::now();
     let init = initialise(

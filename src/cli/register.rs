@@ -13,6 +13,7 @@ use posereg::io::nifti::{save_volume, DataType};
 use posereg::levels::PerLevel;
 use posereg::metric::correlation;
 use posereg::register::{register, RegisterOptions};
+use posereg::vsd::Blending;
 use posereg::Error;
 use std::path::PathBuf;
 
@@ -45,6 +46,9 @@ pub struct RegisterArgs {
     /// The reference bone, registered first from the identity.
     #[arg(long)]
     pub reference: Option<u16>,
+    /// How the bone motions are blended across the soft tissue (init.blending).
+    #[arg(long, value_enum)]
+    pub blending: Option<Blending>,
     /// Adaptive stage: L-BFGS iterations per refinement, per level coarse to fine, e.g. 40x30x20.
     #[arg(long)]
     pub iterations: Option<PerLevel<usize>>,
@@ -77,6 +81,9 @@ impl RegisterArgs {
         }
         if let Some(reference) = self.reference {
             options.init.reference = reference;
+        }
+        if let Some(blending) = self.blending {
+            options.init.blending = blending;
         }
         if let Some(iterations) = &self.iterations {
             options.adaptive.iterations = iterations.clone();

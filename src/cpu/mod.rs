@@ -23,6 +23,7 @@ use crate::backend::{check_pair, Backend};
 use crate::error::Result;
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Affine, Field, Grid, Image, Volume};
+use crate::vsd::BoneBlend;
 
 /// Runs every kernel on the host's cores.
 #[derive(Clone, Copy, Debug, Default)]
@@ -146,11 +147,10 @@ impl Backend for CpuBackend {
         bone_of_voxel: &[f32],
         labels: &Grid,
         target: &Grid,
-        motions: &[Affine],
-        iterations: u32,
+        blend: &BoneBlend,
     ) -> Result<Vec<f32>> {
-        crate::skinning::check_bone_count(motions.len())?;
-        let params = SkinBlendParams::new(target, weight_grid, labels, motions, iterations);
+        crate::skinning::check_bone_count(blend.motions.len())?;
+        let params = SkinBlendParams::new(target, weight_grid, labels, blend);
         let mut out = vec![0.0f32; 4 * target.len()];
         skin_blend::skin_blend(&params, weights, bone_of_voxel, &mut out);
         Ok(out)

@@ -3,7 +3,7 @@
 use super::common::{affine_row, det3, solve3, voxel_index};
 use super::sample::inside_source;
 use crate::abi::SkinBlendParams;
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
 /// A voxel whose blend lands within this of its target point needs no more steps (mm).
@@ -81,6 +81,9 @@ fn blend(params: &SkinBlendParams, weight: &[f32], bone_of_voxel: &[f32], x: Vec
         r1: Vec3::ZERO,
         r2: Vec3::ZERO,
     };
+    let dual_quaternion = params.slab[3] == 1;
+    let mut real = Vec4::ZERO;
+    let mut dual = Vec4::ZERO;
     for j in 0..bones {
         let v = |x: u32, y: u32, z: u32| weight[(voxel_index(x, y, z, n) * bones + j) as usize];
         let v000 = v(i0[0], i0[1], i0[2]);
@@ -98,17 +101,55 @@ fn blend(params: &SkinBlendParams, weight: &[f32], bone_of_voxel: &[f32], x: Vec
         let c0 = (1.0 - t.y) * c00 + t.y * c10;
         let c1 = (1.0 - t.y) * c01 + t.y * c11;
         let w = (1.0 - t.z) * c0 + t.z * c1;
-        let m = [0, 1, 2].map(|r| params.forward[(3 * j + r) as usize]);
-        b.point += w * Vec3::new(
-            affine_row(m[0], xa),
-            affine_row(m[1], xa),
-            affine_row(m[2], xa),
-        );
-        b.r0 += w * row(m[0]);
-        b.r1 += w * row(m[1]);
-        b.r2 += w * row(m[2]);
+        if dual_quaternion {
+            real += w * Vec4::from_array(params.dual[(2 * j) as usize]);
+            dual += w * Vec4::from_array(params.dual[(2 * j + 1) as usize]);
+        } else {
+            let m = [0, 1, 2].map(|r| params.forward[(3 * j + r) as usize]);
+            b.point += w * Vec3::new(
+                affine_row(m[0], xa),
+                affine_row(m[1], xa),
+                affine_row(m[2], xa),
+            );
+            b.r0 += w * row(m[0]);
+            b.r1 += w * row(m[1]);
+            b.r2 += w * row(m[2]);
+        }
+    }
+    if dual_quaternion {
+        return dual_quaternion_motion(real, dual, x);
     }
     b
+}
+
+/// The rigid motion of the blended dual quaternion (real, dual), applied to x: normalised by
+/// the real part's length, rotation from the real part, translation 2 (dual · conj(real)).
+fn dual_quaternion_motion(real_sum: Vec4, dual_sum: Vec4, x: Vec3) -> Blend {
+    let norm = real_sum.length();
+    let r = real_sum / norm;
+    let d = dual_sum / norm;
+    let t = 2.0 * (r.w * d.truncate() - d.w * r.truncate() + r.truncate().cross(d.truncate()));
+    let r0 = Vec3::new(
+        1.0 - 2.0 * (r.y * r.y + r.z * r.z),
+        2.0 * (r.x * r.y - r.z * r.w),
+        2.0 * (r.x * r.z + r.y * r.w),
+    );
+    let r1 = Vec3::new(
+        2.0 * (r.x * r.y + r.z * r.w),
+        1.0 - 2.0 * (r.x * r.x + r.z * r.z),
+        2.0 * (r.y * r.z - r.x * r.w),
+    );
+    let r2 = Vec3::new(
+        2.0 * (r.x * r.z - r.y * r.w),
+        2.0 * (r.y * r.z + r.x * r.w),
+        1.0 - 2.0 * (r.x * r.x + r.y * r.y),
+    );
+    Blend {
+        point: Vec3::new(r0.dot(x), r1.dot(x), r2.dot(x)) + t,
+        r0,
+        r1,
+        r2,
+    }
 }
 
 /// Fills `out` (4 floats per target voxel of the slab: u and the inversion residual);

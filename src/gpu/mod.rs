@@ -25,6 +25,7 @@ use crate::backend::{check_pair, Backend};
 use crate::error::{Error, Result};
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Affine, Field, Grid, Image, Volume};
+use crate::vsd::BoneBlend;
 use context::GpuContext;
 use kernel::Kernel;
 
@@ -278,11 +279,10 @@ impl Backend for GpuBackend {
         bone_of_voxel: &[f32],
         labels: &Grid,
         target: &Grid,
-        motions: &[Affine],
-        iterations: u32,
+        blend: &BoneBlend,
     ) -> Result<Vec<f32>> {
-        crate::skinning::check_bone_count(motions.len())?;
-        let params = SkinBlendParams::new(target, weight_grid, labels, motions, iterations);
+        crate::skinning::check_bone_count(blend.motions.len())?;
+        let params = SkinBlendParams::new(target, weight_grid, labels, blend);
         skinning::skin_blend(self, &params, weights, bone_of_voxel)
     }
 
