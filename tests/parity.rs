@@ -315,7 +315,7 @@ fn skinning_kernels_parity() {
         .unwrap();
     let got = gpu.skin_weights(&distances, &grid, bones, 4).unwrap();
     close("skin_weights", &got, &cpu, 1e-6, 1e-5);
-    let motions = vec![
+    let motions = [
         posereg::Affine::identity(),
         posereg::rigid::small_motion(
             &nalgebra::Vector6::new(0.4, 0.1, 0.0, 2.0, 0.0, 1.0),
