@@ -107,10 +107,12 @@ impl Progress for Reporter {
         self.with_stage(|s| {
             let Some(stage) = s.take() else { return };
             let seconds = stage.started.elapsed().as_secs_f64();
-            match stage.bar {
-                Some(bar) => bar.finish(),
-                None => eprintln!("{}: done in {seconds:.1} s", stage.name),
+            // The finished bar gives way to the same summary line as off a terminal, so
+            // whatever prints next starts on a line of its own.
+            if let Some(bar) = stage.bar {
+                bar.finish_and_clear();
             }
+            eprintln!("{}: done in {seconds:.1} s", stage.name);
         });
     }
 }
