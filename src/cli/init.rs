@@ -19,18 +19,9 @@ use std::path::{Path, PathBuf};
 /// Arguments of `posereg init`.
 #[derive(Args, Debug)]
 pub struct InitArgs {
-    /// Source (straight pose) image.
-    #[arg(long)]
-    pub source: PathBuf,
-    /// Bone labels of the source (2 femur, 3 tibia, 4 patella, 5 fibula).
-    #[arg(long)]
-    pub source_labels: PathBuf,
-    /// Target (bent pose) image.
-    #[arg(long)]
-    pub target: PathBuf,
-    /// Output folder (created if missing).
-    #[arg(short, long)]
-    pub output: PathBuf,
+    /// The inputs and the output folder.
+    #[command(flatten)]
+    pub pair: PairArgs,
     /// Bone labels to use, e.g. 2,3,4 (default: every bone label present).
     #[arg(long, value_delimiter = ',')]
     pub bones: Vec<u16>,
@@ -43,6 +34,24 @@ pub struct InitArgs {
     /// Bone transforms to start from instead of registering (bone-transform JSON).
     #[arg(long)]
     pub init: Option<PathBuf>,
+}
+
+/// The straight scan with its bone labels, the bent scan, and where outputs go: what `init`
+/// and `register` both take.
+#[derive(Args, Debug)]
+pub struct PairArgs {
+    /// Source (straight pose) image.
+    #[arg(long)]
+    pub source: PathBuf,
+    /// Bone labels of the source (2 femur, 3 tibia, 4 patella, 5 fibula).
+    #[arg(long)]
+    pub source_labels: PathBuf,
+    /// Target (bent pose) image.
+    #[arg(long)]
+    pub target: PathBuf,
+    /// Output folder (created if missing).
+    #[arg(short, long)]
+    pub output: PathBuf,
 }
 
 /// Loads the three inputs, checking they fit together; errors name the file at fault.
@@ -90,7 +99,11 @@ pub fn load_inputs(
 
 /// Runs the initialisation and writes init.json, init_field.nii.gz, initialised.nii.gz.
 pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
-    let (source, labels, target) = load_inputs(&args.source, &args.source_labels, &args.target)?;
+    let (source, labels, target) = load_inputs(
+        &args.pair.source,
+        &args.pair.source_labels,
+        &args.pair.target,
+    )?;
     let given = args
         .init
         .as_ref()
@@ -116,7 +129,7 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         reporter,
     )?;
     let seconds = started.elapsed().as_secs_f64();
-    std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
+    std::fs::create_dir_all(&args.pair.output).map_err(|e| Error::io(&args.pair.output, e))?;
     let mut transforms = init.transforms();
     transforms.extra.insert(
         "skinning".into(),
@@ -136,10 +149,13 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     transforms
         .extra
         .insert("bones_report".into(), serde_json::to_value(&init.reports)?);
-    transforms.save(&args.output.join("init.json"))?;
-    save_field(&args.output.join("init_field.nii.gz"), &init.initial.field)?;
+    transforms.save(&args.pair.output.join("init.json"))?;
+    save_field(
+        &args.pair.output.join("init_field.nii.gz"),
+        &init.initial.field,
+    )?;
     save_volume(
-        &args.output.join("initialised.nii.gz"),
+        &args.pair.output.join("initialised.nii.gz"),
         &init.initialised,
         DataType::F32,
     )?;
@@ -195,6 +211,6 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         "                             initialised {:.4}",
         correlation(&init.initialised.data, &target.data, body)
     );
-    println!("written to {}", args.output.display());
+    println!("written to {}", args.pair.output.display());
     Ok(())
 }

@@ -2,7 +2,7 @@
 //! pipeline, writing warped.nii.gz, field.nii.gz, transform.json, jacobian.nii.gz,
 //! report.json and quicklook.png.
 
-use super::init::load_inputs;
+use super::init::{load_inputs, PairArgs};
 use super::progress::Reporter;
 use clap::Args;
 use posereg::backend::resample_onto;
@@ -21,18 +21,9 @@ use std::path::PathBuf;
 #[derive(Args, Debug)]
 #[command(after_help = settings_help())]
 pub struct RegisterArgs {
-    /// Source (straight pose) image.
-    #[arg(long)]
-    pub source: PathBuf,
-    /// Bone labels of the source (2 femur, 3 tibia, 4 patella, 5 fibula).
-    #[arg(long)]
-    pub source_labels: PathBuf,
-    /// Target (bent pose) image.
-    #[arg(long)]
-    pub target: PathBuf,
-    /// Output folder (created if missing).
-    #[arg(short, long)]
-    pub output: PathBuf,
+    /// The inputs and the output folder.
+    #[command(flatten)]
+    pub pair: PairArgs,
     /// Settings file (.toml or .json) holding any of the settings listed below; flags given
     /// here override it.
     #[arg(long)]
@@ -100,7 +91,11 @@ impl RegisterArgs {
 /// Runs the registration and writes its outputs.
 pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.options()?;
-    let (source, labels, target) = load_inputs(&args.source, &args.source_labels, &args.target)?;
+    let (source, labels, target) = load_inputs(
+        &args.pair.source,
+        &args.pair.source_labels,
+        &args.pair.target,
+    )?;
     let (backend, line) = open_backend(device)?;
     reporter.say(&line);
     let started = std::time::Instant::now();
@@ -113,8 +108,8 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
         reporter,
     )?;
     let seconds = started.elapsed().as_secs_f64();
-    std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
-    let out = |name: &str| args.output.join(name);
+    std::fs::create_dir_all(&args.pair.output).map_err(|e| Error::io(&args.pair.output, e))?;
+    let out = |name: &str| args.pair.output.join(name);
     save_volume(&out("warped.nii.gz"), &result.warped, DataType::F32)?;
     save_field(&out("field.nii.gz"), &result.field)?;
     let det = backend.jacobian(&result.field)?;
@@ -127,7 +122,7 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
         "posereg": env!("CARGO_PKG_VERSION"),
         "device": backend.describe(),
         "seconds": seconds,
-        "inputs": { "source": args.source, "source_labels": args.source_labels, "target": args.target },
+        "inputs": { "source": args.pair.source, "source_labels": args.pair.source_labels, "target": args.pair.target },
         "options": options,
         "initialisation": result.init.as_ref().map(|i| serde_json::json!({
             "bones": i.reports,
@@ -162,7 +157,7 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
         report["correlation"]["after"].as_f64().unwrap_or(f64::NAN),
         result.adaptive.points.len(),
         result.min_jacobian,
-        args.output.display()
+        args.pair.output.display()
     );
     Ok(())
 }
