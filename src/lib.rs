@@ -31,6 +31,7 @@ pub mod cpu;
 pub mod device;
 pub mod error;
 pub mod evaluate;
+pub mod gain;
 pub mod gpu;
 pub mod io;
 pub mod joint;

@@ -165,8 +165,15 @@ pub fn register(
         _ => Vec::new(),
     };
     let initialisation = clock.elapsed().as_secs_f64();
-    let adaptive =
-        adaptive::register(backend, &moving, target, &pins, &options.adaptive, progress)?;
+    let adaptive = adaptive::register(
+        backend,
+        &moving,
+        init.is_some(),
+        target,
+        &pins,
+        &options.adaptive,
+        progress,
+    )?;
     let adaptive_seconds = clock.elapsed().as_secs_f64() - initialisation;
     // Step control: if the added warp makes the field fold (beyond what the initial field
     // already did), shrink it until it does not.

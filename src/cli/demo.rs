@@ -8,6 +8,7 @@ use posereg::articulated::bone_name;
 use posereg::backend::resample_onto;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::evaluate::field_error;
+use posereg::io::config::load_options;
 use posereg::io::field::save_field;
 use posereg::io::nifti::{save_labels, save_volume, DataType};
 use posereg::joint::rotation_degrees;
@@ -33,10 +34,18 @@ pub struct DemoArgs {
     /// Skip the articulated initialisation (the paper's first experiment, small bends).
     #[arg(long)]
     pub no_init: bool,
+    /// Registration settings file (.toml or .json), as for `posereg register`.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
 }
 
 /// Makes the pair, registers it, prints the figures and where the outputs are.
 pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
+    let mut options = match &args.config {
+        Some(path) => load_options(path)?,
+        None => RegisterOptions::default(),
+    };
+    options.initialise &= !args.no_init;
     let (backend, line) = open_backend(device)?;
     reporter.say(&line);
     let spec = |flexion_degrees, seed| PhantomSpec {
@@ -53,10 +62,6 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     let target = generate(&spec(args.flexion, 2))?;
     println!("registering ...");
     let started = std::time::Instant::now();
-    let options = RegisterOptions {
-        initialise: !args.no_init,
-        ..Default::default()
-    };
     let result = register(
         backend.as_ref(),
         &source.image,

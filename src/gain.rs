@@ -1,0 +1,150 @@
+//! Relative intensity gain between the moving and the target image, matched during the
+//! non-rigid stage. Two MRI scans of the same knee differ by a smooth multiplicative bias (coil
+//! sensitivity, which stays with the scanner, not with the anatomy); sum-of-squared-differences
+//! then pulls tissue to explain the brightness difference. Measured on the paper-size phantom at
+//! 10° (15% bias, different per scan): with the bones exact, the adaptive stage raised the mean
+//! error from 0.84 to 1.55 mm, almost all of it at the ends of the field of view where the
+//! bias fields part most; with the bias off it stayed at 0.78 mm. With the gain matched, 0.98 mm.
+//!
+//! The gain is the local least-squares ratio g = G∗(T·M) / G∗(M·M) at a scale of a few
+//! centimetres (G∗ = the pyramid's smoothing down to that spacing), so g·M matches T's
+//! brightness locally while anatomy, finer than that scale, is left to the registration. It is
+//! only meaningful once M is roughly aligned with T; adaptive.rs says when.
+
+use crate::backend::{check_pair, Backend};
+use crate::cpu::sample::trilinear;
+use crate::error::Result;
+use crate::pyramid;
+use crate::volume::{Image, Volume};
+use rayon::prelude::*;
+
+/// Gains are kept within this factor of 1: a wider ratio is anatomy, not bias.
+const MOST_GAIN: f32 = 2.0;
+
+/// Per voxel of `target`'s grid, the smooth gain g with g·`moving` ≈ `target` at `scale_mm`.
+pub fn gain(
+    backend: &dyn Backend,
+    moving: &Volume,
+    target: &Volume,
+    scale_mm: f64,
+) -> Result<Vec<f32>> {
+    check_pair(moving, target)?;
+    let product = Image {
+        grid: target.grid.clone(),
+        data: moving
+            .data
+            .iter()
+            .zip(&target.data)
+            .map(|(m, t)| m * t)
+            .collect(),
+    };
+    let energy = Image {
+        grid: target.grid.clone(),
+        data: moving.data.iter().map(|m| m * m).collect(),
+    };
+    let coarse = |v: &Volume| -> Result<Volume> {
+        let mut levels = vec![v.clone()];
+        loop {
+            let last = levels.last().expect("never empty");
+            let finest = last
+                .grid
+                .spacing()
+                .iter()
+                .cloned()
+                .fold(f64::INFINITY, f64::min);
+            match pyramid::next_level_grid(&last.grid) {
+                Some((grid, factors)) if finest < scale_mm => {
+                    let next = backend.pyramid_level(last, &grid, factors)?;
+                    levels.push(next);
+                }
+                _ => break,
+            }
+        }
+        Ok(levels.pop().expect("never empty"))
+    };
+    let (product, energy) = (coarse(&product)?, coarse(&energy)?);
+    // Where the moving image is (nearly) empty the ratio means nothing: keep the gain at 1.
+    let floor =
+        1e-3 * energy.data.iter().map(|&e| e as f64).sum::<f64>() / energy.data.len() as f64;
+    let gain: Vec<f32> = product
+        .data
+        .iter()
+        .zip(&energy.data)
+        .map(|(&p, &e)| {
+            if (e as f64) > floor {
+                (p / e).clamp(1.0 / MOST_GAIN, MOST_GAIN)
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    // Back onto the full grid, trilinear, clamped at the coarse grid's edge.
+    let grid = &target.grid;
+    let to_coarse = product.grid.world_to_voxel_affine();
+    let dims = product.grid.dims.map(|d| d as u32);
+    let per_voxel = (0..grid.len())
+        .into_par_iter()
+        .map(|n| {
+            let q = to_coarse * grid.world_of(n).push(1.0);
+            let qc: [f32; 3] =
+                std::array::from_fn(|a| (q[a] as f32).clamp(0.0, dims[a] as f32 - 1.0));
+            trilinear(&gain, qc, dims, 1.0)
+        })
+        .collect();
+    Ok(per_voxel)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cpu::CpuBackend;
+    use crate::volume::{Affine, Grid};
+
+    /// A textured volume (anatomy-like detail at a few mm) on a 2 mm grid.
+    fn textured(dims: [usize; 3]) -> Volume {
+        let affine = Affine::from_diagonal(&nalgebra::Vector4::new(2.0, 2.0, 2.0, 1.0));
+        let grid = Grid::new(dims, affine).unwrap();
+        let data = (0..grid.len())
+            .map(|n| {
+                let p = grid.world_of(n);
+                (300.0 + 100.0 * (p.x / 5.0).sin() * (p.y / 7.0).cos() + 50.0 * (p.z / 3.0).sin())
+                    as f32
+            })
+            .collect();
+        Image { grid, data }
+    }
+
+    #[test]
+    fn recovers_a_constant_and_a_smooth_gain() {
+        let moving = textured([40, 36, 32]);
+        let extent = 2.0 * 39.0;
+        for (name, true_gain) in [
+            (
+                "constant",
+                Box::new(|_: f64| 1.3) as Box<dyn Fn(f64) -> f64>,
+            ),
+            ("ramp", Box::new(move |x: f64| 0.85 + 0.3 * x / extent)),
+        ] {
+            let target = Image {
+                grid: moving.grid.clone(),
+                data: (0..moving.grid.len())
+                    .map(|n| moving.data[n] * true_gain(moving.grid.world_of(n).x) as f32)
+                    .collect(),
+            };
+            let g = gain(&CpuBackend, &moving, &target, 20.0).unwrap();
+            // Away from the faces, where the smoothing window is whole.
+            let mut worst = 0.0f64;
+            for (n, g) in g.iter().enumerate() {
+                let p = moving.grid.world_of(n);
+                if [p.x, p.y, p.z]
+                    .iter()
+                    .zip(&moving.grid.dims)
+                    .all(|(c, &d)| *c > 12.0 && *c < 2.0 * (d as f64 - 1.0) - 12.0)
+                {
+                    worst = worst.max((*g as f64 / true_gain(p.x) - 1.0).abs());
+                }
+            }
+            assert!(worst < 0.03, "{name}: worst relative gain error {worst}");
+        }
+    }
+}
