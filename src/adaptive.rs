@@ -215,22 +215,59 @@ fn warp_moving(
     Ok((coef, centres, warped))
 }
 
-/// Runs the adaptive stage: `moving` is the source on the target grid, `prealigned` when the
-/// articulated initialisation moved it there, `pins` the points held at zero added
+/// What the adaptive stage deforms: the source on the target grid.
+pub struct Moving<'a> {
+    /// The source (initialised, or just resampled) on the target grid.
+    pub image: &'a Volume,
+    /// 1 where `image` holds data from the source scan, 0 where its sample fell outside the
+    /// source's field of view (there it reads background, which is not the anatomy).
+    pub coverage: &'a Volume,
+    /// Whether the articulated initialisation aligned it.
+    pub prealigned: bool,
+}
+
+/// Residuals where the moving image has no data from the source are not evidence: the cost
+/// leaves them out. Measured on the paper phantom at 10° with the initialisation: counting them,
+/// the adaptive stage pulled the tissue at the bottom of the field of view (where the turned
+/// shank's source lies below the straight scan) from 0.6 to 4.4 mm of error (0.98 → 0.53 mm
+/// mean). The coverage is the initial one, per level (the pyramid's smoothing below 1 erodes
+/// it at coarse levels). Coverage re-measured through the warp was tried and is worse: the
+/// optimiser then hides mismatches by pulling samples off the grid (10° without
+/// initialisation, 1.34 → 1.59 mm).
+fn covered_levels(
+    backend: &dyn Backend,
+    coverage: &Volume,
+    target_levels: &[Volume],
+) -> Result<Vec<Vec<f32>>> {
+    Ok(pyramid::build_like(backend, coverage, target_levels)?
+        .into_iter()
+        .map(|level| {
+            level
+                .data
+                .iter()
+                .map(|&c| if c >= 0.999 { 1.0 } else { 0.0 })
+                .collect()
+        })
+        .collect())
+}
+
+/// Runs the adaptive stage on `moving`; `pins` are the points held at zero added
 /// displacement.
 pub fn register(
     backend: &dyn Backend,
-    moving: &Volume,
-    prealigned: bool,
+    moving: &Moving,
     target: &Volume,
     pins: &[Vector3<f64>],
     options: &AdaptiveOptions,
     progress: &dyn Progress,
 ) -> Result<Adaptive> {
-    crate::backend::check_pair(moving, target)?;
+    crate::backend::check_pair(moving.image, target)?;
+    crate::backend::check_pair(moving.coverage, target)?;
     options.check()?;
+    let prealigned = moving.prealigned;
     let target_levels = pyramid::build(backend, target, options.levels)?;
-    let moving_levels = pyramid::build_like(backend, moving, &target_levels)?;
+    let moving_levels = pyramid::build_like(backend, moving.image, &target_levels)?;
+    let covered_levels = covered_levels(backend, moving.coverage, &target_levels)?;
     let mut points: Vec<ControlPoint> = pins
         .iter()
         .map(|p| ControlPoint {
@@ -248,6 +285,7 @@ pub fn register(
     let coarsest = target_levels.len() - 1;
     for level in (0..target_levels.len()).rev() {
         let fixed = &target_levels[level];
+        let covered = &covered_levels[level];
         let lattice = Lattice::new(&fixed.grid, options.lattice_mm);
         let voxels = fixed.grid.len() as f64;
         // From the second level on, the moving image is aligned well enough for its smooth
@@ -288,8 +326,15 @@ pub fn register(
                     .min(fixed.grid.dims[a] / options.min_cell_voxels)
                     .max(1)
             });
-            let (coef, centres, warped) =
+            let (coef, centres, mut warped) =
                 warp_moving(&points, &lattice, options, moving, fixed, backend)?;
+
+            // Uncovered voxels count as matched, so no cell is refined for them.
+            for ((w, t), c) in warped.data.iter_mut().zip(&fixed.data).zip(covered) {
+                if *c == 0.0 {
+                    *w = *t;
+                }
+            }
             let ssd = backend.ssd_cells(&warped, fixed, cells)?;
             let means = ssd.mean();
             let overall = ssd.total() / voxels;
@@ -349,12 +394,14 @@ pub fn register(
                 let cost: f64 = out
                     .chunks_exact(4)
                     .zip(&fixed.data)
-                    .map(|(o, t)| ((o[0] - t) as f64).powi(2))
+                    .zip(covered)
+                    .map(|((o, t), c)| *c as f64 * ((o[0] - t) as f64).powi(2))
                     .sum::<f64>()
                     / voxels;
                 let per_voxel: Vec<f32> = out
                     .chunks_exact(4)
-                    .flat_map(|o| [o[1], o[2], o[3]])
+                    .zip(covered)
+                    .flat_map(|(o, c)| [c * o[1], c * o[2], c * o[3]])
                     .collect();
                 let splat =
                     backend.lattice_splat(&per_voxel, &fixed.grid, lattice.dims, lattice.step)?;

@@ -2,14 +2,15 @@
 //! adaptive cubic-RBF stage, the composed field, a fold check, and the source resampled once.
 
 use crate::abi::Interpolation;
-use crate::adaptive::{self, compose, Adaptive, AdaptiveOptions};
+use crate::adaptive::{self, compose, Adaptive, AdaptiveOptions, Moving};
 use crate::articulated::{initialise, InitOptions, Initialisation};
 use crate::backend::{resample_onto, Backend};
 use crate::error::Result;
 use crate::progress::Progress;
-use crate::volume::{Field, Image, Labels, Volume};
+use crate::volume::{Field, Grid, Image, Labels, Volume};
 use crate::vsd::maps_into_bone;
 use nalgebra::Vector3;
+use rayon::prelude::*;
 
 /// Settings of a registration: what a config file holds (io::config), every field optional
 /// there.
@@ -123,6 +124,27 @@ pub fn bone_pins(
     pins
 }
 
+/// 1 on the voxels of `field`'s grid whose source point (p + u) lies inside `source`'s field of
+/// view, else 0.
+pub fn coverage(field: &Field, source: &Grid) -> Volume {
+    let to_source = source.world_to_voxel_affine();
+    let grid = &field.grid;
+    let data = (0..grid.len())
+        .into_par_iter()
+        .map(|n| {
+            let u = field.data[n];
+            let p = grid.world_of(n) + Vector3::new(u[0] as f64, u[1] as f64, u[2] as f64);
+            let q = to_source * p.push(1.0);
+            let inside = (0..3).all(|a| q[a] > -0.5 && q[a] < source.dims[a] as f64 - 0.5);
+            inside as u8 as f32
+        })
+        .collect();
+    Image {
+        grid: grid.clone(),
+        data,
+    }
+}
+
 /// Registers `source` (with its bone `labels`) to `target`.
 pub fn register(
     backend: &dyn Backend,
@@ -165,10 +187,14 @@ pub fn register(
         _ => Vec::new(),
     };
     let initialisation = clock.elapsed().as_secs_f64();
+    let coverage = coverage(&initial, &source.grid);
     let adaptive = adaptive::register(
         backend,
-        &moving,
-        init.is_some(),
+        &Moving {
+            image: &moving,
+            coverage: &coverage,
+            prealigned: init.is_some(),
+        },
         target,
         &pins,
         &options.adaptive,
