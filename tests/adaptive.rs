@@ -1,6 +1,7 @@
 //! The paper's synthetic experiment (§4) at a small size: a phantom bent 10°, registered without
 //! the articulated initialisation, against the paper's figures (mean error ≤ 3.2 mm,
-//! correlation ≥ 0.95, ≥ 87% within 2 voxels, ≥ 99.8% within 4), on both backends.
+//! correlation ≥ 0.95, ≥ 87% within 2 voxels, ≥ 99.8% within 4), on both backends; and the
+//! whole pipeline at 60°, where only the initialisation brings the bones within reach.
 
 mod common;
 
@@ -13,7 +14,7 @@ use posereg::phantom::{generate, Phantom, PhantomSize, PhantomSpec};
 use posereg::register::{register, RegisterOptions};
 use posereg::Backend;
 
-fn pair() -> (Phantom, Phantom) {
+fn pair(flexion: f64) -> (Phantom, Phantom) {
     let spec = |flexion_degrees, seed| PhantomSpec {
         size: PhantomSize::Small,
         flexion_degrees,
@@ -22,7 +23,7 @@ fn pair() -> (Phantom, Phantom) {
     };
     (
         generate(&spec(0.0, 1)).unwrap(),
-        generate(&spec(10.0, 2)).unwrap(),
+        generate(&spec(flexion, 2)).unwrap(),
     )
 }
 
@@ -36,7 +37,7 @@ fn evaluation_mask(source: &Phantom, target: &Phantom) -> Vec<bool> {
 }
 
 fn ten_degrees_without_initialisation(backend: &dyn Backend, name: &str) {
-    let (source, target) = pair();
+    let (source, target) = pair(10.0);
     let options = RegisterOptions {
         initialise: false,
         ..Default::default()
@@ -84,6 +85,41 @@ fn ten_degrees_without_initialisation(backend: &dyn Backend, name: &str) {
 #[test]
 fn paper_experiment_one_on_the_cpu() {
     ten_degrees_without_initialisation(&posereg::cpu::CpuBackend, "cpu");
+}
+
+/// 60° with the articulated initialisation, on the CPU. Issue 5 asks ≤ 1.5 mm, not reached
+/// yet (2.38 mm measured at this size, 2.12 mm at the half size); the bounds hold what the
+/// pipeline does now — bones placed, the tissue within a few mm, intensities matched — so a
+/// regression shows.
+#[test]
+fn sixty_degrees_with_the_initialisation_on_the_cpu() {
+    let (source, target) = pair(60.0);
+    let result = register(
+        &posereg::cpu::CpuBackend,
+        &source.image,
+        &source.labels,
+        &target.image,
+        &RegisterOptions::default(),
+        &Silent,
+    )
+    .unwrap();
+    let mask = evaluation_mask(&source, &target);
+    let inside = |n: usize| mask[n];
+    let e = field_error(&result.field, &target.truth_field, inside).unwrap();
+    let r = correlation(&result.warped.data, &target.image.data, inside);
+    eprintln!(
+        "60°: mean {:.2} mm, within 2 voxels {:.1}%, within 4 {:.2}%, correlation {r:.3}",
+        e.mean_mm,
+        100.0 * e.within_2_voxels,
+        100.0 * e.within_4_voxels
+    );
+    assert!(e.mean_mm <= 3.0, "mean error {} mm", e.mean_mm);
+    assert!(
+        e.within_4_voxels >= 0.97,
+        "within 4 voxels {}",
+        e.within_4_voxels
+    );
+    assert!(r >= 0.9, "correlation {r}");
 }
 
 #[test]
