@@ -88,9 +88,10 @@ fn paper_experiment_one_on_the_cpu() {
 }
 
 /// 60° with the articulated initialisation, on the CPU. Issue 5 asks ≤ 1.5 mm, not reached
-/// yet (2.38 mm measured at this size, 2.12 mm at the half size); the bounds hold what the
+/// yet (1.66 mm measured at this size, 1.86 mm at the half size); the bounds hold what the
 /// pipeline does now — bones placed, the tissue within a few mm, intensities matched — so a
-/// regression shows.
+/// regression shows. (Correlation at this coarse size reads 0.89 although the field is closer
+/// to the truth than at the half size, where it reads 0.95: the bound is on the field first.)
 #[test]
 fn sixty_degrees_with_the_initialisation_on_the_cpu() {
     let (source, target) = pair(60.0);
@@ -113,13 +114,13 @@ fn sixty_degrees_with_the_initialisation_on_the_cpu() {
         100.0 * e.within_2_voxels,
         100.0 * e.within_4_voxels
     );
-    assert!(e.mean_mm <= 3.0, "mean error {} mm", e.mean_mm);
+    assert!(e.mean_mm <= 2.5, "mean error {} mm", e.mean_mm);
     assert!(
         e.within_4_voxels >= 0.97,
         "within 4 voxels {}",
         e.within_4_voxels
     );
-    assert!(r >= 0.9, "correlation {r}");
+    assert!(r >= 0.85, "correlation {r}");
 }
 
 #[test]
