@@ -185,6 +185,17 @@ fn cell_centre(grid: &Grid, cells: [usize; 3], c: [usize; 3]) -> Vector3<f64> {
     Vector3::new(w[0], w[1], w[2])
 }
 
+/// The warp interpolating the control points' displacements, and their positions.
+fn solve(points: &[ControlPoint], smoothing: f64) -> Result<(RbfCoefficients, Vec<Vector3<f64>>)> {
+    let centres: Vec<Vector3<f64>> = points.iter().map(|p| Vector3::from(p.position)).collect();
+    let values: Vec<Vector3<f64>> = points
+        .iter()
+        .map(|p| Vector3::from(p.displacement))
+        .collect();
+    let coefficients = RbfSystem::new(centres.clone(), smoothing)?.coefficients(&values)?;
+    Ok((coefficients, centres))
+}
+
 /// The warp of the control points as they stand (its coefficients and centres) and `moving`
 /// sampled through it on `fixed`'s grid.
 fn warp_moving(
@@ -195,12 +206,7 @@ fn warp_moving(
     fixed: &Volume,
     backend: &dyn Backend,
 ) -> Result<(RbfCoefficients, Vec<Vector3<f64>>, Volume)> {
-    let centres: Vec<Vector3<f64>> = points.iter().map(|p| Vector3::from(p.position)).collect();
-    let values: Vec<Vector3<f64>> = points
-        .iter()
-        .map(|p| Vector3::from(p.displacement))
-        .collect();
-    let coef = RbfSystem::new(centres.clone(), options.smoothing)?.coefficients(&values)?;
+    let (coef, centres) = solve(points, options.smoothing)?;
     let out = backend.rbf_grad(
         &lattice.values(&coef, &centres),
         lattice.dims,
@@ -444,12 +450,7 @@ pub fn register(
             });
         }
     }
-    let centres: Vec<Vector3<f64>> = points.iter().map(|p| Vector3::from(p.position)).collect();
-    let values: Vec<Vector3<f64>> = points
-        .iter()
-        .map(|p| Vector3::from(p.displacement))
-        .collect();
-    let coefficients = RbfSystem::new(centres, options.smoothing)?.coefficients(&values)?;
+    let (coefficients, _) = solve(&points, options.smoothing)?;
     progress.end();
     Ok(Adaptive {
         points,
