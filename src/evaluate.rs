@@ -59,13 +59,16 @@ pub fn field_error(
     })
 }
 
-/// Target voxels whose true source point (p + u_true(p)) lies inside the source grid, at least
-/// `margin` voxels from its faces: the voxels both scans saw. Elsewhere the target shows anatomy
+/// Target voxels whose source point (p + u(p)) lies inside the source grid, at least `margin`
+/// voxels from its outermost voxel centres (−0.5: anywhere in the voxels' extent, the samplers'
+/// rule): with the true field, the voxels both scans saw. Elsewhere the target shows anatomy
 /// outside the source's field of view, which no registration can recover.
 pub fn seen_by_both(truth: &Field, source: &crate::volume::Grid, margin: f64) -> Vec<bool> {
+    use rayon::prelude::*;
     let grid = &truth.grid;
     let to_source = source.world_to_voxel_affine();
     (0..grid.len())
+        .into_par_iter()
         .map(|n| {
             let w = grid.world_of(n);
             let u = truth.data[n];

@@ -6,11 +6,11 @@ use crate::adaptive::{self, compose, Adaptive, AdaptiveOptions, Moving};
 use crate::articulated::{initialise, InitOptions, Initialisation};
 use crate::backend::{resample_onto, Backend};
 use crate::error::Result;
+use crate::evaluate::seen_by_both;
 use crate::progress::Progress;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
 use crate::vsd::maps_into_bone;
 use nalgebra::Vector3;
-use rayon::prelude::*;
 
 /// Settings of a registration: what a config file holds (io::config), every field optional
 /// there.
@@ -127,21 +127,12 @@ pub fn bone_pins(
 /// 1 on the voxels of `field`'s grid whose source point (p + u) lies inside `source`'s field of
 /// view, else 0.
 pub fn coverage(field: &Field, source: &Grid) -> Volume {
-    let to_source = source.world_to_voxel_affine();
-    let grid = &field.grid;
-    let data = (0..grid.len())
-        .into_par_iter()
-        .map(|n| {
-            let u = field.data[n];
-            let p = grid.world_of(n) + Vector3::new(u[0] as f64, u[1] as f64, u[2] as f64);
-            let q = to_source * p.push(1.0);
-            let inside = (0..3).all(|a| q[a] > -0.5 && q[a] < source.dims[a] as f64 - 0.5);
-            inside as u8 as f32
-        })
-        .collect();
     Image {
-        grid: grid.clone(),
-        data,
+        grid: field.grid.clone(),
+        data: seen_by_both(field, source, -0.5)
+            .into_iter()
+            .map(|inside| inside as u8 as f32)
+            .collect(),
     }
 }
 
