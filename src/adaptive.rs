@@ -166,6 +166,25 @@ impl Lattice {
         Lattice { dims, step, nodes }
     }
 
+    /// The rbf_grad kernel's output for the warp `coef` evaluated on this lattice: `moving`
+    /// sampled through it and the squared residual's gradient, per voxel of `fixed`.
+    fn rbf_grad(
+        &self,
+        backend: &dyn Backend,
+        coef: &RbfCoefficients,
+        centres: &[Vector3<f64>],
+        moving: &Volume,
+        fixed: &Volume,
+    ) -> Result<Vec<f32>> {
+        backend.rbf_grad(
+            &self.values(coef, centres),
+            self.dims,
+            self.step,
+            moving,
+            fixed,
+        )
+    }
+
     fn values(&self, coef: &RbfCoefficients, centres: &[Vector3<f64>]) -> Vec<f32> {
         coef.eval_many(centres, &self.nodes)
             .iter()
@@ -207,13 +226,7 @@ fn warp_moving(
     backend: &dyn Backend,
 ) -> Result<(RbfCoefficients, Vec<Vector3<f64>>, Volume)> {
     let (coef, centres) = solve(points, options.smoothing)?;
-    let out = backend.rbf_grad(
-        &lattice.values(&coef, &centres),
-        lattice.dims,
-        lattice.step,
-        moving,
-        fixed,
-    )?;
+    let out = lattice.rbf_grad(backend, &coef, &centres, moving, fixed)?;
     let warped = Image::from_data(
         fixed.grid.clone(),
         out.chunks_exact(4).map(|c| c[0]).collect(),
@@ -390,13 +403,7 @@ pub fn register(
                     values[i] = Vector3::new(x[3 * k], x[3 * k + 1], x[3 * k + 2]);
                 }
                 let coef = system.coefficients(&values)?;
-                let out = backend.rbf_grad(
-                    &lattice.values(&coef, &centres),
-                    lattice.dims,
-                    lattice.step,
-                    moving,
-                    fixed,
-                )?;
+                let out = lattice.rbf_grad(backend, &coef, &centres, moving, fixed)?;
                 let cost: f64 = out
                     .chunks_exact(4)
                     .zip(&fixed.data)
