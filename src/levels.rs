@@ -35,6 +35,11 @@ impl<T: Copy> PerLevel<T> {
         self.0[n - 1 - level.min(n - 1)]
     }
 
+    /// The values, coarse to fine.
+    pub fn values(&self) -> &[T] {
+        &self.0
+    }
+
     /// Checks the value count against the number of levels (`name` names the setting).
     pub fn check(&self, name: &str, levels: usize) -> Result<()>
     where

@@ -46,6 +46,7 @@ pub mod pyramid;
 pub mod quicklook;
 pub mod rbf;
 pub mod register;
+pub mod regularise;
 pub mod rigid;
 pub mod shaders;
 pub mod skinning;

@@ -99,26 +99,35 @@ fn paper_experiment_one_on_the_cpu() {
     ten_degrees_without_initialisation(&posereg::cpu::CpuBackend, "cpu");
 }
 
-/// 60° with the articulated initialisation, on the CPU. Issue 5 asks ≤ 1.5 mm, not reached
-/// yet (1.66 mm measured at this size, 1.86 mm at the half size); the bounds hold what the
-/// pipeline does now — bones placed, the tissue within a few mm, intensities matched — so a
-/// regression shows. (Correlation at this coarse size reads 0.89 although the field is closer
-/// to the truth than at the half size, where it reads 0.95: the bound is on the field first.)
+/// 60° with the articulated initialisation, on the CPU: issue 5's bound (≤ 1.5 mm; 1.35 mm
+/// measured at this size, 1.32 mm at the half size), and the adaptive stage must improve on the
+/// initial field it starts from (1.85 mm here) — before the membrane energy it made it worse at
+/// 30° (0.75 → 1.26 mm at the half size).
 #[test]
 fn sixty_degrees_with_the_initialisation_on_the_cpu() {
-    let (e, r, _) = register_and_score(
+    let (e, r, result) = register_and_score(
         &posereg::cpu::CpuBackend,
         60.0,
         &RegisterOptions::default(),
         "60°",
     );
-    assert!(e.mean_mm <= 2.5, "mean error {} mm", e.mean_mm);
+    let (source, target) = pair(60.0);
+    let mask = evaluation_mask(&source, &target);
+    let initial = &result.init.as_ref().unwrap().initial.field;
+    let before = field_error(initial, &target.truth_field, |n| mask[n]).unwrap();
+    assert!(e.mean_mm <= 1.5, "mean error {} mm", e.mean_mm);
     assert!(
-        e.within_4_voxels >= 0.97,
+        e.mean_mm < before.mean_mm,
+        "the adaptive stage did not improve on the initial field: {} -> {} mm",
+        before.mean_mm,
+        e.mean_mm
+    );
+    assert!(
+        e.within_4_voxels >= 0.99,
         "within 4 voxels {}",
         e.within_4_voxels
     );
-    assert!(r >= 0.85, "correlation {r}");
+    assert!(r >= 0.9, "correlation {r}");
 }
 
 #[test]

@@ -128,6 +128,14 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     let zero = posereg::Image::filled(target.image.grid.clone(), [0.0f32; 3]);
     let before = field_error(&zero, &target.truth_field, body)?;
     let after = field_error(&result.field, &target.truth_field, body)?;
+    if let Some(init) = &result.init {
+        let initial = field_error(&init.initial.field, &target.truth_field, body)?;
+        println!(
+            "after the articulated initialisation: mean error {:.2} mm, within 2 voxels {:.1}%",
+            initial.mean_mm,
+            100.0 * initial.within_2_voxels
+        );
+    }
     println!(
         "inside the body, where both scans see it ({} voxels):",
         after.voxels
