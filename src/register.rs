@@ -192,21 +192,23 @@ pub fn register(
         progress,
     )?;
     let adaptive_seconds = clock.elapsed().as_secs_f64() - initialisation;
-    // Step control: if the added warp makes the field fold (beyond what the initial field
-    // already did), shrink it until it does not.
+    // Step control: the added warp itself must not fold; while it does, shrink it. Folds of
+    // the initial field (skinning at large angles) are carried into the total field and
+    // reported, but are not the warp's to undo. (Counting the total field's folds instead
+    // threw away 94% of a good warp at 60° over one voxel sampled differently inside the
+    // initial field's fold: 1.34 → 1.77 mm.)
     progress.begin("composition and resampling", 1);
     let folds = |det: &Volume| det.data.iter().filter(|&&v| v <= 0.0).count();
-    let folded_initially = folds(&backend.jacobian(&initial)?);
     let mut scale = 1.0;
-    let (field, det) = loop {
+    let warp = loop {
         let warp = adaptive.warp_field(&target.grid, options.adaptive.lattice_mm, scale);
-        let field = compose(&warp, &initial)?;
-        let det = backend.jacobian(&field)?;
-        if folds(&det) <= folded_initially || scale < 0.1 {
-            break (field, det);
+        if folds(&backend.jacobian(&warp)?) == 0 || scale < 0.1 {
+            break warp;
         }
         scale *= 0.5;
     };
+    let field = compose(&warp, &initial)?;
+    let det = backend.jacobian(&field)?;
     let warped = backend.resample(source, &field, 0.0, Interpolation::Linear)?;
     progress.step(&format!("warp scale {scale}"));
     progress.end();
