@@ -11,6 +11,7 @@
 
 use crate::abi::RbfGradParams;
 use crate::backend::Backend;
+use crate::check::{non_negative, positive};
 use crate::cpu::rbf_grad::warp_at;
 use crate::cpu::sample::trilinear;
 use crate::error::{Error, Result};
@@ -82,9 +83,6 @@ impl Default for AdaptiveOptions {
 impl AdaptiveOptions {
     /// Rejects settings the stage cannot run with, naming the setting.
     pub fn check(&self) -> Result<()> {
-        // Written so NaN fails too.
-        let positive = |v: f64| v > 0.0;
-        let non_negative = |v: f64| v >= 0.0;
         let bad = |what: &str| Err(Error::InvalidInput(format!("adaptive.{what}")));
         if self.levels == 0 {
             return bad("levels must be at least 1");

@@ -3,6 +3,7 @@
 
 use crate::abi::Interpolation;
 use crate::backend::Backend;
+use crate::check::{non_negative, positive};
 use crate::error::{Error, Result};
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::joint::{flexion_axis, rotation_about, rotation_degrees, JointAxis};
@@ -54,9 +55,6 @@ pub struct InitOptions {
 impl InitOptions {
     /// Rejects settings the stage cannot run with, naming the setting.
     pub fn check(&self) -> Result<()> {
-        // Written so NaN fails too.
-        let positive = |v: f64| v > 0.0;
-        let non_negative = |v: f64| v >= 0.0;
         let bad = |what: &str| Err(Error::InvalidInput(format!("init.{what}")));
         if self.levels == 0 {
             return bad("levels must be at least 1");

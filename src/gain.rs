@@ -42,27 +42,10 @@ pub fn gain(
         grid: target.grid.clone(),
         data: moving.data.iter().map(|m| m * m).collect(),
     };
-    let coarse = |v: &Volume| -> Result<Volume> {
-        let mut levels = vec![v.clone()];
-        loop {
-            let last = levels.last().expect("never empty");
-            let finest = last
-                .grid
-                .spacing()
-                .iter()
-                .cloned()
-                .fold(f64::INFINITY, f64::min);
-            match pyramid::next_level_grid(&last.grid) {
-                Some((grid, factors)) if finest < scale_mm => {
-                    let next = backend.pyramid_level(last, &grid, factors)?;
-                    levels.push(next);
-                }
-                _ => break,
-            }
-        }
-        Ok(levels.pop().expect("never empty"))
-    };
-    let (product, energy) = (coarse(&product)?, coarse(&energy)?);
+    let (product, energy) = (
+        pyramid::down_to_spacing(backend, &product, scale_mm)?,
+        pyramid::down_to_spacing(backend, &energy, scale_mm)?,
+    );
     // Where the moving image is (nearly) empty the ratio means nothing: keep the gain at 1.
     let floor =
         1e-3 * energy.data.iter().map(|&e| e as f64).sum::<f64>() / energy.data.len() as f64;

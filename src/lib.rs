@@ -27,6 +27,7 @@ pub mod abi;
 pub mod adaptive;
 pub mod articulated;
 pub mod backend;
+pub mod check;
 pub mod cpu;
 pub mod device;
 pub mod error;

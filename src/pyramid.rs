@@ -49,6 +49,26 @@ pub fn build(backend: &dyn Backend, volume: &Volume, levels: usize) -> Result<Ve
     Ok(out)
 }
 
+/// `volume` smoothed and halved until its finest spacing reaches `spacing_mm` (or the grid
+/// runs out): Gaussian smoothing at about that scale, on the coarse grid it needs.
+pub fn down_to_spacing(backend: &dyn Backend, volume: &Volume, spacing_mm: f64) -> Result<Volume> {
+    let finest = |v: &Volume| {
+        v.grid
+            .spacing()
+            .iter()
+            .cloned()
+            .fold(f64::INFINITY, f64::min)
+    };
+    let mut level = volume.clone();
+    while finest(&level) < spacing_mm {
+        let Some((grid, factors)) = next_level_grid(&level.grid) else {
+            break;
+        };
+        level = backend.pyramid_level(&level, &grid, factors)?;
+    }
+    Ok(level)
+}
+
 /// Levels of `volume` on exactly the grids of `like` (same factors, level by level).
 pub fn build_like(backend: &dyn Backend, volume: &Volume, like: &[Volume]) -> Result<Vec<Volume>> {
     let mut out = vec![volume.clone()];

@@ -4,13 +4,10 @@
 //! (articulated initialisation and RBF) sampled on the target grid, which is what the warped
 //! image was made with, so applying it reproduces that resampling exactly.
 
+use super::fields::{check_on_field_grid, interpolation, registration_field};
 use clap::Args;
-use posereg::abi::Interpolation;
 use posereg::device::{open_backend, DeviceChoice};
-use posereg::io::field::load_field;
-use posereg::io::nifti::{load_volume, read_raw, save_volume, DataType};
-use posereg::io::transform::BoneTransforms;
-use posereg::Error;
+use posereg::io::nifti::{load_volume, save_volume, DataType};
 use std::path::PathBuf;
 
 /// Arguments of `posereg apply`.
@@ -33,35 +30,12 @@ pub struct ApplyArgs {
 
 /// Applies the registration's field to the image.
 pub fn run(args: &ApplyArgs, device: DeviceChoice) -> anyhow::Result<()> {
-    BoneTransforms::load(&args.transform)?;
-    let folder = args
-        .transform
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(std::path::Path::new("."));
-    let field_path = folder.join("field.nii.gz");
-    let field = load_field(&field_path)?;
-    let like = read_raw(&args.like)?;
-    let dims: Vec<usize> = like.info.dims.iter().take(3).copied().collect();
-    if dims != field.grid.dims || (like.info.affine - field.grid.affine).abs().max() > 1e-3 {
-        return Err(Error::bad_file(
-            &args.like,
-            format!(
-                "is not on the registration's target grid ({})",
-                field_path.display()
-            ),
-        )
-        .into());
-    }
+    let (field_path, field) = registration_field(&args.transform)?;
+    check_on_field_grid(&args.like, &field, &field_path)?;
     let image = load_volume(&args.image)?;
     let (backend, line) = open_backend(device)?;
     eprintln!("{line}");
-    let interpolation = if args.nearest {
-        Interpolation::Nearest
-    } else {
-        Interpolation::Linear
-    };
-    let moved = backend.resample(&image, &field, 0.0, interpolation)?;
+    let moved = backend.resample(&image, &field, 0.0, interpolation(args.nearest))?;
     let dtype = if args.nearest {
         DataType::I32
     } else {

@@ -5,6 +5,7 @@ pub mod bench;
 pub mod bend;
 pub mod demo;
 pub mod eval;
+pub mod fields;
 pub mod info;
 pub mod init;
 pub mod phantom;

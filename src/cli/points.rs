@@ -5,9 +5,8 @@
 //! to where the same material lies in the target (bent) scan — what a user who marked landmarks
 //! on one scan wants to find on the other; `--direction target-to-source` goes the other way.
 
+use super::fields::registration_field;
 use clap::{Args, ValueEnum};
-use posereg::io::field::load_field;
-use posereg::io::transform::BoneTransforms;
 use posereg::points::{source_to_target, target_to_source};
 use posereg::Error;
 use std::path::PathBuf;
@@ -38,13 +37,7 @@ pub struct PointsArgs {
 
 /// Reads, maps, writes.
 pub fn run(args: &PointsArgs) -> anyhow::Result<()> {
-    BoneTransforms::load(&args.transform)?;
-    let folder = args
-        .transform
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(std::path::Path::new("."));
-    let field = load_field(&folder.join("field.nii.gz"))?;
+    let (_, field) = registration_field(&args.transform)?;
     let text = std::fs::read_to_string(&args.points).map_err(|e| Error::io(&args.points, e))?;
     let mut lines = text.lines().filter(|l| !l.trim().is_empty());
     let header: Vec<String> = lines

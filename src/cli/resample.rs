@@ -1,11 +1,10 @@
 //! `posereg resample SOURCE --field FIELD --like TARGET -o OUT`.
 
+use super::fields::{check_on_field_grid, interpolation};
 use clap::Args;
-use posereg::abi::Interpolation;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::load_field;
-use posereg::io::nifti::{load_volume, read_raw, save_volume, DataType};
-use posereg::Error;
+use posereg::io::nifti::{load_volume, save_volume, DataType};
 use std::path::PathBuf;
 
 /// Arguments of `posereg resample`.
@@ -37,30 +36,15 @@ pub struct ResampleArgs {
 pub fn run(args: &ResampleArgs, device: DeviceChoice) -> anyhow::Result<()> {
     let source = load_volume(&args.source)?;
     let field = load_field(&args.field)?;
-    let like = read_raw(&args.like)?;
-    let like_dims: Vec<usize> = like.info.dims.iter().take(3).copied().collect();
-    let same_dims = like_dims == field.grid.dims;
-    let affine_gap = (like.info.affine - field.grid.affine).abs().max();
-    if !same_dims || affine_gap > 1e-3 {
-        return Err(Error::bad_file(
-            &args.field,
-            format!(
-                "field grid {:?} does not match the grid of {} ({like_dims:?}, affines differ \
-                 by up to {affine_gap:.4} mm)",
-                field.grid.dims,
-                args.like.display()
-            ),
-        )
-        .into());
-    }
+    check_on_field_grid(&args.like, &field, &args.field)?;
     let (backend, line) = open_backend(device)?;
     eprintln!("{line}");
-    let interpolation = if args.nearest {
-        Interpolation::Nearest
-    } else {
-        Interpolation::Linear
-    };
-    let warped = backend.resample(&source, &field, args.background, interpolation)?;
+    let warped = backend.resample(
+        &source,
+        &field,
+        args.background,
+        interpolation(args.nearest),
+    )?;
     save_volume(&args.output, &warped, args.dtype)?;
     Ok(())
 }

@@ -1,0 +1,52 @@
+//! Loading the fields the apply, apply-points and resample verbs share: a registration's field
+//! found beside its transform.json, and the check that a reference image is on a field's grid.
+
+use posereg::abi::Interpolation;
+use posereg::io::field::load_field;
+use posereg::io::nifti::read_raw;
+use posereg::io::transform::BoneTransforms;
+use posereg::{Error, Field};
+use std::path::{Path, PathBuf};
+
+/// The total field of a registration: field.nii.gz in the folder of its `transform.json`
+/// (which is read first, so a wrong file is refused by name). Returns the field's path too.
+pub fn registration_field(transform: &Path) -> anyhow::Result<(PathBuf, Field)> {
+    BoneTransforms::load(transform)?;
+    let folder = transform
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let path = folder.join("field.nii.gz");
+    let field = load_field(&path)?;
+    Ok((path, field))
+}
+
+/// Refuses a reference image `like` whose grid is not the grid `field` (read from
+/// `field_path`) is sampled on, naming both files.
+pub fn check_on_field_grid(like: &Path, field: &Field, field_path: &Path) -> anyhow::Result<()> {
+    let info = read_raw(like)?.info;
+    let dims: Vec<usize> = info.dims.iter().take(3).copied().collect();
+    let affine_gap = (info.affine - field.grid.affine).abs().max();
+    if dims != field.grid.dims || affine_gap > 1e-3 {
+        return Err(Error::bad_file(
+            like,
+            format!(
+                "grid {dims:?} is not the grid of the field {} ({:?}; affines differ by up to \
+                 {affine_gap:.4} mm)",
+                field_path.display(),
+                field.grid.dims
+            ),
+        )
+        .into());
+    }
+    Ok(())
+}
+
+/// Nearest neighbour for label maps, trilinear otherwise.
+pub fn interpolation(nearest: bool) -> Interpolation {
+    if nearest {
+        Interpolation::Nearest
+    } else {
+        Interpolation::Linear
+    }
+}
