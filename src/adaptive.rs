@@ -49,7 +49,7 @@ pub struct AdaptiveOptions {
     /// L-BFGS iterations per refinement, per pyramid level, coarse to fine.
     pub iterations: PerLevel<usize>,
     /// Relative cost decrease below which an optimisation stops.
-    pub tolerance: f64,
+    pub tolerance: PerLevel<f64>,
     /// Lattice spacing the warp is evaluated on (mm).
     pub lattice_mm: f64,
     /// Smoothing μ added to the RBF system's diagonal (0 interpolates).
@@ -71,7 +71,7 @@ impl Default for AdaptiveOptions {
             min_cell_voxels: 3,
             threshold: PerLevel::all(8.0),
             iterations: PerLevel::all(30),
-            tolerance: 1e-5,
+            tolerance: PerLevel::all(1e-5),
             lattice_mm: 5.0,
             smoothing: 0.0,
             membrane: PerLevel::all(MEMBRANE_DEFAULT),
@@ -97,13 +97,16 @@ impl AdaptiveOptions {
             return bad("lattice_mm must be positive");
         }
         if !non_negative(self.smoothing)
-            || !non_negative(self.tolerance)
             || !non_negative(self.gain_scale_mm)
         {
-            return bad("smoothing, tolerance and gain_scale_mm must be zero or positive");
+            return bad("smoothing and gain_scale_mm must be zero or positive");
         }
         self.threshold.check("adaptive.threshold", self.levels)?;
         self.membrane.check("adaptive.membrane", self.levels)?;
+        self.tolerance.check("adaptive.tolerance", self.levels)?;
+        if !self.tolerance.values().iter().all(|&t| non_negative(t)) {
+            return bad("tolerance must be zero or positive");
+        }
         if !self.membrane.values().iter().all(|&w| non_negative(w)) {
             return bad("membrane must be zero or positive");
         }
@@ -472,7 +475,7 @@ pub fn register(
                 cost_grad,
                 x0,
                 options.iterations.at_level(level),
-                options.tolerance,
+                options.tolerance.at_level(level),
             )?;
             for (k, &i) in free.iter().enumerate() {
                 points[i].displacement =
