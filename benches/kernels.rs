@@ -171,7 +171,14 @@ fn kernels(c: &mut Criterion) {
             &backends,
             |b| b.skin_weights(&distances, &g, bones, 2),
         );
-        let weights = CpuBackend.skin_weights(&distances, &g, bones, 2).unwrap();
+        // Weights on the skinning grid (~2.5 mm), as the pipeline keeps them.
+        let (weight_grid, _) = posereg::skinning::skinning_grid(&g);
+        let weight_distances: Vec<f32> = (0..weight_grid.len() * bones)
+            .map(|k| 1.0 + (k % 37) as f32)
+            .collect();
+        let weights = CpuBackend
+            .skin_weights(&weight_distances, &weight_grid, bones, 2)
+            .unwrap();
         let soft_tissue = vec![0.0f32; g.len()];
         let blend = posereg::vsd::BoneBlend {
             motions: (0..bones)
@@ -191,7 +198,7 @@ fn kernels(c: &mut Criterion) {
             g.len() as u64,
             &label,
             &backends,
-            |b| b.skin_blend(&weights, &g, &soft_tissue, &g, &g, &blend),
+            |b| b.skin_blend(&weights, &weight_grid, &soft_tissue, &g, &g, &blend),
         );
         group(c, "ssd_cells_16", g.len() as u64, &label, &backends, |b| {
             b.ssd_cells(&source, &target, [16, 16, 16])

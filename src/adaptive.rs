@@ -96,9 +96,7 @@ impl AdaptiveOptions {
         if !positive(self.lattice_mm) {
             return bad("lattice_mm must be positive");
         }
-        if !non_negative(self.smoothing)
-            || !non_negative(self.gain_scale_mm)
-        {
+        if !non_negative(self.smoothing) || !non_negative(self.gain_scale_mm) {
             return bad("smoothing and gain_scale_mm must be zero or positive");
         }
         self.threshold.check("adaptive.threshold", self.levels)?;

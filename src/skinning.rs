@@ -160,8 +160,14 @@ pub fn distance_map(grid: &Grid, inside: &[bool]) -> Vec<f32> {
     f.into_iter().map(f32::sqrt).collect()
 }
 
-/// Skinning weights of `bones` from the source labels, on the skinning grid.
-pub fn weights(backend: &dyn Backend, labels: &Labels, bones: &[u16]) -> Result<SkinningWeights> {
+/// Skinning weights of `bones` from the source labels, on the skinning grid, falling off as
+/// d⁻ᵖᵒʷᵉʳ ([`SHEPARD_POWER`] for the initialisation).
+pub fn weights(
+    backend: &dyn Backend,
+    labels: &Labels,
+    bones: &[u16],
+    power: u32,
+) -> Result<SkinningWeights> {
     check_bone_count(bones.len())?;
     let (grid, stride) = skinning_grid(&labels.grid);
     let src = &labels.grid;
@@ -197,7 +203,7 @@ pub fn weights(backend: &dyn Backend, labels: &Labels, bones: &[u16]) -> Result<
     let packed: Vec<f32> = (0..grid.len())
         .flat_map(|n| maps.iter().map(move |m| m[n]))
         .collect();
-    let data = backend.skin_weights(&packed, &grid, bones.len(), SHEPARD_POWER)?;
+    let data = backend.skin_weights(&packed, &grid, bones.len(), power)?;
     Ok(SkinningWeights {
         grid,
         bones: bones.to_vec(),
