@@ -1,6 +1,7 @@
 //! Adaptive non-rigid registration (paper §3): cubic-RBF control points are added only in the
 //! cells that still fit poorly, from 2×2×2 cells up to 16×16×16, over a pyramid coarse to fine,
-//! and their displacements optimised by L-BFGS on the sum of squared differences.
+//! and their displacements optimised by L-BFGS on the sum of squared differences (plus, after
+//! the articulated initialisation, the membrane energy of the added warp: crate::regularise).
 //!
 //! Cost: the warp is evaluated on a coarse lattice (about every 5 mm) on the host — nodes ×
 //! control points, not voxels × control points — and interpolated per voxel on the backend
@@ -102,11 +103,9 @@ impl AdaptiveOptions {
         self.threshold.check("adaptive.threshold", self.levels)?;
         self.membrane.check("adaptive.membrane", self.levels)?;
         self.tolerance.check("adaptive.tolerance", self.levels)?;
-        if !self.tolerance.values().iter().all(|&t| non_negative(t)) {
-            return bad("tolerance must be zero or positive");
-        }
-        if !self.membrane.values().iter().all(|&w| non_negative(w)) {
-            return bad("membrane must be zero or positive");
+        let all_non_negative = |p: &PerLevel<f64>| p.values().iter().all(|&v| non_negative(v));
+        if !all_non_negative(&self.tolerance) || !all_non_negative(&self.membrane) {
+            return bad("tolerance and membrane must be zero or positive at every level");
         }
         self.iterations.check("adaptive.iterations", self.levels)
     }
@@ -435,8 +434,10 @@ pub fn register(
                     .chunks_exact(3)
                     .map(|v| Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64))
                     .collect();
-                let (energy, energy_gradient) =
-                    membrane(&node_warp, lattice.dims, lattice.spacing_mm);
+                let (energy, energy_gradient) = match membrane_weight > 0.0 {
+                    true => membrane(&node_warp, lattice.dims, lattice.spacing_mm),
+                    false => (0.0, vec![Vector3::zeros(); node_warp.len()]),
+                };
                 let image_cost: f64 = out
                     .chunks_exact(4)
                     .zip(&fixed.data)
