@@ -160,9 +160,11 @@ fn kernels(c: &mut Criterion) {
             |b| b.rigid_scores(&source, &mask, &target, &candidates),
         );
         let bones = 4;
-        let distances: Vec<f32> = (0..g.len() * bones)
-            .map(|k| 1.0 + (k % 37) as f32)
-            .collect();
+        // Synthetic distances (mm) to each bone, per voxel of a grid of `voxels`.
+        let synthetic_distances = |voxels: usize| -> Vec<f32> {
+            (0..voxels * bones).map(|k| 1.0 + (k % 37) as f32).collect()
+        };
+        let distances = synthetic_distances(g.len());
         group(
             c,
             "skin_weights_4_bones",
@@ -173,11 +175,13 @@ fn kernels(c: &mut Criterion) {
         );
         // Weights on the skinning grid (~2.5 mm), as the pipeline keeps them.
         let (weight_grid, _) = posereg::skinning::skinning_grid(&g);
-        let weight_distances: Vec<f32> = (0..weight_grid.len() * bones)
-            .map(|k| 1.0 + (k % 37) as f32)
-            .collect();
         let weights = CpuBackend
-            .skin_weights(&weight_distances, &weight_grid, bones, 2)
+            .skin_weights(
+                &synthetic_distances(weight_grid.len()),
+                &weight_grid,
+                bones,
+                2,
+            )
             .unwrap();
         let soft_tissue = vec![0.0f32; g.len()];
         let blend = posereg::vsd::BoneBlend {

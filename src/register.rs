@@ -218,8 +218,7 @@ pub fn register(
         finish: clock.elapsed().as_secs_f64() - initialisation - adaptive_seconds,
     };
     let min_jacobian = det.data.iter().cloned().fold(f32::INFINITY, f32::min);
-    let folded_share =
-        det.data.iter().filter(|&&v| v <= 0.0).count() as f64 / det.data.len() as f64;
+    let folded_share = folds(&det) as f64 / det.data.len() as f64;
     Ok(Registration {
         init,
         adaptive,
