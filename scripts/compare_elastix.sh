@@ -2,10 +2,17 @@
 # Side-by-side of posereg and elastix on the same pairs, same machine, same threads.
 #   scripts/compare_elastix.sh [OUT_DIR]      (default ./compare-elastix; DEVICES="cpu gpu", THREADS=2,
 #                                               PAIRS="phantom10 phantom60 knee10")
-# Pairs: the half-size phantom bent 10° and 60° (2% noise, 15% bias), and the real knee of
-# ../shared/data/knee-dess averaged 2×2 in-plane (256×256×80 at 0.625×0.625×1.5 mm, by SimpleITK's
-# BinShrink; labels by nearest neighbour) and bent 10° by `posereg bend` (the paper's synthetic
-# experiment); each registered straight → bent. elastix runs affine + multi-resolution B-spline
+# Pairs, each registered straight → bent:
+#   phantom10, phantom60   the half-size phantom (68×128×128) bent 10° and 60° (2% noise, 15% bias),
+#                          posereg with its initialisation;
+#   knee10                 the real knee of ../shared/data/knee-dess averaged 2×2 in-plane
+#                          (256×256×80 at 0.625×0.625×1.5 mm, by SimpleITK's BinShrink; labels by
+#                          nearest neighbour) and bent 10° by `posereg bend` (the paper's synthetic
+#                          experiment), posereg with and without its initialisation;
+#   paper-phantom10        the paper's experiment at the scale the paper registered at: the quarter
+#                          phantom (34×64×64, 5 mm voxels) bent 10°, posereg without initialisation;
+#   paper-knee10           the same on the real knee averaged 8×8×2 (64×64×40 at 2.5×2.5×3 mm).
+# elastix runs affine + multi-resolution B-spline
 # (scripts/elastix/*.txt); its field comes from transformix (-def all), which is in the same ITK
 # convention as posereg's field.nii.gz, so both are scored by `posereg eval` against the truth
 # field (phantoms: over the target's body; the knee: over every voxel, the scan has no background
@@ -56,31 +63,51 @@ PY
     score "elastix affine + B-spline" "$dir/elastix/deformationField.nii" "$dir/elastix/result.1.nii" "$t"
 }
 
-for pair in ${PAIRS:-phantom10 phantom60 knee10}; do
-    case $pair in
-    phantom*)
-        deg=${pair#phantom} dir="$out/$pair"
-        $bin phantom --size half -o "$dir/straight" --seed 1 >/dev/null
-        $bin phantom --size half --flexion "$deg" -o "$dir/bent" --seed 2 >/dev/null
-        compare "$dir" "half phantom $deg°" "$dir/straight/image.nii.gz" "$dir/straight/labels.nii.gz" \
-            "$dir/bent/image.nii.gz" "$dir/bent/truth_field.nii.gz" "$dir/bent/labels.nii.gz" "with init|"
-        ;;
-    knee*)
-        deg=${pair#knee} dir="$out/$pair" data=../shared/data/knee-dess
-        mkdir -p "$dir"
-        python3 - "$data" "$dir" <<'PY'
+# phantom_pair DIR NAME SIZE DEGREES RUNS...
+phantom_pair() {
+    local dir=$1 name=$2 size=$3 deg=$4
+    shift 4
+    $bin phantom --size "$size" -o "$dir/straight" --seed 1 >/dev/null
+    $bin phantom --size "$size" --flexion "$deg" -o "$dir/bent" --seed 2 >/dev/null
+    compare "$dir" "$name" "$dir/straight/image.nii.gz" "$dir/straight/labels.nii.gz" \
+        "$dir/bent/image.nii.gz" "$dir/bent/truth_field.nii.gz" "$dir/bent/labels.nii.gz" "$@"
+}
+
+# knee_pair DIR NAME SHRINK(x,y,z) DEGREES RUNS...
+knee_pair() {
+    local dir=$1 name=$2 shrink=$3 deg=$4
+    shift 4
+    mkdir -p "$dir"
+    python3 - ../shared/data/knee-dess "$dir" "$shrink" <<'PY'
 import sys, SimpleITK as sitk
-data, out = sys.argv[1:]
-image = sitk.BinShrink(sitk.Cast(sitk.ReadImage(f"{data}/image.nii.gz"), sitk.sitkFloat32), [2, 2, 1])
+data, out, shrink = sys.argv[1:]
+image = sitk.BinShrink(sitk.Cast(sitk.ReadImage(f"{data}/image.nii.gz"), sitk.sitkFloat32),
+                       [int(f) for f in shrink.split(",")])
 labels = sitk.Resample(sitk.ReadImage(f"{data}/labels.nii.gz"), image, sitk.Transform(),
                        sitk.sitkNearestNeighbor, 0, sitk.sitkUInt8)
 sitk.WriteImage(image, f"{out}/straight.nii.gz")
 sitk.WriteImage(labels, f"{out}/straight_labels.nii.gz")
 PY
-        $bin bend "$dir/straight.nii.gz" --labels "$dir/straight_labels.nii.gz" --degrees "$deg" -o "$dir/bent" >/dev/null
-        compare "$dir" "real knee $deg°" "$dir/straight.nii.gz" "$dir/straight_labels.nii.gz" \
-            "$dir/bent/target.nii.gz" "$dir/bent/truth_field.nii.gz" "" "no init|--no-init" "with init|"
-        ;;
+    $bin bend "$dir/straight.nii.gz" --labels "$dir/straight_labels.nii.gz" --degrees "$deg" -o "$dir/bent" >/dev/null
+    compare "$dir" "$name" "$dir/straight.nii.gz" "$dir/straight_labels.nii.gz" \
+        "$dir/bent/target.nii.gz" "$dir/bent/truth_field.nii.gz" "" "$@"
+}
+
+for pair in ${PAIRS:-phantom10 phantom60 knee10}; do
+    dir="$out/$pair"
+    case $pair in
+    phantom10 | phantom60)
+        deg=${pair#phantom}
+        phantom_pair "$dir" "half phantom $deg°" half "$deg" "with init|" ;;
+    knee10)
+        knee_pair "$dir" "real knee 10°" 2,2,1 10 "no init|--no-init" "with init|" ;;
+    paper-phantom10)
+        phantom_pair "$dir" "quarter phantom 10° (paper's scale)" quarter 10 "no init|--no-init" ;;
+    paper-knee10)
+        knee_pair "$dir" "real knee 10°, 64×64×40 (paper's scale)" 8,8,2 10 "no init|--no-init" ;;
+    *)
+        echo "unknown pair $pair" >&2
+        exit 2 ;;
     esac
 done
 cat "$out/table.md"

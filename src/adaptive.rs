@@ -22,13 +22,18 @@ use crate::optim::lbfgs;
 use crate::progress::Progress;
 use crate::pyramid;
 use crate::rbf::{coefficient_gradients, RbfCoefficients, RbfSystem};
-use crate::regularise::membrane;
+use crate::regularise::{bending, membrane};
 use crate::volume::{Field, Grid, Image, Volume};
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
+/// A smoothness energy of the lattice warp and its gradient (crate::regularise).
+type Energy = fn(&[Vector3<f64>], [usize; 3], [f64; 3]) -> (f64, Vec<Vector3<f64>>);
+
 /// Default weight of the membrane energy (AdaptiveOptions::membrane).
 const MEMBRANE_DEFAULT: f64 = 3.0;
+/// Default weight of the bending energy (AdaptiveOptions::bending).
+const BENDING_DEFAULT: f64 = 0.0;
 
 /// Settings of the adaptive stage; every threshold is relative, so the defaults hold across
 /// intensity scales.
@@ -59,6 +64,12 @@ pub struct AdaptiveOptions {
     /// target's intensity variance at each level: a strain of ε everywhere costs as much as a
     /// residual of √membrane·ε standard deviations at every voxel.
     pub membrane: PerLevel<f64>,
+    /// Weight of the warp's bending energy (crate::regularise, mm⁻²) in the cost, relative to
+    /// the target's intensity variance at each level, in mm²: a curvature κ (mm⁻¹ per mm)
+    /// everywhere costs as much as a residual of √bending·κ standard deviations at every voxel.
+    /// Unlike the membrane it is applied with or without the initialisation: it leaves a limb
+    /// turning as a whole free.
+    pub bending: PerLevel<f64>,
     /// Scale (mm) of the smooth intensity gain matched between the moving and the target
     /// image before optimising (crate::gain); 0 leaves intensities as they are.
     pub gain_scale_mm: f64,
@@ -76,6 +87,7 @@ impl Default for AdaptiveOptions {
             lattice_mm: 5.0,
             smoothing: 0.0,
             membrane: PerLevel::all(MEMBRANE_DEFAULT),
+            bending: PerLevel::all(BENDING_DEFAULT),
             gain_scale_mm: 20.0,
         }
     }
@@ -102,10 +114,14 @@ impl AdaptiveOptions {
         }
         self.threshold.check("adaptive.threshold", self.levels)?;
         self.membrane.check("adaptive.membrane", self.levels)?;
+        self.bending.check("adaptive.bending", self.levels)?;
         self.tolerance.check("adaptive.tolerance", self.levels)?;
         let all_non_negative = |p: &PerLevel<f64>| p.values().iter().all(|&v| non_negative(v));
-        if !all_non_negative(&self.tolerance) || !all_non_negative(&self.membrane) {
-            return bad("tolerance and membrane must be zero or positive at every level");
+        if ![&self.tolerance, &self.membrane, &self.bending]
+            .into_iter()
+            .all(all_non_negative)
+        {
+            return bad("tolerance, membrane and bending must be zero or positive at every level");
         }
         self.iterations.check("adaptive.iterations", self.levels)
     }
@@ -332,6 +348,7 @@ pub fn register(
             true => options.membrane.at_level(level) * variance(&fixed.data),
             false => 0.0,
         };
+        let bending_weight = options.bending.at_level(level) * variance(&fixed.data);
         // From the second level on, the moving image is aligned well enough for its smooth
         // brightness difference to the target to be bias, not anatomy (see crate::gain): match
         // it, measured through the warp found so far.
@@ -434,10 +451,21 @@ pub fn register(
                     .chunks_exact(3)
                     .map(|v| Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64))
                     .collect();
-                let (energy, energy_gradient) = match membrane_weight > 0.0 {
-                    true => membrane(&node_warp, lattice.dims, lattice.spacing_mm),
-                    false => (0.0, vec![Vector3::zeros(); node_warp.len()]),
-                };
+                let mut energy = 0.0;
+                let mut energy_gradient = vec![Vector3::zeros(); node_warp.len()];
+                for (weight, term) in [
+                    (membrane_weight, membrane as Energy),
+                    (bending_weight, bending),
+                ] {
+                    if weight > 0.0 {
+                        let (e, g) = term(&node_warp, lattice.dims, lattice.spacing_mm);
+                        energy += weight * e;
+                        energy_gradient
+                            .iter_mut()
+                            .zip(g)
+                            .for_each(|(a, b)| *a += weight * b);
+                    }
+                }
                 let image_cost: f64 = out
                     .chunks_exact(4)
                     .zip(&fixed.data)
@@ -445,7 +473,7 @@ pub fn register(
                     .map(|((o, t), c)| *c as f64 * ((o[0] - t) as f64).powi(2))
                     .sum::<f64>()
                     / voxels;
-                let cost = image_cost + membrane_weight * energy;
+                let cost = image_cost + energy;
                 let per_voxel: Vec<f32> = out
                     .chunks_exact(4)
                     .zip(covered)
@@ -456,10 +484,7 @@ pub fn register(
                 let g_nodes: Vec<Vector3<f64>> = splat
                     .chunks_exact(3)
                     .zip(&energy_gradient)
-                    .map(|(g, e)| {
-                        Vector3::new(g[0] as f64, g[1] as f64, g[2] as f64) / voxels
-                            + membrane_weight * e
-                    })
+                    .map(|(g, e)| Vector3::new(g[0] as f64, g[1] as f64, g[2] as f64) / voxels + e)
                     .collect();
                 let (g, q) = coefficient_gradients(&centres, &lattice.nodes, &g_nodes);
                 let df = system.value_gradient(&g, &q)?;

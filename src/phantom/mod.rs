@@ -24,6 +24,8 @@ use rayon::prelude::*;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum PhantomSize {
+    /// 34 × 64 × 64 at 5 × 5 × 4.8 mm: the scale at which the paper registered (§4).
+    Quarter,
     /// 48 × 96 × 96 (≈3.5 × 3.3 × 3.2 mm): tests.
     Small,
     /// 68 × 128 × 128 at 2.5 × 2.5 × 2.4 mm.
@@ -41,6 +43,7 @@ impl PhantomSize {
     /// Voxels along each axis.
     pub fn dims(self) -> [usize; 3] {
         match self {
+            PhantomSize::Quarter => [34, 64, 64],
             PhantomSize::Small => [48, 96, 96],
             PhantomSize::Half => [68, 128, 128],
             PhantomSize::Paper => [136, 256, 256],
