@@ -96,8 +96,7 @@ pub fn initial_field(
     let field = out.chunks_exact(4).map(|c| [c[0], c[1], c[2]]).collect();
     let residual = out.chunks_exact(4).map(|c| c[3]).collect();
     let mut field = Image::from_data(target.clone(), field)?;
-    let rigid = maps_into_bone(&field, labels, &weights.bones);
-    let repair = repair_folds(backend, &mut field, &rigid)?;
+    let repair = repair_folds(backend, &mut field, labels, &weights.bones)?;
     Ok(InitialField {
         field,
         residual: Image::from_data(target.clone(), residual)?,
@@ -126,13 +125,18 @@ pub struct FoldRepair {
 /// Linear blend skinning can fold where a bone moves farther than its weights' falloff is wide
 /// (seen above the patella). This smooths the displacement locally — the voxels with
 /// det J ≤ 0.05 and two voxels around them, by 27-neighbour averaging — until the field no
-/// longer folds, leaving voxels that map into a bone (`rigid`) untouched so bones stay rigid.
+/// longer folds, leaving voxels that map into one of the `bones` of `labels` untouched so bones
+/// stay rigid, and never moving a soft-tissue voxel's source point into a bone (that would grow
+/// the bone in the initialised source: at 60° the patella by 10%).
 pub fn repair_folds(
     backend: &dyn Backend,
     field: &mut Field,
-    rigid: &[bool],
+    labels: &Labels,
+    bones: &[u16],
 ) -> Result<FoldRepair> {
     let [nx, ny, nz] = field.grid.dims;
+    let rigid = maps_into_bone(field, labels, bones);
+    let into_bone = BoneLookup::new(&field.grid, labels, bones);
     let mut report = FoldRepair::default();
     for round in 0..=REPAIR_ROUNDS {
         let det = backend.jacobian(field)?;
@@ -180,7 +184,10 @@ pub fn repair_folds(
                         }
                     }
                 }
-                field.data[n] = sum.map(|s| s / count);
+                let smoothed = sum.map(|s| s / count);
+                if !into_bone.at(n, smoothed) {
+                    field.data[n] = smoothed;
+                }
             }
         }
     }
@@ -189,27 +196,50 @@ pub fn repair_folds(
 
 /// Target voxels whose source point (p + u) lies in a bone of `labels` (nearest voxel).
 pub fn maps_into_bone(field: &Field, labels: &Labels, bones: &[u16]) -> Vec<bool> {
-    let to_label = labels.grid.world_to_voxel_affine();
+    let lookup = BoneLookup::new(&field.grid, labels, bones);
     (0..field.grid.len())
-        .map(|n| {
-            let w = field.grid.world_of(n);
-            let u = field.data[n];
-            let q = to_label
-                * nalgebra::Vector4::new(
-                    w[0] + u[0] as f64,
-                    w[1] + u[1] as f64,
-                    w[2] + u[2] as f64,
-                    1.0,
-                );
-            let ijk = [q.x, q.y, q.z].map(|v| v.round());
-            if (0..3).any(|a| ijk[a] < 0.0 || ijk[a] >= labels.grid.dims[a] as f64) {
-                return false;
-            }
-            bones.contains(
-                &labels.data[labels
-                    .grid
-                    .index(ijk[0] as usize, ijk[1] as usize, ijk[2] as usize)],
-            )
-        })
+        .map(|n| lookup.at(n, field.data[n]))
         .collect()
+}
+
+/// Whether target voxel n displaced by u lands in one of `bones` of the source `labels`.
+struct BoneLookup<'a> {
+    target: &'a Grid,
+    labels: &'a Labels,
+    bones: &'a [u16],
+    to_label: crate::volume::Affine,
+}
+
+impl<'a> BoneLookup<'a> {
+    fn new(target: &'a Grid, labels: &'a Labels, bones: &'a [u16]) -> Self {
+        let to_label = labels.grid.world_to_voxel_affine();
+        BoneLookup {
+            target,
+            labels,
+            bones,
+            to_label,
+        }
+    }
+
+    fn at(&self, n: usize, u: [f32; 3]) -> bool {
+        let w = self.target.world_of(n);
+        let q = self.to_label
+            * nalgebra::Vector4::new(
+                w[0] + u[0] as f64,
+                w[1] + u[1] as f64,
+                w[2] + u[2] as f64,
+                1.0,
+            );
+        let ijk = [q.x, q.y, q.z].map(|v| v.round());
+        let dims = self.labels.grid.dims;
+        if (0..3).any(|a| ijk[a] < 0.0 || ijk[a] >= dims[a] as f64) {
+            return false;
+        }
+        let label = self.labels.data[self.labels.grid.index(
+            ijk[0] as usize,
+            ijk[1] as usize,
+            ijk[2] as usize,
+        )];
+        self.bones.contains(&label)
+    }
 }

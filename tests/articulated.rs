@@ -147,16 +147,13 @@ fn check(
     // Bones of the initialised source overlap the target bones.
     for (code, against_labels, against_truth) in bone_overlap(backend, s, b, init) {
         summary += &format!(" dice{code} {against_labels:.3} (vs truth-moved {against_truth:.3})");
-        // The patella sits where the blend folds beyond ~30° (see below): there its overlap is
-        // reported, not held (an open limitation of the initialisation).
-        let held = code != label::PATELLA || degrees <= 30.0;
-        if held {
-            assert!(
-                against_truth >= 0.95,
-                "{summary}: bone {code} overlaps the truth-moved bone by {against_truth}"
-            );
-        }
-        if check_label_dice && held {
+        // Every bone, the patella included at 60° and 90° where the blend folds beside it (0.973
+        // and 0.966 measured: the fold repair no longer smooths soft tissue into the bone).
+        assert!(
+            against_truth >= 0.95,
+            "{summary}: bone {code} overlaps the truth-moved bone by {against_truth}"
+        );
+        if check_label_dice {
             assert!(
                 against_labels >= 0.95,
                 "{summary}: Dice of bone {code} is {against_labels}"
