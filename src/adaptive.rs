@@ -344,14 +344,12 @@ pub fn register(
         // The membrane charges the whole warp R; after the initialisation R is the small
         // correction, without it R carries the whole joint motion, which it would resist
         // (half phantom 10° without initialisation, weight 10: 1.43 → 2.37 mm).
+        let target_variance = variance(&fixed.data);
         let membrane_weight = match prealigned {
-            true => options.membrane.at_level(level) * variance(&fixed.data),
+            true => options.membrane.at_level(level) * target_variance,
             false => 0.0,
         };
-        let bending_weight = options.bending.at_level(level) * variance(&fixed.data);
-        // From the second level on, the moving image is aligned well enough for its smooth
-        // brightness difference to the target to be bias, not anatomy (see crate::gain): match
-        // it, measured through the warp found so far.
+        let bending_weight = options.bending.at_level(level) * target_variance;
         // Once the moving image is aligned, its smooth brightness difference to the target is
         // bias, not anatomy (crate::gain): match it at each level, measured through the warp
         // found so far. Aligned means from the start after the articulated initialisation;
