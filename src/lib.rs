@@ -32,6 +32,7 @@ pub mod cpu;
 pub mod device;
 pub mod error;
 pub mod evaluate;
+pub mod fold_repair;
 pub mod gain;
 pub mod gpu;
 pub mod io;

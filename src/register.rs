@@ -7,9 +7,9 @@ use crate::articulated::{initialise, InitOptions, Initialisation};
 use crate::backend::{resample_onto, Backend};
 use crate::error::Result;
 use crate::evaluate::seen_by_both;
+use crate::fold_repair::maps_into_bone;
 use crate::progress::Progress;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
-use crate::vsd::maps_into_bone;
 use nalgebra::Vector3;
 
 /// Settings of a registration: what a config file holds (io::config), every field optional

@@ -194,6 +194,11 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     let residual = &init.initial.residual.data;
     let worst = residual.iter().cloned().fold(0.0f32, f32::max);
     println!("  blend inversion residual: worst {worst:.3} mm");
+    let repair = &init.initial.repair;
+    println!(
+        "  folds (det J <= 0.05): {} in the blend, {} after {} smoothing rounds and {} unfolding steps",
+        repair.folded_before, repair.folded_after, repair.rounds, repair.unfold_steps
+    );
     println!("  correlation with target: identity {corr_identity:.4}");
     if let Some(reference) = reference {
         let femur_only = backend.resample(
