@@ -6,11 +6,14 @@
 
 use crate::backend::Backend;
 use crate::error::Result;
-use crate::volume::{Affine, Field, Grid, Labels};
+use crate::volume::{Affine, Field, Grid, Labels, Volume};
 use glam::Vec3;
 
 /// Jacobian determinant below which a voxel counts as folded (or about to fold) for repair.
 const FOLD_THRESHOLD: f32 = 0.05;
+/// Inversion residual, as a share of the finest voxel spacing, below which a voxel mapped into a
+/// bone moves with it (a solved pull-back of a bone voxel is exact to float precision).
+const RIGID_RESIDUAL: f32 = 0.1;
 /// Most repair rounds.
 const REPAIR_ROUNDS: usize = 30;
 /// Voxels around each folded voxel that are smoothed with it.
@@ -32,20 +35,29 @@ pub struct FoldRepair {
 /// Removes the folds of an initial field. First it smooths the displacement locally — the
 /// voxels with det J ≤ 0.05 and two voxels around them, by 27-neighbour averaging — which
 /// undoes most folds and keeps the field smooth; then [`unfold`] lifts what is left. Both leave
-/// voxels that map into one of the `bones` of `labels` untouched so bones stay rigid, and never
-/// move a soft-tissue voxel's source point into a bone (that would grow the bone in the
-/// initialised source: at 60° the patella by 10%).
+/// bone voxels untouched so bones stay rigid, and never move a soft-tissue voxel's source point
+/// into a bone (that would grow the bone in the initialised source: at 60° the patella by 10%).
+/// A bone voxel is one whose source point lies in one of the `bones` of `labels` *and* whose
+/// blend was inverted (`residual`, mm, below [`RIGID_RESIDUAL`] of a voxel): where the blend
+/// folds, the pull-back can stop inside a bone without solving it, and those voxels are
+/// tissue caught in the fold (at 90° on the paper grid, a folded patch mapped into the
+/// patella that nothing else could lift).
 pub fn repair_folds(
     backend: &dyn Backend,
     field: &mut Field,
+    residual: &Volume,
     labels: &Labels,
     bones: &[u16],
 ) -> Result<FoldRepair> {
     let [nx, ny, nz] = field.grid.dims;
-    let rigid = maps_into_bone(field, labels, bones);
     // The lookup keeps its own copy of the grid: the field is rewritten under it.
     let grid = field.grid.clone();
     let into_bone = BoneLookup::new(&grid, labels, bones);
+    let solved =
+        RIGID_RESIDUAL * grid.spacing().iter().cloned().fold(f64::INFINITY, f64::min) as f32;
+    let rigid: Vec<bool> = (0..grid.len())
+        .map(|n| residual.data[n] <= solved && into_bone.at(n, field.data[n]))
+        .collect();
     let mut report = FoldRepair::default();
     for round in 0..=REPAIR_ROUNDS {
         let det = backend.jacobian(field)?;
@@ -94,7 +106,7 @@ pub fn repair_folds(
                     }
                 }
                 let smoothed = sum.map(|s| s / count);
-                if !into_bone.at(n, smoothed) {
+                if !into_bone.enters(n, field.data[n], smoothed) {
                     field.data[n] = smoothed;
                 }
             }
@@ -201,7 +213,7 @@ fn unfold(
             match [1.0, 0.5, 0.25, 0.125]
                 .into_iter()
                 .map(|f| (from + shift * f).to_array())
-                .find(|&moved| !into_bone.at(q, moved))
+                .find(|&moved| !into_bone.enters(q, field.data[q], moved))
             {
                 Some(moved) => {
                     field.data[q] = moved;
@@ -278,6 +290,12 @@ impl<'a> BoneLookup<'a> {
             bones,
             to_label,
         }
+    }
+
+    /// Whether moving voxel n's displacement from `from` to `to` carries its source point into
+    /// a bone it was not in.
+    fn enters(&self, n: usize, from: [f32; 3], to: [f32; 3]) -> bool {
+        self.at(n, to) && !self.at(n, from)
     }
 
     fn at(&self, n: usize, u: [f32; 3]) -> bool {

@@ -95,12 +95,12 @@ pub fn initial_field(
         },
     )?;
     let field = out.chunks_exact(4).map(|c| [c[0], c[1], c[2]]).collect();
-    let residual = out.chunks_exact(4).map(|c| c[3]).collect();
+    let residual = Image::from_data(target.clone(), out.chunks_exact(4).map(|c| c[3]).collect())?;
     let mut field = Image::from_data(target.clone(), field)?;
-    let repair = repair_folds(backend, &mut field, labels, &weights.bones)?;
+    let repair = repair_folds(backend, &mut field, &residual, labels, &weights.bones)?;
     Ok(InitialField {
         field,
-        residual: Image::from_data(target.clone(), residual)?,
+        residual,
         repair,
     })
 }
