@@ -10,7 +10,7 @@ use crate::volume::{Affine, Field, Grid, Labels, Volume};
 use glam::Vec3;
 
 /// Jacobian determinant below which a voxel counts as folded (or about to fold) for repair.
-const FOLD_THRESHOLD: f32 = 0.05;
+pub const FOLD_THRESHOLD: f32 = 0.05;
 /// Inversion residual, as a share of the finest voxel spacing, below which a voxel mapped into a
 /// bone moves with it (a solved pull-back of a bone voxel is exact to float precision).
 const RIGID_RESIDUAL: f32 = 0.1;
@@ -106,13 +106,14 @@ pub fn repair_folds(
                     }
                 }
                 let smoothed = sum.map(|s| s / count);
-                if !into_bone.enters(n, field.data[n], smoothed) {
+                if !into_bone.at(n, smoothed) || into_bone.at(n, field.data[n]) {
                     field.data[n] = smoothed;
                 }
             }
         }
     }
-    (report.folded_after, report.unfold_steps) = unfold(backend, field, &rigid, &into_bone)?;
+    (report.folded_after, report.unfold_steps) =
+        unfold(backend, field, &rigid, &|n, u| into_bone.at(n, u))?;
     Ok(report)
 }
 
@@ -120,21 +121,20 @@ pub fn repair_folds(
 const UNFOLD_STEPS: usize = 1000;
 /// The determinant each folded voxel is pushed towards.
 const UNFOLD_TARGET: f32 = 0.3;
-/// Share of the linearised step taken (neighbouring folded voxels push the same displacements).
-const UNFOLD_DAMPING: f32 = 0.5;
 
-/// Smoothing cannot undo a fold pinned by a bone: beside a bone whose voxels stay rigid, the
-/// average pulls the tissue's source point into the bone and the step is refused. Here each
-/// voxel still folded pushes its movable neighbours' displacements along the gradient of its
-/// own Jacobian determinant, far enough to lift it (linearised) to [`UNFOLD_TARGET`] — the
-/// folding correction NiftyReg applies to spline grids, on the dense field. Bone voxels stay
-/// rigid and no step moves a tissue voxel's source point into a bone. Returns the voxels still
-/// at or below [`FOLD_THRESHOLD`] and the steps taken.
-fn unfold(
+/// Lifts every voxel of `field` with det J ≤ [`FOLD_THRESHOLD`]: each pushes its movable
+/// neighbours' displacements along the gradient of its own Jacobian determinant, far enough to
+/// lift it (linearised) to [`UNFOLD_TARGET`] — the folding correction NiftyReg applies to spline
+/// grids, on a dense field. Smoothing cannot undo a fold pinned by a bone (beside a bone whose
+/// voxels stay rigid the average pulls the tissue's source point into the bone); this can.
+/// Voxels marked `rigid` never move, and no step carries a voxel's source point into a bone:
+/// `in_bone(n, u)` says whether voxel n displaced by u lands in one. Returns the voxels still
+/// folded and the steps taken.
+pub fn unfold(
     backend: &dyn Backend,
     field: &mut Field,
     rigid: &[bool],
-    into_bone: &BoneLookup,
+    in_bone: &(dyn Fn(usize, [f32; 3]) -> bool + Sync),
 ) -> Result<(usize, usize)> {
     let [nx, ny, nz] = field.grid.dims;
     let inv = field.grid.world_to_voxel_affine();
@@ -187,53 +187,54 @@ fn unfold(
         .collect();
     let mut steps = 0;
     while !bad.is_empty() && steps < UNFOLD_STEPS {
-        let mut push: std::collections::BTreeMap<usize, Vec3> = Default::default();
-        for &n in &bad {
-            let (_, partials) = stencil(field, n);
+        // One sweep over the folded voxels in index order, each push applied at once so the
+        // next voxel sees it (Gauss-Seidel: simultaneous pushes on a shared neighbour can
+        // cancel and stall).
+        let refused_before = std::mem::take(&mut blocked);
+        let folded: Vec<usize> = bad.iter().copied().collect();
+        for n in folded {
+            let (now, partials) = stencil(field, n);
+            if now > FOLD_THRESHOLD {
+                continue;
+            }
             let movable: Vec<(usize, Vec3)> = partials
                 .into_iter()
-                .filter(|&(q, _)| !rigid[q] && !blocked.contains(&q))
+                .filter(|&(q, _)| {
+                    !rigid[q] && !refused_before.contains(&q) && !blocked.contains(&q)
+                })
                 .collect();
             let norm: f32 = movable.iter().map(|(_, gq)| gq.length_squared()).sum();
             if norm <= f32::EPSILON {
                 continue;
             }
-            let s = (UNFOLD_TARGET - det[n]) / norm;
+            let s = (UNFOLD_TARGET - now) / norm;
             for (q, gq) in movable {
-                *push.entry(q).or_default() += gq * s;
-            }
-        }
-        blocked.clear();
-        let mut touched = std::collections::BTreeSet::new();
-        for (q, shift) in push {
-            let shift = (shift * UNFOLD_DAMPING).clamp_length_max(largest_step);
-            // Beside a bone the full step can carry the source point into it: take the
-            // longest of 1, 1/2, 1/4, 1/8 of it that does not.
-            let from = u(field, q);
-            match [1.0, 0.5, 0.25, 0.125]
-                .into_iter()
-                .map(|f| (from + shift * f).to_array())
-                .find(|&moved| !into_bone.enters(q, field.data[q], moved))
-            {
-                Some(moved) => {
-                    field.data[q] = moved;
-                    touched.insert(q);
-                    for a in 0..3 {
-                        let (lo, hi, _) = neighbours(q, a);
-                        touched.extend([lo, hi]);
+                let shift = (gq * s).clamp_length_max(largest_step);
+                // Beside a bone the full step can carry the source point into it: take the
+                // longest of 1, 1/2, 1/4, 1/8 of it that does not.
+                let from = u(field, q);
+                let Some(moved) = [1.0, 0.5, 0.25, 0.125]
+                    .into_iter()
+                    .map(|f| (from + shift * f).to_array())
+                    .find(|&moved| !in_bone(q, moved) || in_bone(q, field.data[q]))
+                else {
+                    blocked.insert(q);
+                    continue;
+                };
+                field.data[q] = moved;
+                let mut touched = vec![q];
+                for a in 0..3 {
+                    let (lo, hi, _) = neighbours(q, a);
+                    touched.extend([lo, hi]);
+                }
+                for v in touched {
+                    det[v] = stencil(field, v).0;
+                    if det[v] <= FOLD_THRESHOLD {
+                        bad.insert(v);
+                    } else {
+                        bad.remove(&v);
                     }
                 }
-                None => {
-                    blocked.insert(q);
-                }
-            }
-        }
-        for v in touched {
-            det[v] = stencil(field, v).0;
-            if det[v] <= FOLD_THRESHOLD {
-                bad.insert(v);
-            } else {
-                bad.remove(&v);
             }
         }
         steps += 1;
@@ -290,12 +291,6 @@ impl<'a> BoneLookup<'a> {
             bones,
             to_label,
         }
-    }
-
-    /// Whether moving voxel n's displacement from `from` to `to` carries its source point into
-    /// a bone it was not in.
-    fn enters(&self, n: usize, from: [f32; 3], to: [f32; 3]) -> bool {
-        self.at(n, to) && !self.at(n, from)
     }
 
     fn at(&self, n: usize, u: [f32; 3]) -> bool {
@@ -395,7 +390,8 @@ mod tests {
             .collect();
         assert!(!pinned.is_empty());
         let lookup = BoneLookup::new(&grid, &labels, &[2]);
-        let (left, steps) = unfold(&CpuBackend, &mut field, &rigid, &lookup).unwrap();
+        let (left, steps) =
+            unfold(&CpuBackend, &mut field, &rigid, &|n, u| lookup.at(n, u)).unwrap();
         assert_eq!(left, 0, "{steps} steps");
         let after = CpuBackend.jacobian(&field).unwrap();
         let least = after.data.iter().cloned().fold(f32::INFINITY, f32::min);

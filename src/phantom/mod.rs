@@ -11,7 +11,9 @@ pub mod anatomy;
 pub mod flexion;
 pub mod shapes;
 
+use crate::cpu::CpuBackend;
 use crate::error::{Error, Result};
+use crate::fold_repair::unfold;
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
 use acquisition::{add_rician_noise, BiasField};
@@ -129,7 +131,7 @@ pub fn generate(spec: &PhantomSpec) -> Result<Phantom> {
             .map(|n| world_of(&grid, n))
             .collect()
     } else {
-        flexion.straight_points(&grid)
+        unfolded(&grid, flexion.straight_points(&grid))?
     };
     // Anti-alias over about one voxel.
     let edge = grid.spacing().iter().cloned().fold(0.0, f64::max) as f32;
@@ -183,6 +185,38 @@ pub fn generate(spec: &PhantomSpec) -> Result<Phantom> {
         },
         truth,
     })
+}
+
+/// The flow sampled at voxel centres folds by finite differences where it turns faster than a
+/// grid resolves: behind the femoral condyles, where the shank's plateau sweeps the tissue
+/// between it and the femur into a layer under a millimetre thick (98, 869 and 2787 voxels at
+/// 60°, 90° and 120° on the paper grid). There the straight points are pushed apart
+/// ([`unfold`]), voxels inside a bone fixed and none pushed into one, so the field the bent
+/// image is sampled through has det J > 0.05 at every voxel. The truth stays exact: it is that
+/// field. Voxels the push leaves alone keep their points bit for bit.
+fn unfolded(grid: &Grid, straight: Vec<Vec3>) -> Result<Vec<Vec3>> {
+    let in_bone = |p: Vec3| BONES.iter().any(|(code, _)| anatomy::bone(*code, p) <= 0.0);
+    let rigid: Vec<bool> = straight.par_iter().map(|&q| in_bone(q)).collect();
+    let sampled: Vec<[f32; 3]> = straight
+        .iter()
+        .enumerate()
+        .map(|(n, q)| (*q - world_of(grid, n)).to_array())
+        .collect();
+    let mut field = Image::from_data(grid.clone(), sampled.clone())?;
+    unfold(&CpuBackend, &mut field, &rigid, &|n, u| {
+        in_bone(world_of(grid, n) + Vec3::from_array(u))
+    })?;
+    Ok(straight
+        .into_iter()
+        .enumerate()
+        .map(|(n, q)| {
+            if field.data[n] == sampled[n] {
+                q
+            } else {
+                world_of(grid, n) + Vec3::from_array(field.data[n])
+            }
+        })
+        .collect())
 }
 
 /// World position of flat voxel index n.
