@@ -127,7 +127,7 @@ fn paper_experiment_one_on_the_cpu() {
     }
 }
 
-/// 60° with the articulated initialisation, on the CPU: issue 5's bound (≤ 1.5 mm; 1.35 mm
+/// 60° with the articulated initialisation, on the CPU: issue 5's bound (≤ 1.5 mm; 1.31 mm
 /// measured at this size, 1.32 mm at the half size), and the adaptive stage must improve on the
 /// initial field it starts from (1.85 mm here) — before the membrane energy it made it worse at
 /// 30° (0.75 → 1.26 mm at the half size).
