@@ -164,19 +164,13 @@ pub fn unfold(
     // next step leaves them and lifts the folds beside them by their other neighbours.
     let mut blocked = std::collections::BTreeSet::new();
     let u = |field: &Field, n: usize| Vec3::from_array(field.data[n]);
-    // det J at voxel n with its stencil's differences, and ∂det/∂u for each neighbour in it.
-    let stencil = |field: &Field, n: usize| {
-        let axes = [0, 1, 2].map(|a| neighbours(n, a));
-        let d = axes.map(|(lo, hi, factor)| (u(field, hi) - u(field, lo)) * factor);
-        let (det, g) = determinant_and_gradient(d, index_per_mm);
-        let partials: Vec<(usize, Vec3)> = (0..3)
-            .flat_map(|a| {
-                let (lo, hi, factor) = axes[a];
-                [(hi, g[a] * factor), (lo, -g[a] * factor)]
-            })
-            .filter(|&(q, _)| q != n)
-            .collect();
-        (det, partials)
+    // det J at voxel n from its stencil's differences, and ∂det/∂(column a of D).
+    let determinant = |field: &Field, n: usize| {
+        let d = [0, 1, 2].map(|a| {
+            let (lo, hi, factor) = neighbours(n, a);
+            (u(field, hi) - u(field, lo)) * factor
+        });
+        determinant_and_gradient(d, index_per_mm)
     };
     // The determinants are kept up to date locally: moving voxel q changes det J only at q
     // and its six neighbours (whose differences it enters).
@@ -193,14 +187,18 @@ pub fn unfold(
         let refused_before = std::mem::take(&mut blocked);
         let folded: Vec<usize> = bad.iter().copied().collect();
         for n in folded {
-            let (now, partials) = stencil(field, n);
+            let (now, g) = determinant(field, n);
             if now > FOLD_THRESHOLD {
                 continue;
             }
-            let movable: Vec<(usize, Vec3)> = partials
-                .into_iter()
+            // ∂det/∂u at each neighbour in the stencil that may move.
+            let movable: Vec<(usize, Vec3)> = (0..3)
+                .flat_map(|a| {
+                    let (lo, hi, factor) = neighbours(n, a);
+                    [(hi, g[a] * factor), (lo, -g[a] * factor)]
+                })
                 .filter(|&(q, _)| {
-                    !rigid[q] && !refused_before.contains(&q) && !blocked.contains(&q)
+                    q != n && !rigid[q] && !refused_before.contains(&q) && !blocked.contains(&q)
                 })
                 .collect();
             let norm: f32 = movable.iter().map(|(_, gq)| gq.length_squared()).sum();
@@ -228,7 +226,7 @@ pub fn unfold(
                     touched.extend([lo, hi]);
                 }
                 for v in touched {
-                    det[v] = stencil(field, v).0;
+                    det[v] = determinant(field, v).0;
                     if det[v] <= FOLD_THRESHOLD {
                         bad.insert(v);
                     } else {

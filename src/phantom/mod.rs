@@ -197,12 +197,13 @@ pub fn generate(spec: &PhantomSpec) -> Result<Phantom> {
 fn unfolded(grid: &Grid, straight: Vec<Vec3>) -> Result<Vec<Vec3>> {
     let in_bone = |p: Vec3| BONES.iter().any(|(code, _)| anatomy::bone(*code, p) <= 0.0);
     let rigid: Vec<bool> = straight.par_iter().map(|&q| in_bone(q)).collect();
-    let sampled: Vec<[f32; 3]> = straight
+    let displacement = |n: usize, q: Vec3| (q - world_of(grid, n)).to_array();
+    let sampled = straight
         .iter()
         .enumerate()
-        .map(|(n, q)| (*q - world_of(grid, n)).to_array())
+        .map(|(n, q)| displacement(n, *q))
         .collect();
-    let mut field = Image::from_data(grid.clone(), sampled.clone())?;
+    let mut field = Image::from_data(grid.clone(), sampled)?;
     unfold(&CpuBackend, &mut field, &rigid, &|n, u| {
         in_bone(world_of(grid, n) + Vec3::from_array(u))
     })?;
@@ -210,7 +211,7 @@ fn unfolded(grid: &Grid, straight: Vec<Vec3>) -> Result<Vec<Vec3>> {
         .into_iter()
         .enumerate()
         .map(|(n, q)| {
-            if field.data[n] == sampled[n] {
+            if field.data[n] == displacement(n, q) {
                 q
             } else {
                 world_of(grid, n) + Vec3::from_array(field.data[n])
