@@ -177,7 +177,7 @@ struct Lattice {
 
 impl Lattice {
     fn new(grid: &Grid, lattice_mm: f64) -> Self {
-        let spacing = grid.spacing().iter().cloned().fold(f64::INFINITY, f64::min);
+        let spacing = grid.finest_spacing();
         let step = ((lattice_mm / spacing).round() as usize).max(1);
         let dims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
         let nodes = (0..dims[0] * dims[1] * dims[2])

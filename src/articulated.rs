@@ -348,14 +348,7 @@ pub fn initialise(
         let target_levels = pyramid::build(backend, target, options.levels)?;
         let first = source_levels
             .iter()
-            .position(|v| {
-                v.grid
-                    .spacing()
-                    .iter()
-                    .cloned()
-                    .fold(f64::INFINITY, f64::min)
-                    >= options.finest_spacing_mm - 1e-9
-            })
+            .position(|v| v.grid.finest_spacing() >= options.finest_spacing_mm - 1e-9)
             .unwrap_or(source_levels.len() - 1)
             .min(target_levels.len() - 1);
         let source_levels = &source_levels[..target_levels.len().min(source_levels.len())];

@@ -53,8 +53,7 @@ pub fn repair_folds(
     // The lookup keeps its own copy of the grid: the field is rewritten under it.
     let grid = field.grid.clone();
     let into_bone = BoneLookup::new(&grid, labels, bones);
-    let solved =
-        RIGID_RESIDUAL * grid.spacing().iter().cloned().fold(f64::INFINITY, f64::min) as f32;
+    let solved = RIGID_RESIDUAL * grid.finest_spacing() as f32;
     let rigid: Vec<bool> = (0..grid.len())
         .map(|n| residual.data[n] <= solved && into_bone.at(n, field.data[n]))
         .collect();
@@ -153,13 +152,7 @@ pub fn unfold(
         let factor = if c > 0 && c + 1 < dims[a] { 0.5 } else { 1.0 };
         (lo, hi, factor)
     };
-    let largest_step = field
-        .grid
-        .spacing()
-        .iter()
-        .cloned()
-        .fold(f64::INFINITY, f64::min) as f32
-        / 4.0;
+    let largest_step = field.grid.finest_spacing() as f32 / 4.0;
     // Tissue voxels that no fraction of the last step could move without entering a bone: the
     // next step leaves them and lifts the folds beside them by their other neighbours.
     let mut blocked = std::collections::BTreeSet::new();

@@ -98,12 +98,7 @@ pub const PLANES: [(usize, f64, usize); 3] = [(1, -1.0, 2), (0, -1.0, 2), (0, -1
 
 /// The finest voxel spacing: the pixel size of every picture.
 pub fn pixel_size(volume: &Volume) -> f64 {
-    volume
-        .grid
-        .spacing()
-        .iter()
-        .cloned()
-        .fold(f64::INFINITY, f64::min)
+    volume.grid.finest_spacing()
 }
 
 /// Display window: 0 to the 99.5th percentile of the finite, positive values.

@@ -14,7 +14,7 @@ const MIN_AXIS_VOXELS: usize = 8;
 /// spacings are then within a factor of 1.5 of each other wherever the data allows it.
 pub fn next_level_grid(grid: &Grid) -> Option<(Grid, [usize; 3])> {
     let spacing = grid.spacing();
-    let finest = spacing.iter().cloned().fold(f64::INFINITY, f64::min);
+    let finest = grid.finest_spacing();
     let factors: [usize; 3] = std::array::from_fn(|a| {
         if spacing[a] <= 1.5 * finest && grid.dims[a] >= 2 * MIN_AXIS_VOXELS {
             2
@@ -52,13 +52,7 @@ pub fn build(backend: &dyn Backend, volume: &Volume, levels: usize) -> Result<Ve
 /// `volume` smoothed and halved until its finest spacing reaches `spacing_mm` (or the grid
 /// runs out): Gaussian smoothing at about that scale, on the coarse grid it needs.
 pub fn down_to_spacing(backend: &dyn Backend, volume: &Volume, spacing_mm: f64) -> Result<Volume> {
-    let finest = |v: &Volume| {
-        v.grid
-            .spacing()
-            .iter()
-            .cloned()
-            .fold(f64::INFINITY, f64::min)
-    };
+    let finest = |v: &Volume| v.grid.finest_spacing();
     let mut level = volume.clone();
     while finest(&level) < spacing_mm {
         let Some((grid, factors)) = next_level_grid(&level.grid) else {

@@ -74,6 +74,11 @@ impl Grid {
         })
     }
 
+    /// The smallest of the three voxel spacings (mm).
+    pub fn finest_spacing(&self) -> f64 {
+        self.spacing().into_iter().fold(f64::INFINITY, f64::min)
+    }
+
     /// World position (RAS mm) of a continuous voxel index.
     pub fn voxel_to_world(&self, ijk: [f64; 3]) -> [f64; 3] {
         let p = self.affine * Vector4::new(ijk[0], ijk[1], ijk[2], 1.0);
