@@ -33,6 +33,13 @@ fn pair() -> &'static (Phantom, Phantom) {
     })
 }
 
+/// The 90°-bent noise-free phantom on the paper grid, made once per test binary. Only the paper
+/// grid is finer than the flow's 2.5 mm lattice, so only there is the lattice interpolated.
+fn paper_90() -> &'static Phantom {
+    static BENT: OnceLock<Phantom> = OnceLock::new();
+    BENT.get_or_init(|| clean(PhantomSize::Paper, 90.0))
+}
+
 /// Bent voxels whose straight-pose point lies inside the straight image (see
 /// evaluate::seen_by_both).
 fn seen_in_both(straight: &Phantom, bent: &Phantom, margin: f64) -> Vec<bool> {
@@ -78,14 +85,14 @@ fn bone_labels_follow_the_truth_with_dice_at_least_098() {
     // Each straight bone's indicator is pulled into the bent pose through the truth field
     // (trilinear, kept where >= 0.5: the partial-volume boundary, not a nearest-voxel pick that
     // rounds a rotated boundary by up to half a voxel) and compared with the bent labels, over
-    // the voxels both scans see.
-    // At the paper's 1.25 mm: label maps are centre samples, so a boundary is known to half a
-    // voxel on each side, and at coarser grids the thin shafts' boundary voxels dominate.
+    // the voxels both scans see. The same indicator pulled through the bone's exact rigid motion
+    // (its truth.json matrix, applied to every voxel) measures what centre-sampled label maps
+    // on two grids turned against each other allow at all.
     let straight = clean(PhantomSize::Paper, 0.0);
     let bent = clean(PhantomSize::Paper, 60.0);
     let (straight, bent) = (&straight, &bent);
     let seen = seen_in_both(straight, bent, 0.0);
-    let mut scores = Vec::new();
+    let grid = &bent.labels.grid;
     for (code, name) in BONES {
         let indicator: posereg::Volume = Image {
             grid: straight.labels.grid.clone(),
@@ -96,15 +103,6 @@ fn bone_labels_follow_the_truth_with_dice_at_least_098() {
                 .map(|&l| (l == code) as u8 as f32)
                 .collect(),
         };
-        let pulled = CpuBackend
-            .resample(&indicator, &bent.truth_field, 0.0, Interpolation::Linear)
-            .unwrap();
-        let mapped: Vec<bool> = pulled
-            .data
-            .iter()
-            .zip(&seen)
-            .map(|(v, s)| *s && *v >= 0.5)
-            .collect();
         let truth: Vec<bool> = bent
             .labels
             .data
@@ -112,17 +110,61 @@ fn bone_labels_follow_the_truth_with_dice_at_least_098() {
             .zip(&seen)
             .map(|(l, s)| *s && *l == code)
             .collect();
-        let d = dice(&mapped, &truth, true);
-        eprintln!("{name}: Dice {d:.4}");
-        scores.push((name, d));
-    }
-    // The thin bones (fibula: 14 mm across; patella: 20 mm thick) are 11-16 voxels across at
-    // 1.25 mm, so the half-voxel uncertainty of centre-sampled boundaries on two grids turned
-    // 60° against each other costs them about 2.5% of Dice however exact the truth is (inside
-    // every bone the field equals the matrix to < 0.01 mm: see the next test). They are held to
-    // 0.97, the long bones to the 0.98 the phantom issue asks.
-    for (name, d) in scores {
-        let bound = if name == "patella" || name == "fibula" {
+        let mapped_through = |field: &posereg::Field| -> Vec<bool> {
+            let pulled = CpuBackend
+                .resample(&indicator, field, 0.0, Interpolation::Linear)
+                .unwrap();
+            pulled
+                .data
+                .iter()
+                .zip(&seen)
+                .map(|(v, s)| *s && *v >= 0.5)
+                .collect()
+        };
+        let bone = bent.truth.bones.iter().find(|b| b.label == code).unwrap();
+        let inverse = bone.affine().try_inverse().unwrap();
+        let rigid: posereg::Field = Image {
+            grid: grid.clone(),
+            data: (0..grid.len())
+                .map(|n| {
+                    let w = grid.world_of(n);
+                    let q = inverse * nalgebra::Vector4::new(w[0], w[1], w[2], 1.0);
+                    [
+                        (q.x - w[0]) as f32,
+                        (q.y - w[1]) as f32,
+                        (q.z - w[2]) as f32,
+                    ]
+                })
+                .collect(),
+        };
+        let (by_truth, by_motion) = (mapped_through(&bent.truth_field), mapped_through(&rigid));
+        let missed = |mapped: &[bool]| {
+            truth
+                .iter()
+                .zip(mapped)
+                .filter(|(t, m)| **t && !**m)
+                .count()
+        };
+        let d = dice(&by_truth, &truth, true);
+        eprintln!(
+            "{name}: Dice {d:.4} through the truth field, {:.4} through the exact motion; bone voxels missed {} and {}",
+            dice(&by_motion, &truth, true),
+            missed(&by_truth),
+            missed(&by_motion)
+        );
+        // Bone voxels move exactly with their bone, so the truth misses the bent bone's voxels
+        // that the exact motion misses, no more. (It differs in the tissue beside the bone,
+        // which the bend stretches or squeezes: the patella gains 90 voxels there, 0.9737
+        // against 0.9781.)
+        assert!(
+            missed(&by_truth) <= missed(&by_motion),
+            "{name}: the truth field loses bone voxels its motion keeps"
+        );
+        // The thin bones (fibula: 14 mm across; patella: 20 mm thick) are 11-16 voxels across
+        // at 1.25 mm: the half-voxel uncertainty of centre-sampled boundaries on two grids turned
+        // 60° against each other holds even their exact motion to about 0.974. They are held to
+        // 0.97, the long bones to the 0.98 the phantom issue asks.
+        let bound = if code == label::PATELLA || code == label::FIBULA {
             0.97
         } else {
             0.98
@@ -134,8 +176,10 @@ fn bone_labels_follow_the_truth_with_dice_at_least_098() {
 #[test]
 fn truth_json_and_truth_field_agree_inside_every_bone() {
     // Inside bone j of the bent image the truth field must be exactly the inverse of bone j's
-    // matrix in truth.json: the bones move rigidly and the two files say the same thing.
-    let (_, bent) = pair();
+    // matrix in truth.json: the bones move rigidly and the two files say the same thing. On the
+    // paper grid at 90°, where tissue slides fastest past the bones and the flow's lattice is
+    // interpolated (interpolating it into the bones once moved 5% of the femur by up to 23 mm).
+    let bent = paper_90();
     let g = &bent.labels.grid;
     for b in &bent.truth.bones {
         let inverse = b.affine().try_inverse().unwrap();
@@ -177,27 +221,22 @@ fn truth_json_and_truth_field_agree_inside_every_bone() {
             .to_degrees()
     };
     assert!(angle(label::FEMUR).abs() < 1e-9);
-    assert!((angle(label::TIBIA) - 60.0).abs() < 1e-6);
-    assert!((angle(label::FIBULA) - 60.0).abs() < 1e-6);
+    assert!((angle(label::TIBIA) - 90.0).abs() < 1e-6);
+    assert!((angle(label::FIBULA) - 90.0).abs() < 1e-6);
 }
 
 #[test]
 fn flexion_never_folds_inside_the_body() {
-    // The flow is checked at every body voxel centre with ±0.1 mm differences; the truth field
-    // as sampled on the grid with the Jacobian kernel. The flow turns faster than a voxel behind
-    // the condyles, and the phantom pushes those voxels apart (phantom::unfolded); what no push
-    // can lift sits where two rigid bones, or a bone and tissue pinned against it, meet across
-    // less than a voxel (at 120° the tibia and femur touch): every voxel still folded must
-    // touch a bone.
+    // The flow is checked at every body voxel centre with ±0.1 mm differences (small grid);
+    // the truth field as sampled on the grid with the Jacobian kernel, on the half and paper
+    // grids at 60°, 90° and 120°. The flow turns faster than a voxel behind the condyles, and
+    // the phantom pushes those voxels apart (phantom::unfolded).
     for degrees in [60.0, 90.0, 120.0] {
         let bent = clean(PhantomSize::Small, degrees);
         let flexion = posereg::phantom::flexion::Flexion::knee(degrees);
-        let inverse = flexion.inverse_rotations();
+        let inverse = flexion.inverse_rotations(posereg::phantom::flexion::LATTICE_STEPS);
         let g = &bent.labels.grid;
-        let body: Vec<usize> = (0..g.len())
-            .filter(|&n| bent.labels.data[n] != label::OUTSIDE)
-            .collect();
-        let min_continuous = body
+        let min_continuous = body_voxels(&bent)
             .par_iter()
             .map(|&n| {
                 let w = g.world_of(n);
@@ -208,41 +247,37 @@ fn flexion_never_folds_inside_the_body() {
                 )
             })
             .reduce(|| f32::INFINITY, f32::min);
+        eprintln!("{degrees}°: min det of the map {min_continuous:.3}");
         assert!(
             min_continuous > 0.0,
             "{degrees}°: the map folds (det {min_continuous})"
         );
-        let det = CpuBackend.jacobian(&bent.truth_field).unwrap();
-        let folded: Vec<usize> = body
-            .iter()
-            .copied()
-            .filter(|&n| det.data[n] <= 0.0)
-            .collect();
-        let [nx, ny, _] = g.dims;
-        let is_bone = |n: usize| bent.labels.data[n] > label::SOFT_TISSUE;
-        let touches_bone = |n: usize| {
-            [0, 1, nx, nx * ny]
-                .iter()
-                .flat_map(|&d| [n + d, n.saturating_sub(d)])
-                .any(|m| m < g.len() && is_bone(m))
-        };
-        eprintln!(
-            "{degrees}°: min det of the map {min_continuous:.3}; grid: {} of {} body voxels folded",
-            folded.len(),
-            body.len()
-        );
-        if degrees <= 90.0 {
-            assert!(
-                folded.is_empty(),
-                "{degrees}°: {} grid voxels fold",
-                folded.len()
-            );
-        }
-        assert!(
-            folded.iter().all(|&n| touches_bone(n)),
-            "{degrees}°: a voxel folds away from every bone"
-        );
     }
+    let grids = [
+        (PhantomSize::Half, 60.0),
+        (PhantomSize::Half, 90.0),
+        (PhantomSize::Half, 120.0),
+        (PhantomSize::Paper, 60.0),
+        (PhantomSize::Paper, 120.0),
+    ];
+    let check = |bent: &Phantom, name: String| {
+        let det = CpuBackend.jacobian(&bent.truth_field).unwrap();
+        let body = body_voxels(bent);
+        let folded = body.iter().filter(|&&n| det.data[n] <= 0.0).count();
+        eprintln!("{name}: {folded} of {} body voxels folded", body.len());
+        assert_eq!(folded, 0, "{name}: grid voxels fold");
+    };
+    for (size, degrees) in grids {
+        check(&clean(size, degrees), format!("{size:?} {degrees}°"));
+    }
+    check(paper_90(), "Paper 90°".into());
+}
+
+/// Flat indices of the voxels inside the body.
+fn body_voxels(phantom: &Phantom) -> Vec<usize> {
+    (0..phantom.labels.data.len())
+        .filter(|&n| phantom.labels.data[n] != label::OUTSIDE)
+        .collect()
 }
 
 #[test]

@@ -59,7 +59,7 @@ pub fn femur(p: Vec3) -> f32 {
         Vec3::new(0.0, -2.0, 500.0),
         14.0,
     );
-    let metaphysis = ellipsoid(p, Vec3::new(0.0, -4.0, 48.0), Vec3::new(32.0, 22.0, 30.0));
+    let metaphysis = ellipsoid(p, Vec3::new(0.0, -1.0, 48.0), Vec3::new(32.0, 19.0, 30.0));
     let lateral = ellipsoid(p, Vec3::new(22.0, -8.0, 22.0), Vec3::new(16.0, 21.0, 21.0));
     let medial = ellipsoid(p, Vec3::new(-22.0, -8.0, 22.0), Vec3::new(17.0, 22.0, 21.0));
     let trochlea = ellipsoid(p, Vec3::new(0.0, 8.0, 34.0), Vec3::new(30.0, 16.0, 18.0));

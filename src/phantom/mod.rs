@@ -189,7 +189,7 @@ pub fn generate(spec: &PhantomSpec) -> Result<Phantom> {
 
 /// The flow sampled at voxel centres folds by finite differences where it turns faster than a
 /// grid resolves: behind the femoral condyles, where the shank's plateau sweeps the tissue
-/// between it and the femur into a layer under a millimetre thick (98, 869 and 2787 voxels at
+/// between it and the femur into a layer under a millimetre thick (0, 208 and 1231 voxels at
 /// 60°, 90° and 120° on the paper grid). There the straight points are pushed apart
 /// ([`unfold`]), voxels inside a bone fixed and none pushed into one, so the field the bent
 /// image is sampled through has det J > 0.05 at every voxel. The truth stays exact: it is that
