@@ -22,7 +22,7 @@ const REPAIR_MARGIN: usize = 2;
 /// What [`repair_folds`] did.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct FoldRepair {
-    /// Voxels with det ≤ 0.05 before repair, bone voxels aside.
+    /// Voxels with det ≤ 0.05 before repair (bone voxels aside in an initial field's repair).
     pub folded_before: usize,
     /// Voxels with det ≤ 0.05 after both steps, bone voxels included.
     pub folded_after: usize,
@@ -114,6 +114,36 @@ pub fn repair_folds(
     (report.folded_after, report.unfold_steps) =
         unfold(backend, field, &rigid, &|n, u| into_bone.at(n, u))?;
     Ok(report)
+}
+
+/// Unfolds a registration's total field where it folds (det J ≤ 0 somewhere): [`unfold`] with
+/// the voxels whose source point lies in one of the `bones` of `labels` held, and no tissue
+/// pushed into a bone. The adaptive warp is smooth and does not fold (its step control sees
+/// to that), but composed with an initial field that is sharply compressed behind a bent knee it
+/// can carry a few voxels past each other there. A field without folds is left bit for bit.
+pub fn unfold_registration(
+    backend: &dyn Backend,
+    field: &mut Field,
+    labels: &Labels,
+    bones: &[u16],
+) -> Result<FoldRepair> {
+    let det = backend.jacobian(field)?;
+    if det.data.iter().all(|&d| d > 0.0) {
+        return Ok(FoldRepair::default());
+    }
+    let folded_before = det.data.iter().filter(|&&d| d <= FOLD_THRESHOLD).count();
+    let grid = field.grid.clone();
+    let into_bone = BoneLookup::new(&grid, labels, bones);
+    let rigid: Vec<bool> = (0..grid.len())
+        .map(|n| into_bone.at(n, field.data[n]))
+        .collect();
+    let (folded_after, unfold_steps) = unfold(backend, field, &rigid, &|n, u| into_bone.at(n, u))?;
+    Ok(FoldRepair {
+        folded_before,
+        folded_after,
+        rounds: 0,
+        unfold_steps,
+    })
 }
 
 /// Most unfolding steps.

@@ -7,7 +7,7 @@ use crate::articulated::{initialise, InitOptions, Initialisation};
 use crate::backend::{resample_onto, Backend};
 use crate::error::Result;
 use crate::evaluate::seen_by_both;
-use crate::fold_repair::maps_into_bone;
+use crate::fold_repair::{maps_into_bone, unfold_registration, FoldRepair};
 use crate::progress::Progress;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
 use nalgebra::Vector3;
@@ -54,6 +54,9 @@ pub struct Registration {
     pub folded_share: f64,
     /// Factor the RBF warp was scaled by to keep the field from folding (1 when untouched).
     pub warp_scale: f64,
+    /// The unfolding of the total field where the warp, composed with the initial field, folds
+    /// it (all zero when nothing folded).
+    pub unfolding: FoldRepair,
     /// Wall time of each stage.
     pub timings: StageTimes,
 }
@@ -207,7 +210,9 @@ pub fn register(
         }
         scale *= 0.5;
     };
-    let field = compose(&warp, &initial)?;
+    let mut field = compose(&warp, &initial)?;
+    let bones = init.as_ref().map_or(&[][..], |i| &i.weights.bones[..]);
+    let unfolding = unfold_registration(backend, &mut field, labels, bones)?;
     let det = backend.jacobian(&field)?;
     let warped = backend.resample(source, &field, 0.0, Interpolation::Linear)?;
     progress.step(&format!("warp scale {scale}"));
@@ -227,6 +232,7 @@ pub fn register(
         min_jacobian,
         folded_share,
         warp_scale: scale,
+        unfolding,
         timings,
     })
 }
@@ -251,6 +257,7 @@ impl Registration {
                 "coefficients": self.adaptive.coefficients,
                 "scale": self.warp_scale,
                 "composition": "u(x) = R(x) + u0(x + R(x)); u0 = inverted skinning of the bone motions",
+                "unfolding": self.unfolding,
             }),
         );
         transform

@@ -131,7 +131,7 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
         "adaptive_stages": result.adaptive.stages,
         "control_points": result.adaptive.points.len(),
         "correlation": { "before": correlation(&before.data, &target.data, body), "after": correlation(&result.warped.data, &target.data, body) },
-        "jacobian": { "min": result.min_jacobian, "folded_share": result.folded_share },
+        "jacobian": { "min": result.min_jacobian, "folded_share": result.folded_share, "unfolding": result.unfolding },
     });
     let centre = match &result.init {
         Some(init) => [init.axis.point.x, init.axis.point.y, init.axis.point.z],
