@@ -116,21 +116,18 @@ pub fn repair_folds(
     Ok(report)
 }
 
-/// Unfolds a registration's total field where it folds (det J ≤ 0 somewhere): [`unfold`] with
+/// Unfolds a registration's total field, whose Jacobian determinant is `det`: [`unfold`] with
 /// the voxels whose source point lies in one of the `bones` of `labels` held, and no tissue
 /// pushed into a bone. The adaptive warp is smooth and does not fold (its step control sees
 /// to that), but composed with an initial field that is sharply compressed behind a bent knee it
-/// can carry a few voxels past each other there. A field without folds is left bit for bit.
+/// can carry a few voxels past each other there.
 pub fn unfold_registration(
     backend: &dyn Backend,
     field: &mut Field,
+    det: &Volume,
     labels: &Labels,
     bones: &[u16],
 ) -> Result<FoldRepair> {
-    let det = backend.jacobian(field)?;
-    if det.data.iter().all(|&d| d > 0.0) {
-        return Ok(FoldRepair::default());
-    }
     let folded_before = det.data.iter().filter(|&&d| d <= FOLD_THRESHOLD).count();
     let grid = field.grid.clone();
     let into_bone = BoneLookup::new(&grid, labels, bones);

@@ -211,9 +211,14 @@ pub fn register(
         scale *= 0.5;
     };
     let mut field = compose(&warp, &initial)?;
-    let bones = init.as_ref().map_or(&[][..], |i| &i.weights.bones[..]);
-    let unfolding = unfold_registration(backend, &mut field, labels, bones)?;
-    let det = backend.jacobian(&field)?;
+    let mut det = backend.jacobian(&field)?;
+    // Only a field that folds is unfolded: the others keep their bits.
+    let mut unfolding = FoldRepair::default();
+    if det.data.iter().any(|&d| d <= 0.0) {
+        let bones = init.as_ref().map_or(&[][..], |i| &i.weights.bones[..]);
+        unfolding = unfold_registration(backend, &mut field, &det, labels, bones)?;
+        det = backend.jacobian(&field)?;
+    }
     let warped = backend.resample(source, &field, 0.0, Interpolation::Linear)?;
     progress.step(&format!("warp scale {scale}"));
     progress.end();

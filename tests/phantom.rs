@@ -122,21 +122,7 @@ fn bone_labels_follow_the_truth_with_dice_at_least_098() {
                 .collect()
         };
         let bone = bent.truth.bones.iter().find(|b| b.label == code).unwrap();
-        let inverse = bone.affine().try_inverse().unwrap();
-        let rigid: posereg::Field = Image {
-            grid: grid.clone(),
-            data: (0..grid.len())
-                .map(|n| {
-                    let w = grid.world_of(n);
-                    let q = inverse * nalgebra::Vector4::new(w[0], w[1], w[2], 1.0);
-                    [
-                        (q.x - w[0]) as f32,
-                        (q.y - w[1]) as f32,
-                        (q.z - w[2]) as f32,
-                    ]
-                })
-                .collect(),
-        };
+        let rigid = posereg::articulated::rigid_field(&bone.affine(), grid).unwrap();
         let (by_truth, by_motion) = (mapped_through(&bent.truth_field), mapped_through(&rigid));
         let missed = |mapped: &[bool]| {
             truth
