@@ -37,10 +37,16 @@ pub struct InitOptions {
     pub reference: u16,
     /// Pyramid levels.
     pub levels: usize,
-    /// Rigid registration runs on levels whose finest spacing is at least this (mm): finer
-    /// levels add time, not accuracy, at the sub-voxel precision the bones reach.
+    /// Rigid registration runs on levels whose finest spacing is at least this (mm). At 1 mm
+    /// the real knee's 0.625 mm scan was registered at 1.25 mm in-plane and 3 mm through-plane,
+    /// where the bone's boundary voxels blend in the tissue around it; at 0.5 mm it uses the
+    /// scan itself.
     pub finest_spacing_mm: f64,
-    /// The bone region is the label dilated by this much (mm), so the bone's edges count.
+    /// The bone region is the label dilated by this much (mm). The label alone (0) is the
+    /// default: a margin takes in tissue that does not move with the bone, and then the cost's
+    /// minimum is not the bone's motion (real knee bent 10°, patella with a 3 mm margin: mean
+    /// squared residual 183 600 at the true motion, 129 000 at the registered one, 0.74 mm
+    /// off; without the margin and at 0.5 mm, 0.14 mm off).
     pub dilation_mm: f64,
     /// Flexion angles searched (degrees): from, to, step.
     pub search_degrees: [f64; 3],
@@ -79,8 +85,8 @@ impl Default for InitOptions {
             bones: Vec::new(),
             reference: label::FEMUR,
             levels: 4,
-            finest_spacing_mm: 1.0,
-            dilation_mm: 3.0,
+            finest_spacing_mm: 0.5,
+            dilation_mm: 0.0,
             search_degrees: [-30.0, 150.0, 4.0],
             search_tilt_degrees: 15.0,
             blending: Blending::DualQuaternion,
