@@ -2,7 +2,8 @@
 //! folds soft tissue where a bone turns farther than its weights' falloff is wide (above the
 //! patella, behind the knee), and the pull-back of a folded blend has no consistent answer
 //! there. Two steps, both leaving bones rigid: broad local smoothing, then a targeted push on
-//! whatever smoothing could not undo (folds pinned by a bone).
+//! whatever smoothing could not undo (folds pinned by a bone). The push alone also serves a
+//! registration's total field ([`unfold_registration`]) and the phantom's truth field.
 
 use crate::backend::Backend;
 use crate::error::Result;
@@ -129,11 +130,10 @@ pub fn unfold_registration(
     bones: &[u16],
 ) -> Result<FoldRepair> {
     let folded_before = det.data.iter().filter(|&&d| d <= FOLD_THRESHOLD).count();
+    let rigid = maps_into_bone(field, labels, bones);
+    // The lookup keeps its own copy of the grid: the field is rewritten under it.
     let grid = field.grid.clone();
     let into_bone = BoneLookup::new(&grid, labels, bones);
-    let rigid: Vec<bool> = (0..grid.len())
-        .map(|n| into_bone.at(n, field.data[n]))
-        .collect();
     let (folded_after, unfold_steps) = unfold(backend, field, &rigid, &|n, u| into_bone.at(n, u))?;
     Ok(FoldRepair {
         folded_before,
