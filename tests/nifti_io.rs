@@ -6,8 +6,8 @@ mod common;
 use common::*;
 use posereg::io::field::{load_field, save_field};
 use posereg::io::nifti::{
-    header_affine, load_labels, load_volume, read_raw, save_labels, save_volume, write_image,
-    AffineSource, DataType,
+    load_labels, load_volume, read_header, read_raw, save_labels, save_volume, write_image,
+    AffineSource, DataType, HeaderInfo,
 };
 use posereg::volume::{Affine, Grid, Image};
 use std::path::{Path, PathBuf};
@@ -30,8 +30,11 @@ fn assert_affine_close(a: &Affine, b: &Affine, tol: f64) {
     assert!(gap <= tol, "affines differ by {gap}:\n{a}\n{b}");
 }
 
-fn header_of(path: &Path) -> nifti::NiftiHeader {
-    read_raw(path).unwrap().header
+/// `vol` written to `path` with `customise` applied to its header, and the header read back.
+fn written_with(path: &Path, vol: &posereg::Volume, customise: impl FnOnce(&mut nifti::NiftiHeader)) -> HeaderInfo {
+    let g = &vol.grid;
+    write_image(path, &g.dims, &g.affine, &vol.data, DataType::F32, customise).unwrap();
+    read_header(path).unwrap()
 }
 
 #[test]
@@ -58,23 +61,23 @@ fn reads_a_file_written_by_nibabel_with_an_oblique_affine() {
 fn reads_the_qform_when_there_is_no_sform() {
     let expected = expected_json();
     let path = data_dir().join("oblique_qform_only.nii.gz");
-    let (affine, source) = header_affine(&header_of(&path));
-    assert_eq!(source, AffineSource::Qform);
-    assert_affine_close(&affine, &json_affine(&expected["qform_only_affine"]), 1e-6);
+    let info = read_header(&path).unwrap();
+    assert_eq!(info.affine_source, AffineSource::Qform);
+    assert_affine_close(&info.affine, &json_affine(&expected["qform_only_affine"]), 1e-6);
 }
 
 #[test]
 fn falls_back_to_pixdim_without_either_form() {
-    let h = nifti::NiftiHeader {
-        sform_code: 0,
-        qform_code: 0,
-        pixdim: [1.0, 0.5, 0.7, 3.0, 1.0, 1.0, 1.0, 1.0],
-        ..Default::default()
-    };
-    let (affine, source) = header_affine(&h);
-    assert_eq!(source, AffineSource::Pixdim);
+    let dir = tempfile::tempdir().unwrap();
+    let vol = smooth_volume(&oblique_grid([3, 4, 5]), 4);
+    let info = written_with(&dir.path().join("pixdim.nii"), &vol, |h| {
+        h.sform_code = 0;
+        h.qform_code = 0;
+        h.pixdim = [1.0, 0.5, 0.7, 3.0, 1.0, 1.0, 1.0, 1.0];
+    });
+    assert_eq!(info.affine_source, AffineSource::Pixdim);
     assert_affine_close(
-        &affine,
+        &info.affine,
         &Affine::from_diagonal(&nalgebra::Vector4::new(0.5, 0.7, 3.0, 1.0)),
         1e-6, // pixdim is f32
     );
@@ -93,11 +96,9 @@ fn oblique_volume_round_trips_with_sform_exact_and_qform_consistent() {
         // The sform stores f32: exact to f32 rounding of each entry.
         assert_affine_close(&back.grid.affine, &grid.affine, 1e-5);
         // A rotation with zooms is represented exactly by the qform too.
-        let mut h = header_of(&path);
-        h.sform_code = 0;
-        let (q, source) = header_affine(&h);
-        assert_eq!(source, AffineSource::Qform);
-        assert_affine_close(&q, &grid.affine, 1e-5);
+        let q = written_with(&dir.path().join(format!("q{name}")), &vol, |h| h.sform_code = 0);
+        assert_eq!(q.affine_source, AffineSource::Qform);
+        assert_affine_close(&q.affine, &grid.affine, 1e-5);
     }
 }
 
@@ -110,11 +111,9 @@ fn reflected_affine_uses_qfac() {
     }
     let grid = Grid::new([3, 4, 5], a).unwrap();
     let path = dir.path().join("flip.nii.gz");
-    save_volume(&path, &smooth_volume(&grid, 1), DataType::F32).unwrap();
-    let mut h = header_of(&path);
-    assert_eq!(h.pixdim[0], -1.0);
-    h.sform_code = 0;
-    assert_affine_close(&header_affine(&h).0, &a, 1e-5);
+    let info = written_with(&path, &smooth_volume(&grid, 1), |h| h.sform_code = 0);
+    assert_eq!(info.header.pixdim[0], -1.0);
+    assert_affine_close(&info.affine, &a, 1e-5);
 }
 
 #[test]
@@ -124,11 +123,10 @@ fn sheared_affine_keeps_sform_exact_and_qform_nearest_rigid() {
     a[(0, 1)] = 0.3; // shear: no rotation+zooms reproduces it
     let grid = Grid::new([3, 3, 3], a).unwrap();
     let path = dir.path().join("shear.nii.gz");
-    save_volume(&path, &smooth_volume(&grid, 2), DataType::F32).unwrap();
+    let vol = smooth_volume(&grid, 2);
+    save_volume(&path, &vol, DataType::F32).unwrap();
     assert_affine_close(&load_volume(&path).unwrap().grid.affine, &a, 1e-6);
-    let mut h = header_of(&path);
-    h.sform_code = 0;
-    let q = header_affine(&h).0;
+    let q = written_with(&dir.path().join("shear_q.nii.gz"), &vol, |h| h.sform_code = 0).affine;
     let r = q.fixed_view::<3, 3>(0, 0);
     let zooms: Vec<f64> = (0..3).map(|c| r.column(c).norm()).collect();
     let rot = nalgebra::Matrix3::from_fn(|i, j| r[(i, j)] / zooms[j]);
@@ -198,7 +196,7 @@ fn field_round_trips_and_is_lps_on_disk() {
     save_field(&path, &field).unwrap();
     let raw = read_raw(&path).unwrap();
     assert_eq!(raw.info.dims, vec![4, 5, 6, 1, 3]);
-    assert_eq!(raw.info.intent_code, 1007);
+    assert_eq!(raw.info.header.intent_code, 1007);
     let n = grid.len();
     for i in [0, 7, n - 1] {
         assert_eq!(raw.data[i], -field.data[i][0], "x is negated (R -> L)");

@@ -37,16 +37,19 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         let value = serde_json::json!({
             "file": args.file,
             "dims": info.dims,
-            "datatype": info.datatype,
+            "datatype": info.header.datatype.name(),
+            "format": info.header.version,
+            "byte_order": if info.header.big_endian { "big-endian" } else { "little-endian" },
+            "vox_offset": info.header.vox_offset,
             "spacing": spacing,
-            "pixdim": info.pixdim,
+            "pixdim": &info.header.pixdim[1..4],
             "affine": affine,
             "affine_source": info.affine_source,
             "orientation": grid.orientation_code(),
             "range": [lo, hi],
             "non_finite_voxels": non_finite,
-            "scaling": [info.scaling.0, info.scaling.1],
-            "intent_code": info.intent_code,
+            "scaling": info.header.scaling.map(|(slope, inter)| [slope, inter]),
+            "intent_code": info.header.intent_code,
         });
         println!("{}", serde_json::to_string_pretty(&value)?);
         return Ok(());
@@ -54,7 +57,12 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     let dims: Vec<String> = info.dims.iter().map(|d| d.to_string()).collect();
     println!("file:        {}", args.file.display());
     println!("dims:        {}", dims.join(" x "));
-    println!("datatype:    {}", info.datatype);
+    println!(
+        "datatype:    {} ({:?}, {})",
+        info.header.datatype.name(),
+        info.header.version,
+        if info.header.big_endian { "big-endian" } else { "little-endian" }
+    );
     println!(
         "spacing:     {:.6} x {:.6} x {:.6} mm",
         spacing[0], spacing[1], spacing[2]

@@ -4,13 +4,15 @@
 //! (`DisplacementFieldTransform`), antsApplyTransforms and greedy apply such files directly.
 //! In memory posereg keeps fields in RAS mm; the conversion is a sign flip of x and y.
 
-use super::nifti::{read_raw, write_image, DataType};
+use super::nifti::{read_raw, write_image, DataType, RawImage};
 use crate::error::{Error, Result};
 use crate::volume::{Field, Grid, Image};
 use std::path::Path;
 
-/// NIFTI_INTENT_VECTOR.
-pub const INTENT_VECTOR: i16 = 1007;
+/// NIFTI_INTENT_VECTOR: what ITK, ANTs and posereg write.
+pub const INTENT_VECTOR: i32 = 1007;
+/// NIFTI_INTENT_DISPVECT: a displacement vector, as some tools write.
+pub const INTENT_DISPVECT: i32 = 1006;
 
 /// RAS ↔ LPS for a displacement vector (its own inverse).
 fn flip_ras_lps(v: [f32; 3]) -> [f32; 3] {
@@ -31,21 +33,29 @@ pub fn save_field(path: &Path, field: &Field) -> Result<()> {
     }
     let dims = [g.dims[0], g.dims[1], g.dims[2], 1, 3];
     write_image(path, &dims, &g.affine, &planar, DataType::F32, |h| {
-        h.intent_code = INTENT_VECTOR;
+        h.intent_code = INTENT_VECTOR as i16;
     })
 }
 
-/// Loads an ITK displacement field (dims x, y, z, 1, 3 or x, y, z, 3) into RAS vectors.
+/// Loads an ITK displacement field (dims x, y, z, 1, 3; vector intent) into RAS vectors.
 pub fn load_field(path: &Path) -> Result<Field> {
-    let raw = read_raw(path)?;
+    field_from_raw(path, read_raw(path)?)
+}
+
+/// A displacement field from its raw read: vector intent, dims (x, y, z, 1, 3), finite vectors.
+pub fn field_from_raw(path: &Path, raw: RawImage) -> Result<Field> {
+    let intent = raw.info.header.intent_code;
+    if intent != INTENT_VECTOR && intent != INTENT_DISPVECT {
+        return Err(Error::bad_file(
+            path,
+            format!(
+                "is not a displacement field: its intent code is {intent}, not 1007 \
+                 (NIFTI_INTENT_VECTOR, what ITK, ANTs and posereg write) or 1006 (DISPVECT)"
+            ),
+        ));
+    }
     let dims = &raw.info.dims;
-    let spatial_ok = dims.len() >= 4 && dims.last() == Some(&3);
-    let middle: usize = dims
-        .iter()
-        .skip(3)
-        .take(dims.len().saturating_sub(4))
-        .product();
-    if !spatial_ok || middle != 1 {
+    if dims.len() != 5 || dims[3] != 1 || dims[4] != 3 {
         return Err(Error::bad_file(
             path,
             format!("is not a 3-D displacement field: dims {dims:?}, expected [x, y, z, 1, 3]"),
@@ -54,10 +64,10 @@ pub fn load_field(path: &Path) -> Result<Field> {
     let grid = Grid::new([dims[0], dims[1], dims[2]], raw.info.affine)
         .map_err(|e| Error::bad_file(path, e.to_string()))?;
     let n = grid.len();
-    if raw.data.iter().any(|v| !v.is_finite()) {
+    if let Some(i) = raw.data.iter().position(|v| !v.is_finite()) {
         return Err(Error::bad_file(
             path,
-            "displacement field has NaN or Inf vectors",
+            format!("displacement field has NaN or Inf vectors, the first at voxel {}", i % n),
         ));
     }
     let data = (0..n)

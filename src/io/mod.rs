@@ -4,6 +4,7 @@
 pub mod config;
 pub mod field;
 pub mod nifti;
+pub mod memory;
 pub mod transform;
 
 use crate::error::{Error, Result};
