@@ -12,7 +12,7 @@
 
 use crate::abi::RbfGradParams;
 use crate::backend::Backend;
-use crate::check::{non_negative, positive};
+use crate::check::finite_non_negative;
 use crate::cpu::rbf_grad::warp_at;
 use crate::cpu::sample::trilinear;
 use crate::error::{Error, Result};
@@ -97,35 +97,57 @@ impl AdaptiveOptions {
     /// Rejects settings the stage cannot run with, naming the setting.
     pub fn check(&self) -> Result<()> {
         let bad = |what: &str| Err(Error::InvalidInput(format!("adaptive.{what}")));
-        if self.levels == 0 {
-            return bad("levels must be at least 1");
+        if !(1..=MAX_LEVELS).contains(&self.levels) {
+            return bad(&format!("levels must be 1 to {MAX_LEVELS}"));
         }
-        if self.cell_levels.is_empty() || self.cell_levels.contains(&0) {
-            return bad("cell_levels must be a non-empty list of positive cell counts");
+        if self.cell_levels.is_empty() || self.cell_levels.iter().any(|&c| c == 0 || c > MAX_CELLS) {
+            return bad(&format!(
+                "cell_levels must be a non-empty list of cell counts 1 to {MAX_CELLS}"
+            ));
         }
-        if self.min_cell_voxels == 0 {
-            return bad("min_cell_voxels must be at least 1");
+        if !(1..=64).contains(&self.min_cell_voxels) {
+            return bad("min_cell_voxels must be 1 to 64");
         }
-        if !positive(self.lattice_mm) {
-            return bad("lattice_mm must be positive");
+        if !(self.lattice_mm >= 1.0 && self.lattice_mm <= 100.0) {
+            return bad("lattice_mm must be 1 to 100 (mm)");
         }
-        if !non_negative(self.smoothing) || !non_negative(self.gain_scale_mm) {
-            return bad("smoothing and gain_scale_mm must be zero or positive");
+        if !finite_non_negative(self.smoothing) || !finite_non_negative(self.gain_scale_mm) {
+            return bad("smoothing and gain_scale_mm must be finite and zero or positive");
         }
         self.threshold.check("adaptive.threshold", self.levels)?;
         self.membrane.check("adaptive.membrane", self.levels)?;
         self.bending.check("adaptive.bending", self.levels)?;
         self.tolerance.check("adaptive.tolerance", self.levels)?;
-        let all_non_negative = |p: &PerLevel<f64>| p.values().iter().all(|&v| non_negative(v));
-        if ![&self.tolerance, &self.membrane, &self.bending]
-            .into_iter()
-            .all(all_non_negative)
-        {
-            return bad("tolerance, membrane and bending must be zero or positive at every level");
+        self.iterations.check("adaptive.iterations", self.levels)?;
+        // A cell is poorly fitted when its residual exceeds this multiple of the mean: below 1
+        // nearly every cell gets a point, and the dense RBF system grows without bound.
+        if !self.threshold.values().iter().all(|&t| t >= 1.0 && t.is_finite()) {
+            return bad("threshold must be a finite number of at least 1 at every level");
         }
-        self.iterations.check("adaptive.iterations", self.levels)
+        if !self.tolerance.values().iter().all(|&t| (0.0..1.0).contains(&t)) {
+            return bad("tolerance must be at least 0 and below 1 at every level");
+        }
+        let all_finite = |p: &PerLevel<f64>| p.values().iter().all(|&v| finite_non_negative(v));
+        if ![&self.membrane, &self.bending].into_iter().all(all_finite) {
+            return bad("membrane and bending must be finite and zero or positive at every level");
+        }
+        let iterations = self.iterations.values();
+        if iterations.iter().all(|&i| i == 0) || iterations.iter().any(|&i| i > MAX_ITERATIONS) {
+            return bad(&format!(
+                "iterations must be at most {MAX_ITERATIONS} and above 0 at one level at least \
+                 (0 everywhere would leave the warp untouched)"
+            ));
+        }
+        Ok(())
     }
 }
+
+/// Most pyramid levels a setting may ask for.
+pub const MAX_LEVELS: usize = 8;
+/// Most cells per axis at a refinement (64³ cells).
+const MAX_CELLS: usize = 64;
+/// Most L-BFGS iterations per refinement.
+const MAX_ITERATIONS: usize = 10_000;
 
 /// One control point.
 #[derive(Clone, Debug, serde::Serialize)]

@@ -3,7 +3,8 @@
 
 use crate::abi::Interpolation;
 use crate::backend::Backend;
-use crate::check::{non_negative, positive};
+use crate::adaptive::MAX_LEVELS;
+use crate::check::within;
 use crate::error::{Error, Result};
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::joint::{flexion_axis, rotation_about, rotation_degrees, JointAxis};
@@ -62,18 +63,22 @@ impl InitOptions {
     /// Rejects settings the stage cannot run with, naming the setting.
     pub fn check(&self) -> Result<()> {
         let bad = |what: &str| Err(Error::InvalidInput(format!("init.{what}")));
-        if self.levels == 0 {
-            return bad("levels must be at least 1");
+        if !(1..=MAX_LEVELS).contains(&self.levels) {
+            return bad(&format!("levels must be 1 to {MAX_LEVELS}"));
         }
-        if !positive(self.finest_spacing_mm) || !non_negative(self.dilation_mm) {
-            return bad("finest_spacing_mm must be positive and dilation_mm zero or positive");
+        if !within(self.finest_spacing_mm, 0.01, 100.0) || !within(self.dilation_mm, 0.0, 50.0) {
+            return bad("finest_spacing_mm must be 0.01 to 100 and dilation_mm 0 to 50 (mm)");
         }
         let [from, to, step] = self.search_degrees;
-        if !positive(step) || !non_negative(to - from) || (to - from) / step > 1000.0 {
-            return bad("search_degrees must be from, to, step with to >= from, step > 0 and at most 1000 steps");
+        let in_turn = |a: f64| within(a, -360.0, 360.0);
+        if !(in_turn(from) && in_turn(to) && to >= from && step > 0.0 && (to - from) / step <= 1000.0) {
+            return bad("search_degrees must be from, to, step in degrees (-360 to 360) with to >= from, step > 0 and at most 1000 steps");
         }
-        if !non_negative(self.search_tilt_degrees) {
-            return bad("search_tilt_degrees must be zero or positive");
+        if !within(self.search_tilt_degrees, 0.0, 90.0) {
+            return bad("search_tilt_degrees must be 0 to 90");
+        }
+        if self.bones.contains(&0) || self.bones.contains(&1) {
+            return bad("bones must list bone label codes; 0 is outside the body and 1 soft tissue");
         }
         Ok(())
     }

@@ -1,12 +1,12 @@
 //! Tests the settings checks share, written so that NaN fails them (every comparison with NaN
 //! is false).
 
-/// v > 0, false for NaN.
-pub fn positive(v: f64) -> bool {
-    v > 0.0
+/// 0 ≤ v < ∞, false for NaN.
+pub fn finite_non_negative(v: f64) -> bool {
+    v.is_finite() && v >= 0.0
 }
 
-/// v ≥ 0, false for NaN.
-pub fn non_negative(v: f64) -> bool {
-    v >= 0.0
+/// lo ≤ v ≤ hi, false for NaN.
+pub fn within(v: f64, lo: f64, hi: f64) -> bool {
+    v >= lo && v <= hi
 }

@@ -38,6 +38,24 @@ impl Default for RegisterOptions {
     }
 }
 
+impl RegisterOptions {
+    /// Rejects settings the registration cannot run with, naming the setting.
+    pub fn check(&self) -> Result<()> {
+        self.init.check()?;
+        self.adaptive.check()?;
+        // Each pin is a control point of the dense RBF system: thousands would stall it.
+        if self.pins_per_bone > MAX_PINS_PER_BONE {
+            return Err(crate::Error::InvalidInput(format!(
+                "pins_per_bone must be 0 to {MAX_PINS_PER_BONE}"
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Most pins a bone may get (`pins_per_bone`).
+const MAX_PINS_PER_BONE: usize = 64;
+
 /// What a registration produces.
 pub struct Registration {
     /// The articulated initialisation, when run.
@@ -149,7 +167,7 @@ pub fn register(
     progress: &dyn Progress,
 ) -> Result<Registration> {
     let clock = std::time::Instant::now();
-    options.adaptive.check()?;
+    options.check()?;
     let (init, initial, moving) = match options.initialise.then_some(&options.init) {
         Some(init_options) => {
             let init = initialise(

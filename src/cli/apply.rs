@@ -8,6 +8,7 @@ use super::fields::{check_on_field_grid, interpolation, registration_field};
 use clap::Args;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::nifti::{load_volume, save_volume, DataType};
+use posereg::io::{check_output_file, NIFTI_NAMES};
 use std::path::PathBuf;
 
 /// Arguments of `posereg apply`.
@@ -30,6 +31,7 @@ pub struct ApplyArgs {
 
 /// Applies the registration's field to the image.
 pub fn run(args: &ApplyArgs, device: DeviceChoice) -> anyhow::Result<()> {
+    check_output_file(&args.output, NIFTI_NAMES)?;
     let (field_path, field) = registration_field(&args.transform)?;
     check_on_field_grid(&args.like, &field, &field_path)?;
     let image = load_volume(&args.image)?;

@@ -38,6 +38,7 @@ pub struct BendArgs {
 /// Bends and writes target.nii.gz, target_labels.nii.gz, truth_field.nii.gz, truth.json and
 /// picture.png (three planes through the knee).
 pub fn run(args: &BendArgs, device: DeviceChoice) -> anyhow::Result<()> {
+    posereg::io::prepare_output_folder(&args.output)?;
     let source = load_volume(&args.source)?;
     let labels = load_labels(&args.labels)?;
     if !labels.grid.same_as(&source.grid, 1e-3) {
@@ -70,7 +71,6 @@ pub fn run(args: &BendArgs, device: DeviceChoice) -> anyhow::Result<()> {
         axis,
         args.blending,
     )?;
-    std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
     let out = |name: &str| args.output.join(name);
     let target = backend.resample(&source, &bent.field, 0.0, Interpolation::Linear)?;
     let label_values: posereg::Volume = posereg::Image {

@@ -16,7 +16,6 @@ use posereg::metric::correlation;
 use posereg::phantom::anatomy::label;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
 use posereg::register::{register, RegisterOptions};
-use posereg::Error;
 use std::path::PathBuf;
 
 /// Arguments of `posereg demo`.
@@ -46,6 +45,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         None => RegisterOptions::default(),
     };
     options.initialise &= !args.no_init;
+    posereg::io::prepare_output_folder(&args.output)?;
     let (backend, line) = open_backend(device)?;
     reporter.say(&line);
     let spec = |flexion_degrees, seed| PhantomSpec {
@@ -72,7 +72,6 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     )?;
     let seconds = started.elapsed().as_secs_f64();
 
-    std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
     let out = |name: &str| args.output.join(name);
     save_volume(&out("source.nii.gz"), &source.image, DataType::F32)?;
     save_labels(&out("source_labels.nii.gz"), &source.labels)?;

@@ -8,13 +8,14 @@ use posereg::articulated::{bone_name, initialise, rigid_field, InitOptions};
 use posereg::backend::resample_onto;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::save_field;
-use posereg::io::nifti::{load_labels, load_volume, save_volume, DataType};
+use posereg::inputs::{check_bones, load_pair, Pair, PairPaths};
+use posereg::io::nifti::{save_volume, DataType};
+use posereg::io::prepare_output_folder;
 use posereg::io::transform::BoneTransforms;
 use posereg::joint::rotation_degrees;
 use posereg::metric::correlation;
 use posereg::vsd::Blending;
-use posereg::Error;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Arguments of `posereg init`.
 #[derive(Args, Debug)]
@@ -54,56 +55,35 @@ pub struct PairArgs {
     pub output: PathBuf,
 }
 
-/// Loads the three inputs, checking they fit together; errors name the file at fault.
-pub fn load_inputs(
-    source: &Path,
-    labels: &Path,
-    target: &Path,
-) -> anyhow::Result<(posereg::Volume, posereg::Labels, posereg::Volume)> {
-    let s = load_volume(source)?;
-    let l = load_labels(labels)?;
-    let t = load_volume(target)?;
-    if !l.grid.same_as(&s.grid, 1e-3) {
-        return Err(Error::bad_file(
-            labels,
-            format!(
-                "label map grid {:?} differs from the source's ({:?}, {})",
-                l.grid.dims,
-                s.grid.dims,
-                source.display()
-            ),
-        )
-        .into());
+impl PairArgs {
+    /// Where the three inputs are.
+    pub fn paths(&self) -> PairPaths<'_> {
+        PairPaths {
+            source: &self.source,
+            labels: &self.source_labels,
+            target: &self.target,
+        }
     }
-    let overlap = t.grid.share_inside(&s.grid);
-    if overlap < 0.01 {
-        return Err(Error::bad_file(
-            target,
-            format!(
-                "its field of view does not overlap the source's ({}; {:.1}% of it inside): the scans must share a world frame",
-                source.display(),
-                100.0 * overlap
-            ),
-        )
-        .into());
+
+    /// Prepares the output folder, then loads and checks the inputs, printing their warnings.
+    pub fn load(&self, reporter: &Reporter) -> anyhow::Result<Pair> {
+        prepare_output_folder(&self.output)?;
+        let pair = load_pair(self.paths())?;
+        for warning in &pair.warnings {
+            reporter.warn(warning);
+        }
+        Ok(pair)
     }
-    if posereg::articulated::present_bones(&l).is_empty() {
-        return Err(Error::bad_file(
-            labels,
-            "has no bone labels (2 femur, 3 tibia, 4 patella, 5 fibula)",
-        )
-        .into());
-    }
-    Ok((s, l, t))
 }
 
 /// Runs the initialisation and writes init.json, init_field.nii.gz, initialised.nii.gz.
 pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
-    let (source, labels, target) = load_inputs(
-        &args.pair.source,
-        &args.pair.source_labels,
-        &args.pair.target,
-    )?;
+    let Pair {
+        source,
+        labels,
+        target,
+        ..
+    } = args.pair.load(reporter)?;
     let given = args
         .init
         .as_ref()
@@ -118,6 +98,8 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         blending: args.blending.unwrap_or(defaults.blending),
         ..defaults
     };
+    options.check()?;
+    check_bones(&options, &labels, args.pair.paths())?;
     let started = std::time::Instant::now();
     let init = initialise(
         backend.as_ref(),
@@ -129,7 +111,6 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         reporter,
     )?;
     let seconds = started.elapsed().as_secs_f64();
-    std::fs::create_dir_all(&args.pair.output).map_err(|e| Error::io(&args.pair.output, e))?;
     let mut transforms = init.transforms();
     transforms.extra.insert(
         "skinning".into(),

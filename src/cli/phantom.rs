@@ -41,8 +41,8 @@ pub fn run(args: &PhantomArgs) -> anyhow::Result<()> {
         noise: args.noise,
         seed: args.seed,
     };
+    posereg::io::prepare_output_folder(&args.output)?;
     let phantom = generate(&spec)?;
-    std::fs::create_dir_all(&args.output).map_err(|e| posereg::Error::io(&args.output, e))?;
     let out = |name: &str| args.output.join(name);
     save_volume(&out("image.nii.gz"), &phantom.image, DataType::F32)?;
     save_labels(&out("labels.nii.gz"), &phantom.labels)?;

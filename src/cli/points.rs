@@ -37,6 +37,7 @@ pub struct PointsArgs {
 
 /// Reads, maps, writes.
 pub fn run(args: &PointsArgs) -> anyhow::Result<()> {
+    posereg::io::check_output_file(&args.output, &[])?;
     let (_, field) = registration_field(&args.transform)?;
     let text = std::fs::read_to_string(&args.points).map_err(|e| Error::io(&args.points, e))?;
     let mut lines = text.lines().filter(|l| !l.trim().is_empty());

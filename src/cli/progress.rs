@@ -52,6 +52,11 @@ impl Reporter {
         }
     }
 
+    /// Prints a warning, even when quiet: something the user must know about the result.
+    pub fn warn(&self, line: &str) {
+        eprintln!("posereg: warning: {line}");
+    }
+
     fn with_stage(&self, f: impl FnOnce(&mut Option<Stage>)) {
         // A poisoned lock only means another thread panicked while drawing; keep drawing.
         let mut stage = self.stage.lock().unwrap_or_else(|e| e.into_inner());

@@ -2,7 +2,7 @@
 //! pipeline, writing warped.nii.gz, field.nii.gz, transform.json, jacobian.nii.gz,
 //! report.json and quicklook.png.
 
-use super::init::{load_inputs, PairArgs};
+use super::init::PairArgs;
 use super::progress::Reporter;
 use clap::Args;
 use posereg::backend::resample_onto;
@@ -12,7 +12,9 @@ use posereg::io::field::save_field;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::levels::PerLevel;
 use posereg::metric::correlation;
+use posereg::inputs::{check_settings, Pair};
 use posereg::register::{register, RegisterOptions};
+use posereg::result_checks::{result_checks, Check, Correlations};
 use posereg::vsd::Blending;
 use posereg::Error;
 use std::path::PathBuf;
@@ -47,6 +49,10 @@ pub struct RegisterArgs {
     /// point, per level coarse to fine, e.g. 8x8x12.
     #[arg(long)]
     pub threshold: Option<PerLevel<f64>>,
+    /// Exit non-zero when a result check fails (the field folds, the correlation falls, a
+    /// bone's motion lies outside its search); the outputs are still written.
+    #[arg(long)]
+    pub strict: bool,
 }
 
 /// The settings a config file may hold, with their defaults, for --help.
@@ -82,8 +88,7 @@ impl RegisterArgs {
         if let Some(threshold) = &self.threshold {
             options.adaptive.threshold = threshold.clone();
         }
-        options.init.check()?;
-        options.adaptive.check()?;
+        options.check()?;
         Ok(options)
     }
 }
@@ -91,11 +96,14 @@ impl RegisterArgs {
 /// Runs the registration and writes its outputs.
 pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.options()?;
-    let (source, labels, target) = load_inputs(
-        &args.pair.source,
-        &args.pair.source_labels,
-        &args.pair.target,
-    )?;
+    let pair = args.pair.load(reporter)?;
+    check_settings(&options, &pair, args.pair.paths())?;
+    let Pair {
+        source,
+        labels,
+        target,
+        warnings,
+    } = pair;
     let (backend, line) = open_backend(device)?;
     reporter.say(&line);
     let started = std::time::Instant::now();
@@ -108,7 +116,6 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
         reporter,
     )?;
     let seconds = started.elapsed().as_secs_f64();
-    std::fs::create_dir_all(&args.pair.output).map_err(|e| Error::io(&args.pair.output, e))?;
     let out = |name: &str| args.pair.output.join(name);
     save_volume(&out("warped.nii.gz"), &result.warped, DataType::F32)?;
     save_field(&out("field.nii.gz"), &result.field)?;
@@ -118,6 +125,11 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
     transform.save(&out("transform.json"))?;
     let before = resample_onto(backend.as_ref(), &source, &target.grid)?;
     let body = |n: usize| target.data[n] > 0.0;
+    let correlations = Correlations {
+        before: correlation(&before.data, &target.data, body),
+        after: correlation(&result.warped.data, &target.data, body),
+    };
+    let checks = result_checks(&result, correlations, &options);
     let report = serde_json::json!({
         "posereg": env!("CARGO_PKG_VERSION"),
         "device": backend.describe(),
@@ -130,8 +142,10 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
         })),
         "adaptive_stages": result.adaptive.stages,
         "control_points": result.adaptive.points.len(),
-        "correlation": { "before": correlation(&before.data, &target.data, body), "after": correlation(&result.warped.data, &target.data, body) },
+        "correlation": { "before": correlations.before, "after": correlations.after },
         "jacobian": { "min": result.min_jacobian, "folded_share": result.folded_share, "unfolding": result.unfolding },
+        "checks": checks,
+        "warnings": warnings,
     });
     let centre = match &result.init {
         Some(init) => [init.axis.point.x, init.axis.point.y, init.axis.point.z],
@@ -153,11 +167,24 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
     })?;
     println!(
         "registered in {seconds:.1} s: correlation {:.3} -> {:.3}, {} control points, Jacobian min {:.3}; outputs in {}",
-        report["correlation"]["before"].as_f64().unwrap_or(f64::NAN),
-        report["correlation"]["after"].as_f64().unwrap_or(f64::NAN),
+        correlations.before,
+        correlations.after,
         result.adaptive.points.len(),
         result.min_jacobian,
         args.pair.output.display()
     );
+    let failed: Vec<&Check> = checks.iter().filter(|c| !c.passed).collect();
+    for check in &failed {
+        reporter.warn(&format!("check {} failed: {}", check.name, check.detail));
+    }
+    if args.strict && !failed.is_empty() {
+        let names: Vec<&str> = failed.iter().map(|c| c.name).collect();
+        anyhow::bail!(
+            "--strict: {} result check(s) failed ({}); the outputs are in {} for inspection",
+            failed.len(),
+            names.join(", "),
+            args.pair.output.display()
+        );
+    }
     Ok(())
 }

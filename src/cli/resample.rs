@@ -5,6 +5,7 @@ use clap::Args;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::load_field;
 use posereg::io::nifti::{load_volume, save_volume, DataType};
+use posereg::io::{check_output_file, NIFTI_NAMES};
 use std::path::PathBuf;
 
 /// Arguments of `posereg resample`.
@@ -34,6 +35,7 @@ pub struct ResampleArgs {
 
 /// Applies the field and writes the resampled image.
 pub fn run(args: &ResampleArgs, device: DeviceChoice) -> anyhow::Result<()> {
+    check_output_file(&args.output, NIFTI_NAMES)?;
     let source = load_volume(&args.source)?;
     let field = load_field(&args.field)?;
     check_on_field_grid(&args.like, &field, &args.field)?;

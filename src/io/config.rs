@@ -8,16 +8,27 @@ use std::path::Path;
 
 /// Reads a settings file over the defaults.
 pub fn load_options(path: &Path) -> Result<RegisterOptions> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let text = String::from_utf8(bytes)
+        .map_err(|_| Error::bad_file(path, "is not UTF-8 text: a settings file is TOML or JSON"))?;
+    parse_options(path, &text)
+}
+
+/// Settings from the text of the file `path` (whose extension says TOML or JSON), checked.
+pub fn parse_options(path: &Path, text: &str) -> Result<RegisterOptions> {
     let extension = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase());
     let parsed = match extension.as_deref() {
-        Some("toml") => toml::from_str(&text).map_err(|e| e.message().to_string()),
-        Some("json") => serde_json::from_str(&text).map_err(|e| e.to_string()),
+        Some("toml") => toml::from_str(text).map_err(|e| e.message().to_string()),
+        Some("json") => serde_json::from_str(text).map_err(|e| e.to_string()),
         _ => Err("a settings file must end in .toml or .json".to_string()),
     };
-    parsed.map_err(|problem| Error::bad_file(path, problem))
+    let options: RegisterOptions = parsed.map_err(|problem| Error::bad_file(path, problem))?;
+    options
+        .check()
+        .map_err(|problem| Error::bad_file(path, problem.to_string()))?;
+    Ok(options)
 }
 
 /// The settings as TOML, in the form [`load_options`] reads back.

@@ -38,3 +38,56 @@ where
     }
     result
 }
+
+/// Creates the output folder `dir` (and its parents) and proves it writable by creating and
+/// removing a file in it, so an unusable folder is refused before any computation.
+pub fn prepare_output_folder(dir: &Path) -> Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::bad_file(dir, "is a file, not a folder: the outputs need a folder"));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    probe_writable(dir, dir)
+}
+
+/// Checks before any computation that `path` can be written: not a folder, its folder exists
+/// and is writable. `extensions`, when not empty, are the names it may end in.
+pub fn check_output_file(path: &Path, extensions: &[&str]) -> Result<()> {
+    check_output_name(path, extensions)?;
+    if path.is_dir() {
+        return Err(Error::bad_file(path, "is a folder; the output needs a file name"));
+    }
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !dir.is_dir() {
+        return Err(Error::bad_file(path, "output folder does not exist"));
+    }
+    probe_writable(&dir, path)
+}
+
+/// Names a NIfTI output may end in.
+pub const NIFTI_NAMES: &[&str] = &[".nii", ".nii.gz"];
+
+/// Refuses an output name that does not end in one of `extensions` (any name when empty).
+pub fn check_output_name(path: &Path, extensions: &[&str]) -> Result<()> {
+    let name = path.to_string_lossy().to_ascii_lowercase();
+    if !extensions.is_empty() && !extensions.iter().any(|e| name.ends_with(e)) {
+        return Err(Error::bad_file(
+            path,
+            format!("output name must end in {}", extensions.join(" or ")),
+        ));
+    }
+    Ok(())
+}
+
+/// Creates and removes a file in `dir`; errors name `blame`.
+fn probe_writable(dir: &Path, blame: &Path) -> Result<()> {
+    let probe = dir.join(format!(".posereg-probe-{}", std::process::id()));
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+        .map_err(|e| Error::bad_file(blame, format!("cannot be written ({e})")))?;
+    std::fs::remove_file(&probe).map_err(|e| Error::io(&probe, e))
+}

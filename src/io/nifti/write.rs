@@ -3,6 +3,7 @@
 //! (scanner), so every reader lands on the same world frame.
 
 use crate::error::{Error, Result};
+use crate::io::{check_output_name, NIFTI_NAMES};
 use crate::volume::{Affine, Labels, Volume};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 use ndarray::{ArrayD, IxDyn, ShapeBuilder};
@@ -98,13 +99,7 @@ pub fn write_image(
     dtype: DataType,
     customise: impl FnOnce(&mut NiftiHeader),
 ) -> Result<()> {
-    let name = path.to_string_lossy();
-    if !(name.ends_with(".nii") || name.ends_with(".nii.gz")) {
-        return Err(Error::bad_file(
-            path,
-            "output name must end in .nii or .nii.gz",
-        ));
-    }
+    check_output_name(path, NIFTI_NAMES)?;
     let shape = IxDyn(dims).f();
     let nifti_type = match dtype {
         DataType::U8 => NiftiType::Uint8,

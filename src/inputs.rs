@@ -1,0 +1,215 @@
+//! A registration's inputs, loaded and checked so that every problem is found before any work
+//! starts and is named with its file: headers first (3-D grids, the labels on the source's
+//! grid, the scans overlapping, memory), then the voxels, then their content (an image with
+//! nothing to register, no bones, bones too small, label codes that are not bones), then the
+//! settings against the inputs (the bones and the reference they name exist, the target holds
+//! the pyramid levels asked for).
+
+use crate::articulated::{bone_name, present_bones, InitOptions};
+use crate::error::{Error, Result};
+use crate::io::memory;
+use crate::io::nifti::{labels_from_raw, read_header, read_raw, spatial_grid, volume_from_raw};
+use crate::pyramid::next_level_grid;
+use crate::register::RegisterOptions;
+use crate::volume::{Grid, Labels, Volume};
+use std::path::Path;
+
+/// Bytes a registration holds per target voxel at its peak: `posereg demo` (half phantom,
+/// 68×128×128, CPU backend) peaked at 188 MB resident over 1.1 M voxels, 170 bytes a voxel;
+/// more than doubled for a source larger than the target. Checked against the memory budget
+/// before reading any voxel.
+const BYTES_PER_TARGET_VOXEL: u64 = 400;
+/// A bone with fewer voxels than this gives its rigid registration nothing to hold on to.
+const MIN_BONE_VOXELS: usize = 64;
+/// Label codes that are not bones but are expected: 0 outside, 1 soft tissue (phantom).
+const NON_BONE_CODES: [u16; 2] = [0, 1];
+
+/// Where the three inputs are.
+#[derive(Clone, Copy, Debug)]
+pub struct PairPaths<'a> {
+    /// The straight scan.
+    pub source: &'a Path,
+    /// Its bone labels.
+    pub labels: &'a Path,
+    /// The bent scan.
+    pub target: &'a Path,
+}
+
+/// The inputs, read and checked.
+pub struct Pair {
+    /// The straight scan.
+    pub source: Volume,
+    /// Its bone labels.
+    pub labels: Labels,
+    /// The bent scan.
+    pub target: Volume,
+    /// What the user should know but that does not stop the registration.
+    pub warnings: Vec<String>,
+}
+
+/// Reads the three inputs after checking their headers against each other.
+pub fn load_pair(paths: PairPaths) -> Result<Pair> {
+    let grid_of = |path: &Path, what: &str| spatial_grid(path, &read_header(path)?, what);
+    let source_grid = grid_of(paths.source, "an intensity image")?;
+    let label_grid = grid_of(paths.labels, "a label map")?;
+    let target_grid = grid_of(paths.target, "an intensity image")?;
+    if !label_grid.same_as(&source_grid, 1e-3) {
+        return Err(Error::bad_file(
+            paths.labels,
+            format!(
+                "label map grid {:?} differs from the source's ({:?}, {})",
+                label_grid.dims,
+                source_grid.dims,
+                paths.source.display()
+            ),
+        ));
+    }
+    check_overlap(&target_grid, &source_grid, paths)?;
+    let needed = target_grid.len() as u64 * BYTES_PER_TARGET_VOXEL;
+    memory::check(needed).map_err(|p| {
+        Error::bad_file(paths.target, format!("registering onto its {:?} voxels {p}", target_grid.dims))
+    })?;
+    let source = volume_from_raw(paths.source, read_raw(paths.source)?)?;
+    let labels = labels_from_raw(paths.labels, read_raw(paths.labels)?)?;
+    let target = volume_from_raw(paths.target, read_raw(paths.target)?)?;
+    check_not_constant(&source, paths.source)?;
+    check_not_constant(&target, paths.target)?;
+    let warnings = check_labels(&labels, paths.labels)?;
+    Ok(Pair {
+        source,
+        labels,
+        target,
+        warnings,
+    })
+}
+
+fn check_overlap(target: &Grid, source: &Grid, paths: PairPaths) -> Result<()> {
+    let overlap = target.share_inside(source);
+    if overlap < 0.01 {
+        return Err(Error::bad_file(
+            paths.target,
+            format!(
+                "its field of view does not overlap the source's ({}; {:.1}% of it inside): the \
+                 scans must share a world frame",
+                paths.source.display(),
+                100.0 * overlap
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// An image whose voxels are all one value holds nothing to register against.
+fn check_not_constant(volume: &Volume, path: &Path) -> Result<()> {
+    let first = volume.data[0];
+    if volume.data.iter().all(|&v| v == first) {
+        return Err(Error::bad_file(
+            path,
+            format!("every voxel is {first}: an image with no contrast cannot be registered"),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses a label map without bones; returns a warning for codes that are not bones.
+fn check_labels(labels: &Labels, path: &Path) -> Result<Vec<String>> {
+    if present_bones(labels).is_empty() {
+        return Err(Error::bad_file(
+            path,
+            "has no bone labels (2 femur, 3 tibia, 4 patella, 5 fibula)",
+        ));
+    }
+    let mut others: Vec<u16> = labels
+        .data
+        .iter()
+        .copied()
+        .filter(|c| !NON_BONE_CODES.contains(c) && bone_name(*c).starts_with("bone"))
+        .collect();
+    others.sort_unstable();
+    others.dedup();
+    if others.is_empty() {
+        return Ok(Vec::new());
+    }
+    let codes: Vec<String> = others.iter().map(|c| c.to_string()).collect();
+    Ok(vec![format!(
+        "{}: label codes {} are not bones (2 femur, 3 tibia, 4 patella, 5 fibula) and are ignored",
+        path.display(),
+        codes.join(", ")
+    )])
+}
+
+/// Checks the settings against the inputs: with the initialisation, every bone it registers
+/// exists and is large enough and the reference bone is one of them; the target holds the
+/// pyramid levels asked for.
+pub fn check_settings(options: &RegisterOptions, pair: &Pair, paths: PairPaths) -> Result<()> {
+    if options.initialise {
+        check_bones(&options.init, &pair.labels, paths)?;
+    }
+    check_levels(&pair.target.grid, options.adaptive.levels, paths.target)
+}
+
+/// Every bone the initialisation registers has enough voxels, and the reference is one of them.
+pub fn check_bones(init: &InitOptions, labels: &Labels, paths: PairPaths) -> Result<()> {
+    let present = present_bones(labels);
+    let listed = |codes: &[u16]| codes.iter().map(|c| c.to_string()).collect::<Vec<_>>().join(", ");
+    let chosen = match init.bones.is_empty() {
+        true => present.clone(),
+        false => init.bones.clone(),
+    };
+    for &bone in &chosen {
+        let count = labels.data.iter().filter(|&&l| l == bone).count();
+        if count == 0 {
+            return Err(Error::bad_file(
+                paths.labels,
+                format!(
+                    "has no voxels of bone {bone} named by --bones / init.bones (bones present: {})",
+                    listed(&present)
+                ),
+            ));
+        }
+        if count < MIN_BONE_VOXELS {
+            return Err(Error::bad_file(
+                paths.labels,
+                format!(
+                    "{} (label {bone}) has {count} voxels, too few to register (at least \
+                     {MIN_BONE_VOXELS}); leave it out with --bones",
+                    bone_name(bone)
+                ),
+            ));
+        }
+    }
+    if !chosen.contains(&init.reference) {
+        return Err(Error::InvalidInput(format!(
+            "--reference / init.reference is {} but the bones registered are {} (from {})",
+            init.reference,
+            listed(&chosen),
+            paths.labels.display()
+        )));
+    }
+    Ok(())
+}
+
+/// The target must give the pyramid levels asked for (an axis is halved only while it keeps
+/// enough voxels, crate::pyramid).
+pub fn check_levels(target: &Grid, levels: usize, path: &Path) -> Result<()> {
+    let mut available = 1;
+    let mut grid = target.clone();
+    while available < levels {
+        let Some((coarser, _)) = next_level_grid(&grid) else {
+            break;
+        };
+        grid = coarser;
+        available += 1;
+    }
+    if available < levels {
+        return Err(Error::bad_file(
+            path,
+            format!(
+                "its {:?} voxels give {available} pyramid level(s), but adaptive.levels asks for \
+                 {levels}: use a larger image or fewer levels",
+                target.dims
+            ),
+        ));
+    }
+    Ok(())
+}
