@@ -105,6 +105,13 @@ impl Grid {
             .expect("validated grids have invertible affines")
     }
 
+    /// True when world point `p` lies inside the field of view: within half a voxel of the
+    /// outermost voxel centres.
+    pub fn contains(&self, p: &nalgebra::Vector3<f64>) -> bool {
+        let q = self.world_to_voxel_affine() * p.push(1.0);
+        (0..3).all(|a| q[a] > -0.5 && q[a] < self.dims[a] as f64 - 0.5)
+    }
+
     /// Share of this grid's voxel centres (sampled every few voxels) that lie inside `other`'s
     /// field of view: 0 when the two scans do not overlap in the world.
     pub fn share_inside(&self, other: &Grid) -> f64 {

@@ -38,7 +38,7 @@ pub struct BendArgs {
 /// Bends and writes target.nii.gz, target_labels.nii.gz, truth_field.nii.gz, truth.json and
 /// picture.png (three planes through the knee).
 pub fn run(args: &BendArgs, device: DeviceChoice) -> anyhow::Result<()> {
-    posereg::io::prepare_output_folder(&args.output)?;
+    let _folder = posereg::io::prepare_output_folder(&args.output)?;
     let source = load_volume(&args.source)?;
     let labels = load_labels(&args.labels)?;
     if !labels.grid.same_as(&source.grid, 1e-3) {

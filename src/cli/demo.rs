@@ -45,7 +45,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         None => RegisterOptions::default(),
     };
     options.initialise &= !args.no_init;
-    posereg::io::prepare_output_folder(&args.output)?;
+    let _folder = posereg::io::prepare_output_folder(&args.output)?;
     let (backend, line) = open_backend(device)?;
     reporter.say(&line);
     let spec = |flexion_degrees, seed| PhantomSpec {

@@ -10,7 +10,7 @@ use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::save_field;
 use posereg::inputs::{check_bones, load_pair, Pair, PairPaths};
 use posereg::io::nifti::{save_volume, DataType};
-use posereg::io::prepare_output_folder;
+use posereg::io::{prepare_output_folder, OutputFolder};
 use posereg::io::transform::BoneTransforms;
 use posereg::joint::rotation_degrees;
 use posereg::metric::correlation;
@@ -66,24 +66,25 @@ impl PairArgs {
     }
 
     /// Prepares the output folder, then loads and checks the inputs, printing their warnings.
-    pub fn load(&self, reporter: &Reporter) -> anyhow::Result<Pair> {
-        prepare_output_folder(&self.output)?;
+    pub fn load(&self, reporter: &Reporter) -> anyhow::Result<(OutputFolder, Pair)> {
+        let folder = prepare_output_folder(&self.output)?;
         let pair = load_pair(self.paths())?;
         for warning in &pair.warnings {
             reporter.warn(warning);
         }
-        Ok(pair)
+        Ok((folder, pair))
     }
 }
 
 /// Runs the initialisation and writes init.json, init_field.nii.gz, initialised.nii.gz.
 pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
+    let (_folder, pair) = args.pair.load(reporter)?;
     let Pair {
         source,
         labels,
         target,
         ..
-    } = args.pair.load(reporter)?;
+    } = pair;
     let given = args
         .init
         .as_ref()

@@ -41,7 +41,7 @@ pub fn run(args: &PhantomArgs) -> anyhow::Result<()> {
         noise: args.noise,
         seed: args.seed,
     };
-    posereg::io::prepare_output_folder(&args.output)?;
+    let _folder = posereg::io::prepare_output_folder(&args.output)?;
     let phantom = generate(&spec)?;
     let out = |name: &str| args.output.join(name);
     save_volume(&out("image.nii.gz"), &phantom.image, DataType::F32)?;

@@ -8,8 +8,10 @@
 use super::fields::registration_field;
 use clap::{Args, ValueEnum};
 use posereg::points::{source_to_target, target_to_source};
+use nalgebra::Vector3;
+use posereg::io::points::load_points;
 use posereg::Error;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Which way points travel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -38,52 +40,28 @@ pub struct PointsArgs {
 /// Reads, maps, writes.
 pub fn run(args: &PointsArgs) -> anyhow::Result<()> {
     posereg::io::check_output_file(&args.output, &[])?;
-    let (_, field) = registration_field(&args.transform)?;
-    let text = std::fs::read_to_string(&args.points).map_err(|e| Error::io(&args.points, e))?;
-    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
-    let header: Vec<String> = lines
-        .next()
-        .ok_or_else(|| Error::bad_file(&args.points, "is empty"))?
-        .split(',')
-        .map(|h| h.trim().to_lowercase())
-        .collect();
-    let column = |name: &str| {
-        header.iter().position(|h| h == name).ok_or_else(|| {
-            Error::bad_file(
-                &args.points,
-                format!("has no column {name:?} in its header"),
-            )
-        })
+    let (field_path, field) = registration_field(&args.transform)?;
+    let mut table = load_points(&args.points)?;
+    let grid = &field.grid;
+    // The field is defined on the target grid only: outside it any answer is extrapolation.
+    let outside = |p: &Vector3<f64>| !grid.contains(p);
+    let mapped: Vec<(Vector3<f64>, f64)> = match args.direction {
+        Direction::SourceToTarget => source_to_target(&field, &table.points),
+        Direction::TargetToSource => {
+            refuse_outside(&args.points, &table.points, &outside, "lies", &field_path)?;
+            target_to_source(&field, &table.points)
+                .into_iter()
+                .map(|p| (p, 0.0))
+                .collect()
+        }
     };
-    let (cx, cy, cz) = (column("x")?, column("y")?, column("z")?);
-    let mut rows: Vec<Vec<String>> = Vec::new();
-    let mut points = Vec::new();
-    for (k, line) in lines.enumerate() {
-        let cells: Vec<String> = line.split(',').map(|c| c.trim().to_string()).collect();
-        let value = |c: usize| -> Result<f64, Error> {
-            cells
-                .get(c)
-                .and_then(|v| v.parse::<f64>().ok())
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| {
-                    Error::bad_file(
-                        &args.points,
-                        format!("row {}: column {} is not a number", k + 2, header[c]),
-                    )
-                })
-        };
-        points.push(nalgebra::Vector3::new(value(cx)?, value(cy)?, value(cz)?));
-        rows.push(cells);
+    if args.direction == Direction::SourceToTarget {
+        let targets: Vec<Vector3<f64>> = mapped.iter().map(|m| m.0).collect();
+        refuse_outside(&args.points, &targets, &outside, "maps to a point", &field_path)?;
     }
-    let mapped: Vec<(nalgebra::Vector3<f64>, f64)> = match args.direction {
-        Direction::SourceToTarget => source_to_target(&field, &points),
-        Direction::TargetToSource => target_to_source(&field, &points)
-            .into_iter()
-            .map(|p| (p, 0.0))
-            .collect(),
-    };
-    let mut out = header.join(",") + ",inversion_residual_mm\n";
-    for (cells, (p, residual)) in rows.iter_mut().zip(&mapped) {
+    let [cx, cy, cz] = table.columns;
+    let mut out = table.header.join(",") + ",inversion_residual_mm\n";
+    for (cells, (p, residual)) in table.rows.iter_mut().zip(&mapped) {
         cells[cx] = format!("{:.4}", p.x);
         cells[cy] = format!("{:.4}", p.y);
         cells[cz] = format!("{:.4}", p.z);
@@ -92,5 +70,32 @@ pub fn run(args: &PointsArgs) -> anyhow::Result<()> {
     posereg::io::write_atomically(&args.output, |tmp| {
         std::fs::write(tmp, &out).map_err(|e| Error::io(tmp, e))
     })?;
+    Ok(())
+}
+
+/// Refuses the first point outside the field's grid, naming its row (row 1 is the header).
+fn refuse_outside(
+    path: &Path,
+    points: &[Vector3<f64>],
+    outside: &dyn Fn(&Vector3<f64>) -> bool,
+    what: &str,
+    field_path: &Path,
+) -> anyhow::Result<()> {
+    if let Some(k) = points.iter().position(outside) {
+        let p = points[k];
+        return Err(Error::bad_file(
+            path,
+            format!(
+                "point {} {what} ({:.1}, {:.1}, {:.1}) outside the grid of {}, where the \
+                 registration is not defined",
+                k + 1,
+                p.x,
+                p.y,
+                p.z,
+                field_path.display()
+            ),
+        )
+        .into());
+    }
     Ok(())
 }

@@ -96,7 +96,7 @@ impl RegisterArgs {
 /// Runs the registration and writes its outputs.
 pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.options()?;
-    let pair = args.pair.load(reporter)?;
+    let (_folder, pair) = args.pair.load(reporter)?;
     check_settings(&options, &pair, args.pair.paths())?;
     let Pair {
         source,

@@ -4,6 +4,7 @@
 pub mod config;
 pub mod field;
 pub mod nifti;
+pub mod points;
 pub mod memory;
 pub mod transform;
 
@@ -39,14 +40,40 @@ where
     result
 }
 
+/// An output folder made ready before any computation. The folders it created are removed
+/// again when it is dropped while still empty, so a run that fails leaves nothing behind.
+#[must_use = "the folder is removed again when this is dropped empty"]
+pub struct OutputFolder {
+    /// Folders created, deepest first.
+    created: Vec<PathBuf>,
+}
+
+impl Drop for OutputFolder {
+    fn drop(&mut self) {
+        for dir in &self.created {
+            // remove_dir removes only empty folders: a run that wrote its outputs keeps them.
+            if std::fs::remove_dir(dir).is_err() {
+                break;
+            }
+        }
+    }
+}
+
 /// Creates the output folder `dir` (and its parents) and proves it writable by creating and
 /// removing a file in it, so an unusable folder is refused before any computation.
-pub fn prepare_output_folder(dir: &Path) -> Result<()> {
+pub fn prepare_output_folder(dir: &Path) -> Result<OutputFolder> {
     if dir.exists() && !dir.is_dir() {
         return Err(Error::bad_file(dir, "is a file, not a folder: the outputs need a folder"));
     }
+    let created: Vec<PathBuf> = dir
+        .ancestors()
+        .take_while(|d| !d.as_os_str().is_empty() && !d.exists())
+        .map(Path::to_path_buf)
+        .collect();
+    let folder = OutputFolder { created };
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    probe_writable(dir, dir)
+    probe_writable(dir, dir)?;
+    Ok(folder)
 }
 
 /// Checks before any computation that `path` can be written: not a folder, its folder exists

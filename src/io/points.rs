@@ -1,0 +1,73 @@
+//! Point lists on disk: CSV with a header naming x, y, z (world RAS mm, any case, any column
+//! order); other columns are kept in order; no quoted commas. Every row must have the header's
+//! number of cells and finite coordinates.
+
+use crate::error::{Error, Result};
+use nalgebra::Vector3;
+use std::path::Path;
+
+/// A point CSV, parsed.
+#[derive(Clone, Debug)]
+pub struct PointTable {
+    /// Column names, lower-cased.
+    pub header: Vec<String>,
+    /// Every row's cells, trimmed.
+    pub rows: Vec<Vec<String>>,
+    /// Columns of x, y, z.
+    pub columns: [usize; 3],
+    /// The points, one per row.
+    pub points: Vec<Vector3<f64>>,
+}
+
+/// Reads a point CSV.
+pub fn load_points(path: &Path) -> Result<PointTable> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let text = String::from_utf8(bytes).map_err(|_| Error::bad_file(path, "is not UTF-8 text"))?;
+    parse_points(path, &text)
+}
+
+/// Parses the text of the point CSV `path`.
+pub fn parse_points(path: &Path, text: &str) -> Result<PointTable> {
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    let header: Vec<String> = lines
+        .next()
+        .ok_or_else(|| Error::bad_file(path, "is empty: a header x,y,z and one point a row"))?
+        .1
+        .split(',')
+        .map(|h| h.trim().to_lowercase())
+        .collect();
+    let column = |name: &str| -> Result<usize> {
+        let mut found = header.iter().enumerate().filter(|(_, h)| *h == name);
+        match (found.next(), found.next()) {
+            (Some((c, _)), None) => Ok(c),
+            (Some(_), Some(_)) => Err(Error::bad_file(path, format!("names column {name:?} twice"))),
+            _ => Err(Error::bad_file(path, format!("has no column {name:?} in its header"))),
+        }
+    };
+    let columns = [column("x")?, column("y")?, column("z")?];
+    let mut rows = Vec::new();
+    let mut points = Vec::new();
+    for (index, line) in lines {
+        let row = index + 1;
+        let cells: Vec<String> = line.split(',').map(|c| c.trim().to_string()).collect();
+        if cells.len() != header.len() {
+            return Err(Error::bad_file(
+                path,
+                format!("row {row} has {} cells, its header {}", cells.len(), header.len()),
+            ));
+        }
+        let value = |c: usize| -> Result<f64> {
+            cells[c].parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
+                Error::bad_file(path, format!("row {row}: {} = {:?} is not a finite number", header[c], cells[c]))
+            })
+        };
+        points.push(Vector3::new(value(columns[0])?, value(columns[1])?, value(columns[2])?));
+        rows.push(cells);
+    }
+    Ok(PointTable {
+        header,
+        rows,
+        columns,
+        points,
+    })
+}
