@@ -70,8 +70,14 @@ impl BoneTransforms {
     /// Reads and checks a file: RAS space, finite rigid-or-affine matrices with last row
     /// 0 0 0 1, no label twice.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let parsed: BoneTransforms = serde_json::from_str(&text)
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let text = String::from_utf8(bytes).map_err(|_| Error::bad_file(path, "is not UTF-8 text"))?;
+        Self::parse(path, &text)
+    }
+
+    /// Parses and checks the text of the bone-transform file `path`.
+    pub fn parse(path: &Path, text: &str) -> Result<Self> {
+        let parsed: BoneTransforms = serde_json::from_str(text)
             .map_err(|e| Error::bad_file(path, format!("not a bone-transform file ({e})")))?;
         if parsed.space != "RAS" {
             return Err(Error::bad_file(
@@ -88,6 +94,13 @@ impl BoneTransforms {
                         "bone {} ({}): matrix must be finite with last row 0 0 0 1",
                         b.label, b.name
                     ),
+                ));
+            }
+            let linear = nalgebra::Matrix3::from_fn(|r, c| m[r][c]);
+            if linear.determinant().abs() < 1e-9 {
+                return Err(Error::bad_file(
+                    path,
+                    format!("bone {} ({}): matrix is singular", b.label, b.name),
                 ));
             }
             if parsed.bones[..i].iter().any(|o| o.label == b.label) {
