@@ -130,6 +130,16 @@ pub fn unfold_registration(
     bones: &[u16],
 ) -> Result<FoldRepair> {
     let folded_before = det.data.iter().filter(|&&d| d <= FOLD_THRESHOLD).count();
+    if folded_before as f64 > UNFOLD_MAX_SHARE * det.data.len() as f64 {
+        // Not a fold to repair but a failed registration (an almost empty target once folded
+        // 46% of the voxels, and unfolding took 150 s): left as it is for the checks to report.
+        return Ok(FoldRepair {
+            folded_before,
+            folded_after: folded_before,
+            rounds: 0,
+            unfold_steps: 0,
+        });
+    }
     let rigid = maps_into_bone(field, labels, bones);
     // The lookup keeps its own copy of the grid: the field is rewritten under it.
     let grid = field.grid.clone();
@@ -143,8 +153,14 @@ pub fn unfold_registration(
     })
 }
 
+/// Share of folded voxels beyond which a field is not unfolded.
+const UNFOLD_MAX_SHARE: f64 = 0.05;
 /// Most unfolding steps.
 const UNFOLD_STEPS: usize = 1000;
+/// Unfolding stops once this many sweeps in a row have not brought the number of folded
+/// voxels below its best: the sweeps are then pushing folds around, not lifting them (an
+/// almost empty target once kept it busy for 150 s, Jacobian minimum −354).
+const UNFOLD_STALL_STEPS: usize = 50;
 /// The determinant each folded voxel is pushed towards.
 const UNFOLD_TARGET: f32 = 0.3;
 
@@ -200,7 +216,8 @@ pub fn unfold(
         .filter(|&n| det[n] <= FOLD_THRESHOLD)
         .collect();
     let mut steps = 0;
-    while !bad.is_empty() && steps < UNFOLD_STEPS {
+    let (mut fewest, mut since_fewest) = (bad.len(), 0);
+    while !bad.is_empty() && steps < UNFOLD_STEPS && since_fewest < UNFOLD_STALL_STEPS {
         // One sweep over the folded voxels in index order, each push applied at once so the
         // next voxel sees it (Gauss-Seidel: simultaneous pushes on a shared neighbour can
         // cancel and stall).
@@ -256,6 +273,10 @@ pub fn unfold(
             }
         }
         steps += 1;
+        since_fewest += 1;
+        if bad.len() < fewest {
+            (fewest, since_fewest) = (bad.len(), 0);
+        }
     }
     // The count reported is the Jacobian kernel's own.
     let det = backend.jacobian(field)?;

@@ -19,6 +19,8 @@ use std::path::Path;
 /// more than doubled for a source larger than the target. Checked against the memory budget
 /// before reading any voxel.
 const BYTES_PER_TARGET_VOXEL: u64 = 400;
+/// Least share of an image's voxels above its background (its smallest value).
+const MIN_CONTENT_SHARE: f64 = 0.01;
 /// A bone with fewer voxels than this gives its rigid registration nothing to hold on to.
 const MIN_BONE_VOXELS: usize = 64;
 /// Label codes that are not bones but are expected: 0 outside, 1 soft tissue (phantom).
@@ -99,13 +101,28 @@ fn check_overlap(target: &Grid, source: &Grid, paths: PairPaths) -> Result<()> {
     Ok(())
 }
 
-/// An image whose voxels are all one value holds nothing to register against.
+/// An image whose voxels are (almost) all one value holds nothing to register against: every
+/// voxel the same, or fewer than [`MIN_CONTENT_SHARE`] of them above the background (its
+/// smallest value). A target holding one bright voxel once registered into a field folded on
+/// 46% of its voxels.
 fn check_not_constant(volume: &Volume, path: &Path) -> Result<()> {
-    let first = volume.data[0];
-    if volume.data.iter().all(|&v| v == first) {
+    let background = volume.data.iter().copied().fold(f32::INFINITY, f32::min);
+    let content = volume.data.iter().filter(|&&v| v > background).count();
+    if content == 0 {
         return Err(Error::bad_file(
             path,
-            format!("every voxel is {first}: an image with no contrast cannot be registered"),
+            format!("every voxel is {background}: an image with no contrast cannot be registered"),
+        ));
+    }
+    let share = content as f64 / volume.data.len() as f64;
+    if share < MIN_CONTENT_SHARE {
+        return Err(Error::bad_file(
+            path,
+            format!(
+                "is almost empty: {content} voxels ({:.3}%) are above its background {background}; \
+                 an image with no contrast cannot be registered",
+                100.0 * share
+            ),
         ));
     }
     Ok(())

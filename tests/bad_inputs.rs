@@ -244,6 +244,7 @@ fn image_cases(x: &Inputs) -> Vec<Case> {
     let nan = volume(x, "nan.nii.gz", &grid, |n| if n == 77 { f32::NAN } else { n as f32 });
     let constant = volume(x, "constant.nii.gz", &grid, |_| 120.0);
     let zero = volume(x, "zero.nii.gz", &grid, |_| 0.0);
+    let speck = volume(x, "speck_target.nii.gz", &grid, |n| if n == 5000 { 100.0 } else { 0.0 });
     let frac = volume(x, "frac_labels.nii.gz", &grid, |n| if n < 500 { 2.5 } else { 0.0 });
     let tiny = oblique_grid([12, 12, 12]);
     volume(x, "tiny.nii.gz", &tiny, |n| (n % 7) as f32);
@@ -261,6 +262,7 @@ fn image_cases(x: &Inputs) -> Vec<Case> {
         case("NaN voxels in the target", x.register(src, lab, nan, &[]), &[nan, "NaN"]),
         case("constant target", x.register(src, lab, constant, &[]), &[constant, "no contrast"]),
         case("all-zero target", x.register(src, lab, zero, &[]), &[zero, "no contrast"]),
+        case("one bright voxel for a target", x.register(src, lab, speck, &[]), &[speck, "almost empty"]),
         case("constant source", x.register(constant, lab, tgt, &[]), &[constant, "no contrast"]),
         case("fractional labels", x.register(src, frac, tgt, &[]), &[frac, "whole number"]),
         case("4-D label map", x.register(src, "labels4d.nii.gz", tgt, &[]), &["labels4d.nii.gz", "3-D"]),
