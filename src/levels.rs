@@ -102,7 +102,14 @@ where
             List(Vec<T>),
             One(T),
         }
-        match Written::<T>::deserialize(d)? {
+        // The untagged enum's own error names the enum ("did not match any variant of
+        // untagged enum Written"), which tells a user nothing.
+        let written = Written::<T>::deserialize(d).map_err(|_| {
+            de::Error::custom(
+                "expected one value for every level, a list coarse to fine, or text such as \"40x30x20\"",
+            )
+        })?;
+        match written {
             Written::Text(text) => text.parse().map_err(de::Error::custom),
             Written::List(values) => PerLevel::coarse_to_fine(values).map_err(de::Error::custom),
             Written::One(value) => Ok(PerLevel::all(value)),

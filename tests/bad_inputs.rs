@@ -294,6 +294,7 @@ fn settings_cases(x: &Inputs) -> Vec<Case> {
         case("settings not TOML or JSON", with(config("settings.yaml", "adaptive: {}\n")), &["settings.yaml", ".toml or .json"]),
         case("values for the wrong level count", with(config("levels.json", r#"{"adaptive": {"iterations": "3x3"}}"#)), &["levels.json", "3 pyramid levels"]),
         case("lattice of a micron", with(config("lattice.toml", "[adaptive]\nlattice_mm = 0.001\n")), &["lattice.toml", "lattice_mm"]),
+        case("iterations negative", with(config("negit.toml", "[adaptive]\niterations = -1\n")), &["negit.toml", "a list coarse to fine"]),
         case("smoothing NaN", with(config("nan.toml", "[adaptive]\nsmoothing = nan\n")), &["nan.toml", "smoothing"]),
         case("search backwards", with(config("search.toml", "[init]\nsearch_degrees = [90.0, 0.0, 4.0]\n")), &["search.toml", "search_degrees"]),
         case("settings file not UTF-8", with({
