@@ -100,7 +100,8 @@ impl AdaptiveOptions {
         if !(1..=MAX_LEVELS).contains(&self.levels) {
             return bad(&format!("levels must be 1 to {MAX_LEVELS}"));
         }
-        if self.cell_levels.is_empty() || self.cell_levels.iter().any(|&c| c == 0 || c > MAX_CELLS) {
+        if self.cell_levels.is_empty() || self.cell_levels.iter().any(|&c| c == 0 || c > MAX_CELLS)
+        {
             return bad(&format!(
                 "cell_levels must be a non-empty list of cell counts 1 to {MAX_CELLS}"
             ));
@@ -121,10 +122,20 @@ impl AdaptiveOptions {
         self.iterations.check("adaptive.iterations", self.levels)?;
         // A cell is poorly fitted when its residual exceeds this multiple of the mean: below 1
         // nearly every cell gets a point, and the dense RBF system grows without bound.
-        if !self.threshold.values().iter().all(|&t| t >= 1.0 && t.is_finite()) {
+        if !self
+            .threshold
+            .values()
+            .iter()
+            .all(|&t| t >= 1.0 && t.is_finite())
+        {
             return bad("threshold must be a finite number of at least 1 at every level");
         }
-        if !self.tolerance.values().iter().all(|&t| (0.0..1.0).contains(&t)) {
+        if !self
+            .tolerance
+            .values()
+            .iter()
+            .all(|&t| (0.0..1.0).contains(&t))
+        {
             return bad("tolerance must be at least 0 and below 1 at every level");
         }
         let all_finite = |p: &PerLevel<f64>| p.values().iter().all(|&v| finite_non_negative(v));

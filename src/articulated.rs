@@ -2,8 +2,8 @@
 //! weights, and the inverted volume skeletal deformation, giving the initial field u0.
 
 use crate::abi::Interpolation;
-use crate::backend::Backend;
 use crate::adaptive::MAX_LEVELS;
+use crate::backend::Backend;
 use crate::check::within;
 use crate::error::{Error, Result};
 use crate::io::transform::{BoneTransform, BoneTransforms};
@@ -71,14 +71,21 @@ impl InitOptions {
         }
         let [from, to, step] = self.search_degrees;
         let in_turn = |a: f64| within(a, -360.0, 360.0);
-        if !(in_turn(from) && in_turn(to) && to >= from && step > 0.0 && (to - from) / step <= 1000.0) {
+        if !(in_turn(from)
+            && in_turn(to)
+            && to >= from
+            && step > 0.0
+            && (to - from) / step <= 1000.0)
+        {
             return bad("search_degrees must be from, to, step in degrees (-360 to 360) with to >= from, step > 0 and at most 1000 steps");
         }
         if !within(self.search_tilt_degrees, 0.0, 90.0) {
             return bad("search_tilt_degrees must be 0 to 90");
         }
         if self.bones.contains(&0) || self.bones.contains(&1) {
-            return bad("bones must list bone label codes; 0 is outside the body and 1 soft tissue");
+            return bad(
+                "bones must list bone label codes; 0 is outside the body and 1 soft tissue",
+            );
         }
         Ok(())
     }

@@ -157,10 +157,7 @@ pub fn unfold_registration(
 const UNFOLD_MAX_SHARE: f64 = 0.05;
 /// Most unfolding steps.
 const UNFOLD_STEPS: usize = 1000;
-/// Unfolding stops once this many sweeps in a row have not brought the number of folded
-/// voxels below its best: the sweeps are then pushing folds around, not lifting them (an
-/// almost empty target once kept it busy for 150 s, Jacobian minimum −354).
-const UNFOLD_STALL_STEPS: usize = 50;
+
 /// The determinant each folded voxel is pushed towards.
 const UNFOLD_TARGET: f32 = 0.3;
 
@@ -216,8 +213,7 @@ pub fn unfold(
         .filter(|&n| det[n] <= FOLD_THRESHOLD)
         .collect();
     let mut steps = 0;
-    let (mut fewest, mut since_fewest) = (bad.len(), 0);
-    while !bad.is_empty() && steps < UNFOLD_STEPS && since_fewest < UNFOLD_STALL_STEPS {
+    while !bad.is_empty() && steps < UNFOLD_STEPS {
         // One sweep over the folded voxels in index order, each push applied at once so the
         // next voxel sees it (Gauss-Seidel: simultaneous pushes on a shared neighbour can
         // cancel and stall).
@@ -273,10 +269,6 @@ pub fn unfold(
             }
         }
         steps += 1;
-        since_fewest += 1;
-        if bad.len() < fewest {
-            (fewest, since_fewest) = (bad.len(), 0);
-        }
     }
     // The count reported is the Jacobian kernel's own.
     let det = backend.jacobian(field)?;

@@ -67,9 +67,12 @@ pub fn load_pair(paths: PairPaths) -> Result<Pair> {
         ));
     }
     check_overlap(&target_grid, &source_grid, paths)?;
-    let needed = target_grid.len() as u64 * BYTES_PER_TARGET_VOXEL;
+    let needed = (target_grid.len() as u64).saturating_mul(BYTES_PER_TARGET_VOXEL);
     memory::check(needed).map_err(|p| {
-        Error::bad_file(paths.target, format!("registering onto its {:?} voxels {p}", target_grid.dims))
+        Error::bad_file(
+            paths.target,
+            format!("registering onto its {:?} voxels {p}", target_grid.dims),
+        )
     })?;
     let source = volume_from_raw(paths.source, read_raw(paths.source)?)?;
     let labels = labels_from_raw(paths.labels, read_raw(paths.labels)?)?;
@@ -149,7 +152,8 @@ fn check_labels(labels: &Labels, path: &Path) -> Result<Vec<String>> {
     }
     let codes: Vec<String> = others.iter().map(|c| c.to_string()).collect();
     Ok(vec![format!(
-        "{}: label codes {} are not bones (2 femur, 3 tibia, 4 patella, 5 fibula) and are ignored",
+        "{}: label codes {} are not bones (2 femur, 3 tibia, 4 patella, 5 fibula); they are \
+         ignored unless --bones names them",
         path.display(),
         codes.join(", ")
     )])
@@ -168,7 +172,13 @@ pub fn check_settings(options: &RegisterOptions, pair: &Pair, paths: PairPaths) 
 /// Every bone the initialisation registers has enough voxels, and the reference is one of them.
 pub fn check_bones(init: &InitOptions, labels: &Labels, paths: PairPaths) -> Result<()> {
     let present = present_bones(labels);
-    let listed = |codes: &[u16]| codes.iter().map(|c| c.to_string()).collect::<Vec<_>>().join(", ");
+    let listed = |codes: &[u16]| {
+        codes
+            .iter()
+            .map(|c| c.to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
     let chosen = match init.bones.is_empty() {
         true => present.clone(),
         false => init.bones.clone(),

@@ -5,7 +5,7 @@
 //! stderr; `--strict` turns a failed check into a non-zero exit (the outputs are still
 //! written, atomically, for inspection).
 
-use crate::articulated::Initialisation;
+use crate::articulated::{bone_name, Initialisation};
 use crate::joint::rotation_degrees;
 use crate::register::{RegisterOptions, Registration};
 
@@ -64,7 +64,9 @@ pub fn result_checks(
 /// largest angle plus the tilt of the search axis), and no bone's best candidate sits at the
 /// edge of the searched range, where the true motion may lie beyond it.
 fn bones_within_search(init: &Initialisation, options: &RegisterOptions) -> Check {
-    let [from, to, _] = options.init.search_degrees;
+    let [from, to, step] = options.init.search_degrees;
+    // The search's last candidate: `to` itself only when the step divides the range.
+    let last = from + ((to - from) / step + 1e-9).floor() * step;
     let limit = from.abs().max(to.abs()) + options.init.search_tilt_degrees;
     let reference = init
         .motions
@@ -72,17 +74,24 @@ fn bones_within_search(init: &Initialisation, options: &RegisterOptions) -> Chec
         .find(|(code, _)| *code == options.init.reference)
         .map(|(_, m)| *m)
         .unwrap_or_else(crate::volume::Affine::identity);
-    let inverse = reference.try_inverse().unwrap_or_else(crate::volume::Affine::identity);
+    let inverse = reference
+        .try_inverse()
+        .unwrap_or_else(crate::volume::Affine::identity);
     let mut problems = Vec::new();
-    for ((code, motion), report) in init.motions.iter().zip(&init.reports) {
+    for (code, motion) in &init.motions {
         let turn = rotation_degrees(&(inverse * motion));
         if turn > limit {
-            problems.push(format!("{} (label {code}) turned {turn:.1}°, beyond the {limit:.0}° searched", report.name));
+            problems.push(format!(
+                "{} (label {code}) turned {turn:.1}°, beyond the {limit:.0}° searched",
+                bone_name(*code)
+            ));
         }
+    }
+    for report in &init.reports {
         if let Some(best) = report.search_degrees {
-            if best <= from || best >= to {
+            if best <= from + 1e-9 || best >= last - 1e-9 {
                 problems.push(format!(
-                    "{}'s best search candidate {best:.0}° is at the edge of the range {from:.0}..{to:.0}°",
+                    "{}'s best search candidate {best:.0}° is at the edge of the range {from:.0}..{last:.0}°",
                     report.name
                 ));
             }
@@ -92,7 +101,10 @@ fn bones_within_search(init: &Initialisation, options: &RegisterOptions) -> Chec
         name: "bones_within_search",
         passed: problems.is_empty(),
         detail: match problems.is_empty() {
-            true => format!("every bone within {from:.0}..{to:.0}° of the reference (tilt {:.0}°)", options.init.search_tilt_degrees),
+            true => format!(
+                "every bone within {from:.0}..{to:.0}° of the reference (tilt {:.0}°)",
+                options.init.search_tilt_degrees
+            ),
             false => problems.join("; "),
         },
     }

@@ -45,15 +45,42 @@ impl Inputs {
         };
         // 32 voxels an axis: enough for the default three pyramid levels.
         let grid = oblique_grid([32, 32, 32]);
-        save_volume(&inputs.path("source.nii.gz"), &smooth_volume(&grid, 1), DataType::F32).unwrap();
-        save_volume(&inputs.path("target.nii.gz"), &smooth_volume(&grid, 2), DataType::F32).unwrap();
-        save_labels(&inputs.path("labels.nii.gz"), &block_labels(&grid, &[(2, 8), (3, 20)], 6)).unwrap();
+        save_volume(
+            &inputs.path("source.nii.gz"),
+            &smooth_volume(&grid, 1),
+            DataType::F32,
+        )
+        .unwrap();
+        save_volume(
+            &inputs.path("target.nii.gz"),
+            &smooth_volume(&grid, 2),
+            DataType::F32,
+        )
+        .unwrap();
+        save_labels(
+            &inputs.path("labels.nii.gz"),
+            &block_labels(&grid, &[(2, 8), (3, 20)], 6),
+        )
+        .unwrap();
         let small = oblique_grid([6, 5, 4]);
-        save_volume(&inputs.path("small.nii"), &smooth_volume(&small, 3), DataType::F32).unwrap();
+        save_volume(
+            &inputs.path("small.nii"),
+            &smooth_volume(&small, 3),
+            DataType::F32,
+        )
+        .unwrap();
         // A registration folder: its transform.json and field.nii.gz.
         std::fs::create_dir(inputs.path("reg")).unwrap();
-        save_field(&inputs.path("reg/field.nii.gz"), &smooth_field(&grid, 4, 2.0)).unwrap();
-        std::fs::write(inputs.path("reg/transform.json"), r#"{"space": "RAS", "bones": []}"#).unwrap();
+        save_field(
+            &inputs.path("reg/field.nii.gz"),
+            &smooth_field(&grid, 4, 2.0),
+        )
+        .unwrap();
+        std::fs::write(
+            inputs.path("reg/transform.json"),
+            r#"{"space": "RAS", "bones": []}"#,
+        )
+        .unwrap();
         inputs
     }
 
@@ -77,8 +104,16 @@ impl Inputs {
     }
 
     fn register(&self, source: &str, labels: &str, target: &str, extra: &[&str]) -> Vec<String> {
-        let mut args: Vec<String> = ["--device", "cpu", "register", "--source"].map(String::from).to_vec();
-        args.extend([self.s(source), "--source-labels".into(), self.s(labels), "--target".into(), self.s(target)]);
+        let mut args: Vec<String> = ["--device", "cpu", "register", "--source"]
+            .map(String::from)
+            .to_vec();
+        args.extend([
+            self.s(source),
+            "--source-labels".into(),
+            self.s(labels),
+            "--target".into(),
+            self.s(target),
+        ]);
         args.extend(["-o".into(), self.s("out")]);
         args.extend(extra.iter().map(|a| a.to_string()));
         args
@@ -150,45 +185,141 @@ fn case(what: &'static str, args: Vec<String>, says: &[&str]) -> Case {
 
 fn nifti_header_cases(x: &Inputs) -> Vec<Case> {
     vec![
-        case("vox_offset 0 in a single file", info(x.patched("off0.nii", |b| put_f32(b, VOX_OFFSET, 0.0))), &["off0.nii", "vox_offset"]),
-        case("vox_offset past the end", info(x.patched("offend.nii", |b| put_f32(b, VOX_OFFSET, 480.0))), &["offend.nii", "truncated"]),
-        case("vox_offset not whole", info(x.patched("offfrac.nii", |b| put_f32(b, VOX_OFFSET, 352.5))), &["offfrac.nii", "vox_offset"]),
-        case("sizeof_hdr 999", info(x.patched("size999.nii", |b| b[0..4].copy_from_slice(&999i32.to_le_bytes()))), &["size999.nii", "sizeof_hdr"]),
-        case("bitpix 8 on float32", info(x.patched("bitpix8.nii", |b| put_i16(b, BITPIX, 8))), &["bitpix8.nii", "bitpix"]),
-        case("bitpix 0 on float32", info(x.patched("bitpix0.nii.gz", |b| put_i16(b, BITPIX, 0))), &["bitpix0.nii.gz", "bitpix"]),
-        case("complex64", info(x.patched("complex.nii", |b| {
-            put_i16(b, DATATYPE, 32);
-            put_i16(b, BITPIX, 64);
-        })), &["complex.nii", "complex64"]),
-        case("RGB24", info(x.patched("rgb.nii", |b| {
-            put_i16(b, DATATYPE, 128);
-            put_i16(b, BITPIX, 24);
-        })), &["rgb.nii", "RGB24"]),
-        case("unknown datatype", info(x.patched("dt7.nii", |b| put_i16(b, DATATYPE, 7))), &["dt7.nii", "not a NIfTI datatype"]),
-        case("no magic (Analyze)", info(x.patched("analyze.nii", |b| b[MAGIC..MAGIC + 4].copy_from_slice(b"\0\0\0\0"))), &["analyze.nii", "magic"]),
-        case("dim[0] 0", info(x.patched("dim00.nii", |b| put_i16(b, DIM, 0))), &["dim00.nii", "dim[0]"]),
-        case("dim[0] 9", info(x.patched("dim09.nii", |b| put_i16(b, DIM, 9))), &["dim09.nii", "dim[0]"]),
-        case("negative dim", info(x.patched("dimneg.nii", |b| put_i16(b, DIM + 4, -3))), &["dimneg.nii", "dim[2]"]),
-        case("empty dim", info(x.patched("dim1zero.nii", |b| put_i16(b, DIM + 2, 0))), &["dim1zero.nii", "dim[1]"]),
-        case("pixdim 0 without forms", info(x.patched("pix0.nii", |b| {
-            no_forms(b);
-            put_f32(b, PIXDIM + 8, 0.0);
-        })), &["pix0.nii", "pixdim"]),
-        case("pixdim negative without forms", info(x.patched("pixneg.nii", |b| {
-            no_forms(b);
-            put_f32(b, PIXDIM + 4, -1.0);
-        })), &["pixneg.nii", "pixdim"]),
-        case("pixdim NaN under a qform", info(x.patched("pixnan.nii", |b| {
-            put_i16(b, SFORM_CODE, 0);
-            put_f32(b, PIXDIM + 12, f32::NAN);
-        })), &["pixnan.nii", "pixdim"]),
-        case("sform NaN", info(x.patched("sformnan.nii", |b| put_f32(b, SROW_X + 4, f32::NAN))), &["sformnan.nii", "sform"]),
-        case("qform not a rotation", info(x.patched("quat.nii", |b| {
-            put_i16(b, SFORM_CODE, 0);
-            put_f32(b, QUATERN_B, 2.0);
-        })), &["quat.nii", "qform"]),
-        case("scl_slope NaN", info(x.patched("slope.nii", |b| put_f32(b, SCL_SLOPE, f32::NAN))), &["slope.nii", "scl_slope"]),
-        case("undefined spatial unit", info(x.patched("units.nii", |b| b[XYZT_UNITS] = 5)), &["units.nii", "unit"]),
+        case(
+            "vox_offset 0 in a single file",
+            info(x.patched("off0.nii", |b| put_f32(b, VOX_OFFSET, 0.0))),
+            &["off0.nii", "vox_offset"],
+        ),
+        case(
+            "vox_offset past the end",
+            info(x.patched("offend.nii", |b| put_f32(b, VOX_OFFSET, 480.0))),
+            &["offend.nii", "truncated"],
+        ),
+        case(
+            "vox_offset not whole",
+            info(x.patched("offfrac.nii", |b| put_f32(b, VOX_OFFSET, 352.5))),
+            &["offfrac.nii", "vox_offset"],
+        ),
+        case(
+            "vox_offset beyond any file",
+            info(x.patched("offhuge.nii", |b| put_f32(b, VOX_OFFSET, 1e30))),
+            &["offhuge.nii", "vox_offset"],
+        ),
+        case(
+            "sizeof_hdr 999",
+            info(x.patched("size999.nii", |b| {
+                b[0..4].copy_from_slice(&999i32.to_le_bytes())
+            })),
+            &["size999.nii", "sizeof_hdr"],
+        ),
+        case(
+            "bitpix 8 on float32",
+            info(x.patched("bitpix8.nii", |b| put_i16(b, BITPIX, 8))),
+            &["bitpix8.nii", "bitpix"],
+        ),
+        case(
+            "bitpix 0 on float32",
+            info(x.patched("bitpix0.nii.gz", |b| put_i16(b, BITPIX, 0))),
+            &["bitpix0.nii.gz", "bitpix"],
+        ),
+        case(
+            "complex64",
+            info(x.patched("complex.nii", |b| {
+                put_i16(b, DATATYPE, 32);
+                put_i16(b, BITPIX, 64);
+            })),
+            &["complex.nii", "complex64"],
+        ),
+        case(
+            "RGB24",
+            info(x.patched("rgb.nii", |b| {
+                put_i16(b, DATATYPE, 128);
+                put_i16(b, BITPIX, 24);
+            })),
+            &["rgb.nii", "RGB24"],
+        ),
+        case(
+            "unknown datatype",
+            info(x.patched("dt7.nii", |b| put_i16(b, DATATYPE, 7))),
+            &["dt7.nii", "not a NIfTI datatype"],
+        ),
+        case(
+            "no magic (Analyze)",
+            info(x.patched("analyze.nii", |b| {
+                b[MAGIC..MAGIC + 4].copy_from_slice(b"\0\0\0\0")
+            })),
+            &["analyze.nii", "magic"],
+        ),
+        case(
+            "dim[0] 0",
+            info(x.patched("dim00.nii", |b| put_i16(b, DIM, 0))),
+            &["dim00.nii", "dim[0]"],
+        ),
+        case(
+            "dim[0] 9",
+            info(x.patched("dim09.nii", |b| put_i16(b, DIM, 9))),
+            &["dim09.nii", "dim[0]"],
+        ),
+        case(
+            "negative dim",
+            info(x.patched("dimneg.nii", |b| put_i16(b, DIM + 4, -3))),
+            &["dimneg.nii", "dim[2]"],
+        ),
+        case(
+            "empty dim",
+            info(x.patched("dim1zero.nii", |b| put_i16(b, DIM + 2, 0))),
+            &["dim1zero.nii", "dim[1]"],
+        ),
+        case(
+            "pixdim 0 without forms",
+            info(x.patched("pix0.nii", |b| {
+                no_forms(b);
+                put_f32(b, PIXDIM + 8, 0.0);
+            })),
+            &["pix0.nii", "pixdim"],
+        ),
+        case(
+            "pixdim negative without forms",
+            info(x.patched("pixneg.nii", |b| {
+                no_forms(b);
+                put_f32(b, PIXDIM + 4, -1.0);
+            })),
+            &["pixneg.nii", "pixdim"],
+        ),
+        case(
+            "pixdim NaN under a qform",
+            info(x.patched("pixnan.nii", |b| {
+                put_i16(b, SFORM_CODE, 0);
+                put_f32(b, PIXDIM + 12, f32::NAN);
+            })),
+            &["pixnan.nii", "pixdim"],
+        ),
+        case(
+            "sform NaN",
+            info(x.patched("sformnan.nii", |b| put_f32(b, SROW_X + 4, f32::NAN))),
+            &["sformnan.nii", "sform"],
+        ),
+        case(
+            "qform not a rotation",
+            info(x.patched("quat.nii", |b| {
+                put_i16(b, SFORM_CODE, 0);
+                put_f32(b, QUATERN_B, 2.0);
+            })),
+            &["quat.nii", "qform"],
+        ),
+        case(
+            "scl_inter NaN under a slope",
+            info(x.patched("inter.nii", |b| {
+                put_f32(b, SCL_SLOPE, 2.0);
+                put_f32(b, SCL_SLOPE + 4, f32::NAN);
+            })),
+            &["inter.nii", "scl_inter"],
+        ),
+        case(
+            "undefined spatial unit",
+            info(x.patched("units.nii", |b| b[XYZT_UNITS] = 5)),
+            &["units.nii", "unit"],
+        ),
     ]
 }
 
@@ -206,34 +337,87 @@ fn nifti_data_cases(x: &Inputs) -> Vec<Case> {
         x.s("cutgz.nii.gz")
     };
     std::fs::create_dir(x.path("folder.nii")).unwrap();
-    std::fs::write(x.path("text.nii"), "this is not an image, it is a text file of some length\n".repeat(8)).unwrap();
+    std::fs::write(
+        x.path("text.nii"),
+        "this is not an image, it is a text file of some length\n".repeat(8),
+    )
+    .unwrap();
     std::fs::copy(x.path("small.nii"), x.path("lonely.img")).unwrap();
-    let mut budget = case("beyond the memory budget", info(x.s("small.nii")), &["small.nii", "memory"]);
+    let mut budget = case(
+        "beyond the memory budget",
+        info(x.s("small.nii")),
+        &["small.nii", "memory"],
+    );
     budget.env = vec![("POSEREG_MEMORY_LIMIT_MB", "0")];
     vec![
-        case("truncated voxel data", info(x.patched("cut.nii", |b| b.truncate(b.len() - 100))), &["cut.nii", "truncated"]),
-        case("truncated header", info(x.patched("short.nii", |b| b.truncate(100))), &["short.nii", "truncated"]),
-        case("empty file", info(x.patched("empty.nii", |b| b.clear())), &["empty.nii", "truncated"]),
-        case("data after the promise", info(x.patched("long.nii", |b| b.extend([7u8; 64]))), &["long.nii", "more voxel data"]),
-        case("more data than promised, gzipped", info(x.patched("longgz.nii.gz", |b| b.extend([7u8; 64]))), &["longgz.nii.gz", "more voxel data"]),
+        case(
+            "truncated voxel data",
+            info(x.patched("cut.nii", |b| b.truncate(b.len() - 100))),
+            &["cut.nii", "truncated"],
+        ),
+        case(
+            "truncated header",
+            info(x.patched("short.nii", |b| b.truncate(100))),
+            &["short.nii", "truncated"],
+        ),
+        case(
+            "empty file",
+            info(x.patched("empty.nii", |b| b.clear())),
+            &["empty.nii", "truncated"],
+        ),
+        case(
+            "data after the promise",
+            info(x.patched("long.nii", |b| b.extend([7u8; 64]))),
+            &["long.nii", "more voxel data"],
+        ),
+        case(
+            "more data than promised, gzipped",
+            info(x.patched("longgz.nii.gz", |b| b.extend([7u8; 64]))),
+            &["longgz.nii.gz", "more voxel data"],
+        ),
         case("gzip CRC damaged", info(crc), &["crc.nii.gz", "damaged"]),
-        case("gzip stream cut", info(cut_gz), &["cutgz.nii.gz", "damaged"]),
-        case("a promise no gzip can hold", info(x.patched("bomb.nii.gz", |b| {
-            for axis in 1..=3 {
-                put_i16(b, DIM + 2 * axis, 640);
-            }
-            put_i16(b, DATATYPE, 2);
-            put_i16(b, BITPIX, 8);
-        })), &["bomb.nii.gz", "cannot hold"]),
-        case("a folder for a file", info(x.s("folder.nii")), &["folder.nii", "folder"]),
-        case("a text file", info(x.s("text.nii")), &["text.nii", "not a NIfTI"]),
-        case("an .img without its .hdr", info(x.s("lonely.img")), &["lonely.hdr", "no such file"]),
+        case(
+            "gzip stream cut",
+            info(cut_gz),
+            &["cutgz.nii.gz", "damaged"],
+        ),
+        case(
+            "a promise no gzip can hold",
+            info(x.patched("bomb.nii.gz", |b| {
+                for axis in 1..=3 {
+                    put_i16(b, DIM + 2 * axis, 640);
+                }
+                put_i16(b, DATATYPE, 2);
+                put_i16(b, BITPIX, 8);
+            })),
+            &["bomb.nii.gz", "cannot hold"],
+        ),
+        case(
+            "a folder for a file",
+            info(x.s("folder.nii")),
+            &["folder.nii", "folder"],
+        ),
+        case(
+            "a text file",
+            info(x.s("text.nii")),
+            &["text.nii", "not a NIfTI"],
+        ),
+        case(
+            "an .img without its .hdr",
+            info(x.s("lonely.img")),
+            &["lonely.hdr", "no such file"],
+        ),
         budget,
     ]
 }
 
 /// Saves a volume or label map on the inputs' 32³ grid (or `grid`) and returns its name.
-fn volume(x: &Inputs, name: &'static str, grid: &Grid, value: impl Fn(usize) -> f32) -> &'static str {
+fn volume(
+    x: &Inputs,
+    name: &'static str,
+    grid: &Grid,
+    value: impl Fn(usize) -> f32,
+) -> &'static str {
     let vol = Image::from_data(grid.clone(), (0..grid.len()).map(value).collect()).unwrap();
     save_volume(&x.path(name), &vol, DataType::F32).unwrap();
     name
@@ -241,39 +425,141 @@ fn volume(x: &Inputs, name: &'static str, grid: &Grid, value: impl Fn(usize) -> 
 
 fn image_cases(x: &Inputs) -> Vec<Case> {
     let grid = oblique_grid([32, 32, 32]);
-    let nan = volume(x, "nan.nii.gz", &grid, |n| if n == 77 { f32::NAN } else { n as f32 });
+    let nan = volume(x, "nan.nii.gz", &grid, |n| {
+        if n == 77 {
+            f32::NAN
+        } else {
+            n as f32
+        }
+    });
     let constant = volume(x, "constant.nii.gz", &grid, |_| 120.0);
     let zero = volume(x, "zero.nii.gz", &grid, |_| 0.0);
-    let speck = volume(x, "speck_target.nii.gz", &grid, |n| if n == 5000 { 100.0 } else { 0.0 });
-    let frac = volume(x, "frac_labels.nii.gz", &grid, |n| if n < 500 { 2.5 } else { 0.0 });
+    let speck = volume(x, "speck_target.nii.gz", &grid, |n| {
+        if n == 5000 {
+            100.0
+        } else {
+            0.0
+        }
+    });
+    let frac = volume(x, "frac_labels.nii.gz", &grid, |n| {
+        if n < 500 {
+            2.5
+        } else {
+            0.0
+        }
+    });
     let tiny = oblique_grid([12, 12, 12]);
     volume(x, "tiny.nii.gz", &tiny, |n| (n % 7) as f32);
-    save_labels(&x.path("tiny_labels.nii.gz"), &block_labels(&tiny, &[(2, 2)], 6)).unwrap();
-    save_labels(&x.path("tissue_only.nii.gz"), &Image::filled(grid.clone(), 1u16)).unwrap();
-    save_labels(&x.path("other_grid.nii.gz"), &block_labels(&oblique_grid([32, 32, 31]), &[(2, 8)], 6)).unwrap();
-    save_labels(&x.path("speck.nii.gz"), &block_labels(&grid, &[(2, 8), (3, 20), (5, 2)], 2)).unwrap();
+    save_labels(
+        &x.path("tiny_labels.nii.gz"),
+        &block_labels(&tiny, &[(2, 2)], 6),
+    )
+    .unwrap();
+    save_labels(
+        &x.path("tissue_only.nii.gz"),
+        &Image::filled(grid.clone(), 1u16),
+    )
+    .unwrap();
+    save_labels(
+        &x.path("other_grid.nii.gz"),
+        &block_labels(&oblique_grid([32, 32, 31]), &[(2, 8)], 6),
+    )
+    .unwrap();
+    save_labels(
+        &x.path("speck.nii.gz"),
+        &block_labels(&grid, &[(2, 8), (3, 20), (5, 2)], 2),
+    )
+    .unwrap();
     let mut far = smooth_volume(&grid, 5);
     far.grid.affine[(0, 3)] += 1000.0;
     save_volume(&x.path("far.nii.gz"), &far, DataType::F32).unwrap();
     let four_d = x.path("labels4d.nii.gz");
-    write_image(&four_d, &[32, 32, 32, 2], &grid.affine, &vec![2.0; 2 * grid.len()], DataType::U8, |_| {}).unwrap();
+    write_image(
+        &four_d,
+        &[32, 32, 32, 2],
+        &grid.affine,
+        &vec![2.0; 2 * grid.len()],
+        DataType::U8,
+        |_| {},
+    )
+    .unwrap();
     let (src, lab, tgt) = ("source.nii.gz", "labels.nii.gz", "target.nii.gz");
     vec![
-        case("NaN voxels in the target", x.register(src, lab, nan, &[]), &[nan, "NaN"]),
-        case("constant target", x.register(src, lab, constant, &[]), &[constant, "no contrast"]),
-        case("all-zero target", x.register(src, lab, zero, &[]), &[zero, "no contrast"]),
-        case("one bright voxel for a target", x.register(src, lab, speck, &[]), &[speck, "almost empty"]),
-        case("constant source", x.register(constant, lab, tgt, &[]), &[constant, "no contrast"]),
-        case("fractional labels", x.register(src, frac, tgt, &[]), &[frac, "whole number"]),
-        case("4-D label map", x.register(src, "labels4d.nii.gz", tgt, &[]), &["labels4d.nii.gz", "3-D"]),
-        case("labels without bones", x.register(src, "tissue_only.nii.gz", tgt, &[]), &["tissue_only.nii.gz", "no bone labels"]),
-        case("labels on another grid", x.register(src, "other_grid.nii.gz", tgt, &[]), &["other_grid.nii.gz", "differs"]),
-        case("a bone of 8 voxels", x.register(src, "speck.nii.gz", tgt, &[]), &["speck.nii.gz", "too few"]),
-        case("too small for the pyramid", x.register("tiny.nii.gz", "tiny_labels.nii.gz", "tiny.nii.gz", &[]), &["tiny.nii.gz", "pyramid level"]),
-        case("scans that do not overlap", x.register(src, lab, "far.nii.gz", &[]), &["far.nii.gz", "overlap"]),
-        case("missing source", x.register("absent.nii.gz", lab, tgt, &[]), &["absent.nii.gz", "no such file"]),
-        case("reference bone absent", x.register(src, lab, tgt, &["--reference", "9"]), &["--reference", "9"]),
-        case("bone absent", x.register(src, lab, tgt, &["--bones", "2,7"]), &["labels.nii.gz", "bone 7"]),
+        case(
+            "NaN voxels in the target",
+            x.register(src, lab, nan, &[]),
+            &[nan, "NaN"],
+        ),
+        case(
+            "constant target",
+            x.register(src, lab, constant, &[]),
+            &[constant, "no contrast"],
+        ),
+        case(
+            "all-zero target",
+            x.register(src, lab, zero, &[]),
+            &[zero, "no contrast"],
+        ),
+        case(
+            "one bright voxel for a target",
+            x.register(src, lab, speck, &[]),
+            &[speck, "almost empty"],
+        ),
+        case(
+            "constant source",
+            x.register(constant, lab, tgt, &[]),
+            &[constant, "no contrast"],
+        ),
+        case(
+            "fractional labels",
+            x.register(src, frac, tgt, &[]),
+            &[frac, "whole number"],
+        ),
+        case(
+            "4-D label map",
+            x.register(src, "labels4d.nii.gz", tgt, &[]),
+            &["labels4d.nii.gz", "3-D"],
+        ),
+        case(
+            "labels without bones",
+            x.register(src, "tissue_only.nii.gz", tgt, &[]),
+            &["tissue_only.nii.gz", "no bone labels"],
+        ),
+        case(
+            "labels on another grid",
+            x.register(src, "other_grid.nii.gz", tgt, &[]),
+            &["other_grid.nii.gz", "differs"],
+        ),
+        case(
+            "a bone of 8 voxels",
+            x.register(src, "speck.nii.gz", tgt, &[]),
+            &["speck.nii.gz", "too few"],
+        ),
+        case(
+            "too small for the pyramid",
+            x.register("tiny.nii.gz", "tiny_labels.nii.gz", "tiny.nii.gz", &[]),
+            &["tiny.nii.gz", "pyramid level"],
+        ),
+        case(
+            "scans that do not overlap",
+            x.register(src, lab, "far.nii.gz", &[]),
+            &["far.nii.gz", "overlap"],
+        ),
+        case(
+            "missing source",
+            x.register("absent.nii.gz", lab, tgt, &[]),
+            &["absent.nii.gz", "no such file"],
+        ),
+        case(
+            "reference bone absent",
+            x.register(src, lab, tgt, &["--reference", "9"]),
+            &["--reference", "9"],
+        ),
+        case(
+            "bone absent",
+            x.register(src, lab, tgt, &["--bones", "2,7"]),
+            &["labels.nii.gz", "bone 7"],
+        ),
     ]
 }
 
@@ -285,22 +571,80 @@ fn settings_cases(x: &Inputs) -> Vec<Case> {
     let (src, lab, tgt) = ("source.nii.gz", "labels.nii.gz", "target.nii.gz");
     let with = |file: String| x.register(src, lab, tgt, &["--config", &file]);
     vec![
-        case("threshold -1 (flag)", x.register(src, lab, tgt, &["--threshold=-1"]), &["adaptive.threshold", "at least 1"]),
-        case("threshold NaN (flag)", x.register(src, lab, tgt, &["--threshold", "NaN"]), &["adaptive.threshold"]),
-        case("iterations 0", x.register(src, lab, tgt, &["--iterations", "0"]), &["adaptive.iterations", "above 0"]),
-        case("threshold -1 (file)", with(config("neg.toml", "[adaptive]\nthreshold = \"-1\"\n")), &["neg.toml", "threshold"]),
-        case("pins_per_bone 1e8", with(config("pins.toml", "pins_per_bone = 100000000\n")), &["pins.toml", "pins_per_bone"]),
-        case("unknown setting", with(config("typo.toml", "[adaptive]\niteratoins = 5\n")), &["typo.toml", "unknown field"]),
-        case("settings not TOML or JSON", with(config("settings.yaml", "adaptive: {}\n")), &["settings.yaml", ".toml or .json"]),
-        case("values for the wrong level count", with(config("levels.json", r#"{"adaptive": {"iterations": "3x3"}}"#)), &["levels.json", "3 pyramid levels"]),
-        case("lattice of a micron", with(config("lattice.toml", "[adaptive]\nlattice_mm = 0.001\n")), &["lattice.toml", "lattice_mm"]),
-        case("iterations negative", with(config("negit.toml", "[adaptive]\niterations = -1\n")), &["negit.toml", "a list coarse to fine"]),
-        case("smoothing NaN", with(config("nan.toml", "[adaptive]\nsmoothing = nan\n")), &["nan.toml", "smoothing"]),
-        case("search backwards", with(config("search.toml", "[init]\nsearch_degrees = [90.0, 0.0, 4.0]\n")), &["search.toml", "search_degrees"]),
-        case("settings file not UTF-8", with({
-            std::fs::write(x.path("latin1.toml"), b"# r\xe9glages\n").unwrap();
-            x.s("latin1.toml")
-        }), &["latin1.toml", "UTF-8"]),
+        case(
+            "threshold -1 (flag)",
+            x.register(src, lab, tgt, &["--threshold=-1"]),
+            &["adaptive.threshold", "at least 1"],
+        ),
+        case(
+            "threshold NaN (flag)",
+            x.register(src, lab, tgt, &["--threshold", "NaN"]),
+            &["adaptive.threshold"],
+        ),
+        case(
+            "iterations 0",
+            x.register(src, lab, tgt, &["--iterations", "0"]),
+            &["adaptive.iterations", "above 0"],
+        ),
+        case(
+            "threshold -1 (file)",
+            with(config("neg.toml", "[adaptive]\nthreshold = \"-1\"\n")),
+            &["neg.toml", "threshold"],
+        ),
+        case(
+            "pins_per_bone 1e8",
+            with(config("pins.toml", "pins_per_bone = 100000000\n")),
+            &["pins.toml", "pins_per_bone"],
+        ),
+        case(
+            "unknown setting",
+            with(config("typo.toml", "[adaptive]\niteratoins = 5\n")),
+            &["typo.toml", "unknown field"],
+        ),
+        case(
+            "settings not TOML or JSON",
+            with(config("settings.yaml", "adaptive: {}\n")),
+            &["settings.yaml", ".toml or .json"],
+        ),
+        case(
+            "values for the wrong level count",
+            with(config(
+                "levels.json",
+                r#"{"adaptive": {"iterations": "3x3"}}"#,
+            )),
+            &["levels.json", "3 pyramid levels"],
+        ),
+        case(
+            "lattice of a micron",
+            with(config("lattice.toml", "[adaptive]\nlattice_mm = 0.001\n")),
+            &["lattice.toml", "lattice_mm"],
+        ),
+        case(
+            "iterations negative",
+            with(config("negit.toml", "[adaptive]\niterations = -1\n")),
+            &["negit.toml", "a list coarse to fine"],
+        ),
+        case(
+            "smoothing NaN",
+            with(config("nan.toml", "[adaptive]\nsmoothing = nan\n")),
+            &["nan.toml", "smoothing"],
+        ),
+        case(
+            "search backwards",
+            with(config(
+                "search.toml",
+                "[init]\nsearch_degrees = [90.0, 0.0, 4.0]\n",
+            )),
+            &["search.toml", "search_degrees"],
+        ),
+        case(
+            "settings file not UTF-8",
+            with({
+                std::fs::write(x.path("latin1.toml"), b"# r\xe9glages\n").unwrap();
+                x.s("latin1.toml")
+            }),
+            &["latin1.toml", "UTF-8"],
+        ),
     ]
 }
 
@@ -308,7 +652,15 @@ fn field_and_output_cases(x: &Inputs) -> Vec<Case> {
     let grid = oblique_grid([32, 32, 32]);
     let n = grid.len();
     let write = |name: &str, dims: &[usize], intent: i16, value: f32| {
-        write_image(&x.path(name), dims, &grid.affine, &vec![value; 3 * n], DataType::F32, |h| h.intent_code = intent).unwrap();
+        write_image(
+            &x.path(name),
+            dims,
+            &grid.affine,
+            &vec![value; 3 * n],
+            DataType::F32,
+            |h| h.intent_code = intent,
+        )
+        .unwrap();
     };
     write("series.nii.gz", &[32, 32, 32, 3], 0, 1.0);
     write("vec4d.nii.gz", &[32, 32, 32, 3], 1007, 1.0);
@@ -316,7 +668,15 @@ fn field_and_output_cases(x: &Inputs) -> Vec<Case> {
     std::fs::write(x.path("a_file"), "not a folder").unwrap();
     let resample = |field: &str, like: &str, out: &str| -> Vec<String> {
         let mut args: Vec<String> = ["--device", "cpu", "resample"].map(String::from).to_vec();
-        args.extend([x.s("source.nii.gz"), "--field".into(), x.s(field), "--like".into(), x.s(like), "-o".into(), x.s(out)]);
+        args.extend([
+            x.s("source.nii.gz"),
+            "--field".into(),
+            x.s(field),
+            "--like".into(),
+            x.s(like),
+            "-o".into(),
+            x.s(out),
+        ]);
         args
     };
     let (src, lab, tgt) = ("source.nii.gz", "labels.nii.gz", "target.nii.gz");
@@ -326,12 +686,36 @@ fn field_and_output_cases(x: &Inputs) -> Vec<Case> {
     let mut onto_file = x.register(src, lab, tgt, &[]);
     onto_file[last] = x.s("a_file");
     vec![
-        case("a 4-D time series as a field", resample("series.nii.gz", tgt, "o1.nii.gz"), &["series.nii.gz", "intent code is 0"]),
-        case("a 4-D vector image as a field", resample("vec4d.nii.gz", tgt, "o2.nii.gz"), &["vec4d.nii.gz", "[x, y, z, 1, 3]"]),
-        case("NaN vectors", resample("nanfield.nii.gz", tgt, "o3.nii.gz"), &["nanfield.nii.gz", "NaN"]),
-        case("reference on another grid", resample("reg/field.nii.gz", "small.nii", "o4.nii.gz"), &["small.nii", "is not the grid"]),
-        case("output name not NIfTI", resample("reg/field.nii.gz", tgt, "o5.img"), &["o5.img", "must end in"]),
-        case("output folder is a file", onto_file, &["a_file", "is a file"]),
+        case(
+            "a 4-D time series as a field",
+            resample("series.nii.gz", tgt, "o1.nii.gz"),
+            &["series.nii.gz", "intent code is 0"],
+        ),
+        case(
+            "a 4-D vector image as a field",
+            resample("vec4d.nii.gz", tgt, "o2.nii.gz"),
+            &["vec4d.nii.gz", "[x, y, z, 1, 3]"],
+        ),
+        case(
+            "NaN vectors",
+            resample("nanfield.nii.gz", tgt, "o3.nii.gz"),
+            &["nanfield.nii.gz", "NaN"],
+        ),
+        case(
+            "reference on another grid",
+            resample("reg/field.nii.gz", "small.nii", "o4.nii.gz"),
+            &["small.nii", "is not the grid"],
+        ),
+        case(
+            "output name not NIfTI",
+            resample("reg/field.nii.gz", tgt, "o5.img"),
+            &["o5.img", "must end in"],
+        ),
+        case(
+            "output folder is a file",
+            onto_file,
+            &["a_file", "is a file"],
+        ),
         case("output folder under a file", under_file, &["a_file/sub"]),
     ]
 }
@@ -342,28 +726,75 @@ fn points_cases(x: &Inputs) -> Vec<Case> {
         name
     };
     let apply = |transform: &str, points: &str| -> Vec<String> {
-        vec!["apply-points".into(), x.s(transform), x.s(points), "-o".into(), x.s("mapped.csv")]
+        vec![
+            "apply-points".into(),
+            x.s(transform),
+            x.s(points),
+            "-o".into(),
+            x.s("mapped.csv"),
+        ]
     };
     let centre = oblique_grid([32, 32, 32]).voxel_to_world([16.0; 3]);
     let good = format!("x,y,z\n{},{},{}\n", centre[0], centre[1], centre[2]);
     let pts = csv("good.csv", &good);
     let reg = |name: &str, text: &str| {
         std::fs::create_dir_all(x.path(name)).unwrap();
-        std::fs::copy(x.path("reg/field.nii.gz"), x.path(&format!("{name}/field.nii.gz"))).unwrap();
+        std::fs::copy(
+            x.path("reg/field.nii.gz"),
+            x.path(&format!("{name}/field.nii.gz")),
+        )
+        .unwrap();
         std::fs::write(x.path(&format!("{name}/transform.json")), text).unwrap();
         format!("{name}/transform.json")
     };
     let garbage = reg("garbage", "{not json");
     let lps = reg("lps", r#"{"space": "LPS", "bones": []}"#);
-    let singular = reg("singular", r#"{"space": "RAS", "bones": [{"label": 2, "name": "femur", "matrix": [[0,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}]}"#);
+    let singular = reg(
+        "singular",
+        r#"{"space": "RAS", "bones": [{"label": 2, "name": "femur", "matrix": [[0,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}]}"#,
+    );
     vec![
-        case("a point a kilometre away", apply("reg/transform.json", csv("far.csv", &format!("{good}1000000,0,0\n"))), &["far.csv", "outside the grid"]),
-        case("no z column", apply("reg/transform.json", csv("noz.csv", "x,y,w\n1,2,3\n")), &["noz.csv", "\"z\""]),
-        case("a row short of cells", apply("reg/transform.json", csv("short.csv", "x,y,z,name\n1,2,3\n")), &["short.csv", "cells"]),
-        case("a NaN coordinate", apply("reg/transform.json", csv("nanpt.csv", "x,y,z\n1,NaN,3\n")), &["nanpt.csv", "finite number"]),
-        case("transform.json not JSON", apply(&garbage, pts), &["garbage/transform.json", "not a bone-transform file"]),
-        case("transform.json in LPS", apply(&lps, pts), &["lps/transform.json", "space"]),
-        case("a singular bone matrix", apply(&singular, pts), &["singular/transform.json", "singular"]),
+        case(
+            "a point a kilometre away",
+            apply(
+                "reg/transform.json",
+                csv("far.csv", &format!("{good}1000000,0,0\n")),
+            ),
+            &["far.csv", "outside the grid"],
+        ),
+        case(
+            "no z column",
+            apply("reg/transform.json", csv("noz.csv", "x,y,w\n1,2,3\n")),
+            &["noz.csv", "\"z\""],
+        ),
+        case(
+            "a row short of cells",
+            apply(
+                "reg/transform.json",
+                csv("short.csv", "x,y,z,name\n1,2,3\n"),
+            ),
+            &["short.csv", "cells"],
+        ),
+        case(
+            "a NaN coordinate",
+            apply("reg/transform.json", csv("nanpt.csv", "x,y,z\n1,NaN,3\n")),
+            &["nanpt.csv", "finite number"],
+        ),
+        case(
+            "transform.json not JSON",
+            apply(&garbage, pts),
+            &["garbage/transform.json", "not a bone-transform file"],
+        ),
+        case(
+            "transform.json in LPS",
+            apply(&lps, pts),
+            &["lps/transform.json", "space"],
+        ),
+        case(
+            "a singular bone matrix",
+            apply(&singular, pts),
+            &["singular/transform.json", "singular"],
+        ),
     ]
 }
 
@@ -376,15 +807,37 @@ fn usage_cases(x: &Inputs) -> Vec<Case> {
     let at = missing.iter().position(|a| a == "--target").unwrap();
     missing.drain(at..at + 2);
     vec![
-        usage("an unknown flag", x.register("source.nii.gz", "labels.nii.gz", "target.nii.gz", &["--frobnicate"]), &["--frobnicate"]),
+        usage(
+            "an unknown flag",
+            x.register(
+                "source.nii.gz",
+                "labels.nii.gz",
+                "target.nii.gz",
+                &["--frobnicate"],
+            ),
+            &["--frobnicate"],
+        ),
         usage("a missing input", missing, &["--target"]),
-        usage("a threshold that is not a number", x.register("source.nii.gz", "labels.nii.gz", "target.nii.gz", &["--threshold", "abc"]), &["--threshold", "abc"]),
+        usage(
+            "a threshold that is not a number",
+            x.register(
+                "source.nii.gz",
+                "labels.nii.gz",
+                "target.nii.gz",
+                &["--threshold", "abc"],
+            ),
+            &["--threshold", "abc"],
+        ),
     ]
 }
 
 /// Runs one case and returns what is wrong with its outcome, if anything.
 fn check(x: &Inputs, case: &Case) -> Option<String> {
-    let output = case.args.iter().position(|a| a == "-o").map(|i| PathBuf::from(&case.args[i + 1]));
+    let output = case
+        .args
+        .iter()
+        .position(|a| a == "-o")
+        .map(|i| PathBuf::from(&case.args[i + 1]));
     let existed = output.as_ref().is_some_and(|o| o.exists());
     let started = Instant::now();
     let run = Command::new(env!("CARGO_BIN_EXE_posereg"))
@@ -400,12 +853,19 @@ fn check(x: &Inputs, case: &Case) -> Option<String> {
         _ => stderr.to_string(),
     };
     let problems = [
-        (run.status.code() != Some(case.exit)).then(|| format!("exit {:?}, expected {}", run.status.code(), case.exit)),
+        (run.status.code() != Some(case.exit))
+            .then(|| format!("exit {:?}, expected {}", run.status.code(), case.exit)),
         stderr.contains("panicked").then(|| "panicked".into()),
         (took > BOUND).then(|| format!("took {took:?}")),
-        (case.exit == 1 && !said.starts_with("posereg: error:")).then(|| "last line is not the error".into()),
-        case.says.iter().find(|s| !said.contains(s.as_str())).map(|s| format!("does not say {s:?}")),
-        output.filter(|o| o.exists() && !existed).map(|o| format!("left {}", o.display())),
+        (case.exit == 1 && !said.starts_with("posereg: error:"))
+            .then(|| "last line is not the error".into()),
+        case.says
+            .iter()
+            .find(|s| !said.contains(s.as_str()))
+            .map(|s| format!("does not say {s:?}")),
+        output
+            .filter(|o| o.exists() && !existed)
+            .map(|o| format!("left {}", o.display())),
     ];
     let found: Vec<String> = problems.into_iter().flatten().collect();
     (!found.is_empty()).then(|| format!("{}: {} — stderr: {stderr}", case.what, found.join("; ")))
@@ -418,7 +878,12 @@ fn stray_files(dir: &Path) -> Vec<PathBuf> {
         let path = entry.path();
         if path.is_dir() {
             found.extend(stray_files(&path));
-        } else if path.file_name().unwrap().to_string_lossy().starts_with(".posereg-") {
+        } else if path
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .starts_with(".posereg-")
+        {
             found.push(path);
         }
     }
@@ -443,7 +908,13 @@ fn every_bad_input_is_refused_clearly() {
     assert!(cases.len() >= 40, "{} cases", cases.len());
     let failures: Vec<String> = cases.iter().filter_map(|c| check(&x, c)).collect();
     println!("{} bad inputs refused", cases.len());
-    assert!(failures.is_empty(), "{} of {} cases failed:\n{}", failures.len(), cases.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} of {} cases failed:\n{}",
+        failures.len(),
+        cases.len(),
+        failures.join("\n")
+    );
     assert_eq!(stray_files(x.dir.path()), Vec::<PathBuf>::new());
 }
 
@@ -452,14 +923,38 @@ fn every_bad_input_is_refused_clearly() {
 fn the_inputs_the_cases_start_from_are_accepted() {
     let x = Inputs::new();
     for name in ["small.nii", "source.nii.gz", "labels.nii.gz"] {
-        let run = Command::new(env!("CARGO_BIN_EXE_posereg")).args(["info", &x.s(name)]).output().unwrap();
-        assert!(run.status.success(), "{name}: {}", String::from_utf8_lossy(&run.stderr));
+        let run = Command::new(env!("CARGO_BIN_EXE_posereg"))
+            .args(["info", &x.s(name)])
+            .output()
+            .unwrap();
+        assert!(
+            run.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
     }
-    let args = x.register("source.nii.gz", "labels.nii.gz", "target.nii.gz", &["--iterations", "2x0x0", "-q"]);
-    let run = Command::new(env!("CARGO_BIN_EXE_posereg")).args(&args).env("XDG_RUNTIME_DIR", x.dir.path()).output().unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(x.path("out/report.json")).unwrap()).unwrap();
-    assert!(report["checks"].as_array().is_some_and(|c| c.len() >= 2), "{report}");
+    let args = x.register(
+        "source.nii.gz",
+        "labels.nii.gz",
+        "target.nii.gz",
+        &["--iterations", "2x0x0", "-q"],
+    );
+    let run = Command::new(env!("CARGO_BIN_EXE_posereg"))
+        .args(&args)
+        .env("XDG_RUNTIME_DIR", x.dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(x.path("out/report.json")).unwrap()).unwrap();
+    assert!(
+        report["checks"].as_array().is_some_and(|c| c.len() >= 2),
+        "{report}"
+    );
 }
 
 /// Two unrelated smooth images: registering one onto the other cannot raise their correlation,
@@ -467,17 +962,41 @@ fn the_inputs_the_cases_start_from_are_accepted() {
 #[test]
 fn strict_turns_a_failed_check_into_an_error_and_keeps_the_outputs() {
     let x = Inputs::new();
-    let args = x.register("source.nii.gz", "labels.nii.gz", "target.nii.gz", &["--iterations", "2x0x0", "-q", "--strict"]);
-    let run = Command::new(env!("CARGO_BIN_EXE_posereg")).args(&args).env("XDG_RUNTIME_DIR", x.dir.path()).output().unwrap();
+    let args = x.register(
+        "source.nii.gz",
+        "labels.nii.gz",
+        "target.nii.gz",
+        &["--iterations", "2x0x0", "-q", "--strict"],
+    );
+    let run = Command::new(env!("CARGO_BIN_EXE_posereg"))
+        .args(&args)
+        .env("XDG_RUNTIME_DIR", x.dir.path())
+        .output()
+        .unwrap();
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("check correlation_improves failed"), "{stderr}");
-    assert!(stderr.lines().last().unwrap().contains("--strict"), "{stderr}");
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(x.path("out/report.json")).unwrap()).unwrap();
+    assert!(
+        stderr.contains("check correlation_improves failed"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.lines().last().unwrap().contains("--strict"),
+        "{stderr}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(x.path("out/report.json")).unwrap()).unwrap();
     let checks = report["checks"].as_array().unwrap();
-    let correlation = checks.iter().find(|c| c["name"] == "correlation_improves").unwrap();
+    let correlation = checks
+        .iter()
+        .find(|c| c["name"] == "correlation_improves")
+        .unwrap();
     assert_eq!(correlation["passed"], false, "{report}");
-    for name in ["warped.nii.gz", "field.nii.gz", "transform.json", "jacobian.nii.gz"] {
+    for name in [
+        "warped.nii.gz",
+        "field.nii.gz",
+        "transform.json",
+        "jacobian.nii.gz",
+    ] {
         assert!(x.path("out").join(name).exists(), "{name}");
     }
 }

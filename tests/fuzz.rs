@@ -1,6 +1,7 @@
 //! Fuzzing the readers of every file a user hands posereg — NIfTI images and label maps,
 //! displacement fields, bone-transform JSON, point CSV, settings (TOML and JSON) — with the
-//! seeded mutation engine of fuzz/mutate.rs over valid files. Every case must return Ok or a
+//! seeded mutation engine of fuzz/mutate.rs over valid files (.hdr/.img pairs through files on
+//! disk, the rest in memory). Every case must return Ok or a
 //! clear error naming the file: no panic, no case slower than a bound, and peak memory bounded
 //! (the readers cap what they allocate by what the file can hold).
 //!
@@ -11,16 +12,16 @@
 //! and POSEREG_FUZZ_SEED picks another seed (default 1). A failure prints the seed and the
 //! case index, which replay it exactly.
 
+mod common;
 #[path = "fuzz/mutate.rs"]
 mod mutate;
-mod common;
 
 use common::*;
 use mutate::{case_rng, gzip, mutate_bytes, mutate_gzipped, mutate_text};
 use posereg::io::config::{options_toml, parse_options};
 use posereg::io::field::{field_from_raw, save_field};
 use posereg::io::nifti::{
-    labels_from_raw, read_raw_bytes, volume_from_raw, write_image, DataType,
+    labels_from_raw, read_raw, read_raw_bytes, volume_from_raw, write_image, DataType,
 };
 use posereg::io::points::parse_points;
 use posereg::io::transform::{BoneTransform, BoneTransforms};
@@ -38,7 +39,10 @@ const CASE_BOUND: Duration = Duration::from_secs(5);
 const PEAK_BOUND_MB: u64 = 512;
 
 fn env_number(name: &str, default: u64) -> u64 {
-    std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
 }
 
 /// The valid NIfTI files mutated: float32, scaled int16 and uint8 NIfTI-1 written by posereg,
@@ -48,7 +52,11 @@ fn nifti_seeds(dir: &Path) -> Vec<Vec<u8>> {
     let grid = oblique_grid([6, 5, 4]);
     let vol = smooth_volume(&grid, 3);
     let mut seeds = Vec::new();
-    for (dtype, slope) in [(DataType::F32, 0.0f32), (DataType::I16, 0.5), (DataType::U8, 0.0)] {
+    for (dtype, slope) in [
+        (DataType::F32, 0.0f32),
+        (DataType::I16, 0.5),
+        (DataType::U8, 0.0),
+    ] {
         let path = dir.join(format!("{dtype:?}.nii"));
         write_image(&path, &grid.dims, &grid.affine, &vol.data, dtype, |h| {
             h.scl_slope = slope;
@@ -80,7 +88,10 @@ fn field_seed(dir: &Path) -> Vec<u8> {
 fn transform_seed() -> String {
     let mut m = Affine::identity();
     m[(0, 3)] = 2.5;
-    let bones = vec![BoneTransform::new(2, "femur", &m), BoneTransform::new(3, "tibia", &Affine::identity())];
+    let bones = vec![
+        BoneTransform::new(2, "femur", &m),
+        BoneTransform::new(3, "tibia", &Affine::identity()),
+    ];
     serde_json::to_string_pretty(&BoneTransforms::new(bones)).unwrap()
 }
 
@@ -88,44 +99,135 @@ fn transform_seed() -> String {
 /// the file.
 type Reader<'a> = Box<dyn Fn(&mut rand_chacha::ChaCha8Rng) -> (String, Result<(), String>) + 'a>;
 
-fn readers<'a>(nifti: &'a [Vec<u8>], field: &'a [u8], transform: &'a str, settings: &'a [(PathBuf, String)]) -> Vec<(&'static str, Reader<'a>)> {
+/// The valid files every reader's cases start from.
+struct Seeds {
+    nifti: Vec<Vec<u8>>,
+    field: Vec<u8>,
+    transform: String,
+    settings: Vec<(PathBuf, String)>,
+    /// nibabel's big-endian .hdr and .img.
+    pair: (Vec<u8>, Vec<u8>),
+    /// Where the pair reader writes its cases.
+    dir: PathBuf,
+}
+
+impl Seeds {
+    fn new(dir: &Path) -> Self {
+        let defaults = RegisterOptions::default();
+        let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+        let read = |name: &str| std::fs::read(data.join(name)).unwrap();
+        Seeds {
+            nifti: nifti_seeds(dir),
+            field: field_seed(dir),
+            transform: transform_seed(),
+            settings: vec![
+                (PathBuf::from("case.toml"), options_toml(&defaults)),
+                (
+                    PathBuf::from("case.json"),
+                    serde_json::to_string_pretty(&defaults).unwrap(),
+                ),
+            ],
+            pair: (read("oblique_pair_be.hdr"), read("oblique_pair_be.img")),
+            dir: dir.to_path_buf(),
+        }
+    }
+}
+
+/// A .hdr/.img pair on disk, either half mutated, the data file sometimes gzipped, read from
+/// the header's name.
+fn read_pair_case(rng: &mut rand_chacha::ChaCha8Rng, seeds: &Seeds) -> Result<(), String> {
+    let (header, data) = &seeds.pair;
+    let header = match rng.random_bool(0.6) {
+        true => mutate_bytes(rng, header, true),
+        false => header.clone(),
+    };
+    let data = match rng.random_bool(0.4) {
+        true => mutate_bytes(rng, data, false),
+        false => data.clone(),
+    };
+    let [hdr, img, img_gz] = ["case.hdr", "case.img", "case.img.gz"].map(|n| seeds.dir.join(n));
+    let _ = std::fs::remove_file(&img);
+    let _ = std::fs::remove_file(&img_gz);
+    std::fs::write(&hdr, header).unwrap();
+    match rng.random_bool(0.3) {
+        true => std::fs::write(&img_gz, gzip(&data)).unwrap(),
+        false => std::fs::write(&img, data).unwrap(),
+    }
+    read_raw(&hdr)
+        .and_then(|raw| volume_from_raw(&hdr, raw))
+        .map(|_| ())
+        .map_err(|e| e.to_string())
+}
+
+fn readers(seeds: &Seeds) -> Vec<(&'static str, Reader<'_>)> {
     let name = Path::new("case.nii.gz");
-    let bytes_of = move |rng: &mut rand_chacha::ChaCha8Rng, seed: &[u8]| match rng.random_bool(0.5) {
+    let (nifti, field, transform, settings) = (
+        &seeds.nifti,
+        &seeds.field,
+        &seeds.transform,
+        &seeds.settings,
+    );
+    let bytes_of = move |rng: &mut rand_chacha::ChaCha8Rng, seed: &[u8]| match rng.random_bool(0.5)
+    {
         true => mutate_gzipped(rng, seed),
         false => mutate_bytes(rng, seed, true),
     };
     vec![
-        ("nifti", Box::new(move |rng| {
-            let seed = &nifti[rng.random_range(0..nifti.len())];
-            let bytes = bytes_of(rng, seed);
-            let as_labels = rng.random_bool(0.3);
-            let result = read_raw_bytes(name, &bytes).and_then(|raw| match as_labels {
-                true => labels_from_raw(name, raw).map(|_| ()),
-                false => volume_from_raw(name, raw).map(|_| ()),
-            });
-            ("case.nii.gz".into(), result.map_err(|e| e.to_string()))
-        })),
-        ("field", Box::new(move |rng| {
-            let bytes = bytes_of(rng, field);
-            let result = read_raw_bytes(name, &bytes).and_then(|raw| field_from_raw(name, raw)).map(|_| ());
-            ("case.nii.gz".into(), result.map_err(|e| e.to_string()))
-        })),
-        ("transform", Box::new(move |rng| {
-            let text = mutate_text(rng, transform);
-            let result = BoneTransforms::parse(Path::new("case.json"), &text).map(|_| ());
-            ("case.json".into(), result.map_err(|e| e.to_string()))
-        })),
-        ("points", Box::new(move |rng| {
-            let text = mutate_text(rng, "x,y,z,name\n1.5,2,3,a\n-4,5e1,6,b\n");
-            let result = parse_points(Path::new("case.csv"), &text).map(|_| ());
-            ("case.csv".into(), result.map_err(|e| e.to_string()))
-        })),
-        ("settings", Box::new(move |rng| {
-            let (path, seed) = &settings[rng.random_range(0..settings.len())];
-            let text = mutate_text(rng, seed);
-            let result = parse_options(path, &text).map(|_| ());
-            (path.display().to_string(), result.map_err(|e| e.to_string()))
-        })),
+        (
+            "nifti",
+            Box::new(move |rng| {
+                let seed = &nifti[rng.random_range(0..nifti.len())];
+                let bytes = bytes_of(rng, seed);
+                let as_labels = rng.random_bool(0.3);
+                let result = read_raw_bytes(name, &bytes).and_then(|raw| match as_labels {
+                    true => labels_from_raw(name, raw).map(|_| ()),
+                    false => volume_from_raw(name, raw).map(|_| ()),
+                });
+                ("case.nii.gz".into(), result.map_err(|e| e.to_string()))
+            }),
+        ),
+        (
+            "field",
+            Box::new(move |rng| {
+                let bytes = bytes_of(rng, field);
+                let result = read_raw_bytes(name, &bytes)
+                    .and_then(|raw| field_from_raw(name, raw))
+                    .map(|_| ());
+                ("case.nii.gz".into(), result.map_err(|e| e.to_string()))
+            }),
+        ),
+        (
+            "transform",
+            Box::new(move |rng| {
+                let text = mutate_text(rng, transform);
+                let result = BoneTransforms::parse(Path::new("case.json"), &text).map(|_| ());
+                ("case.json".into(), result.map_err(|e| e.to_string()))
+            }),
+        ),
+        (
+            "points",
+            Box::new(move |rng| {
+                let text = mutate_text(rng, "x,y,z,name\n1.5,2,3,a\n-4,5e1,6,b\n");
+                let result = parse_points(Path::new("case.csv"), &text).map(|_| ());
+                ("case.csv".into(), result.map_err(|e| e.to_string()))
+            }),
+        ),
+        (
+            "settings",
+            Box::new(move |rng| {
+                let (path, seed) = &settings[rng.random_range(0..settings.len())];
+                let text = mutate_text(rng, seed);
+                let result = parse_options(path, &text).map(|_| ());
+                (
+                    path.display().to_string(),
+                    result.map_err(|e| e.to_string()),
+                )
+            }),
+        ),
+        (
+            "pair",
+            Box::new(move |rng| ("case.".into(), read_pair_case(rng, seeds))),
+        ),
     ]
 }
 
@@ -140,21 +242,17 @@ fn every_reader_survives_mutated_files() {
     let cases = env_number("POSEREG_FUZZ_CASES", 1000);
     let seed = env_number("POSEREG_FUZZ_SEED", 1);
     let dir = tempfile::tempdir().unwrap();
-    let nifti = nifti_seeds(dir.path());
-    let field = field_seed(dir.path());
-    let transform = transform_seed();
-    let defaults = RegisterOptions::default();
-    let settings = vec![
-        (PathBuf::from("case.toml"), options_toml(&defaults)),
-        (PathBuf::from("case.json"), serde_json::to_string_pretty(&defaults).unwrap()),
-    ];
-    // A case's seed file gzipped, unmutated, must read: the harness itself is sound.
-    assert!(read_raw_bytes(Path::new("seed.nii.gz"), &gzip(&nifti[0])).is_ok());
+    let seeds = Seeds::new(dir.path());
+    // The seed files, unmutated, must read: the harness itself is sound.
+    assert!(read_raw_bytes(Path::new("seed.nii.gz"), &gzip(&seeds.nifti[0])).is_ok());
+    for seed in &seeds.nifti {
+        assert!(read_raw_bytes(Path::new("seed.nii"), seed).is_ok());
+    }
     // Panics are caught and counted; the default hook would print thousands of backtraces.
     let hook = std::panic::take_hook();
     std::panic::set_hook(Box::new(|_| {}));
     let mut failures = Vec::new();
-    for (reader_index, (reader, run)) in readers(&nifti, &field, &transform, &settings).into_iter().enumerate() {
+    for (reader_index, (reader, run)) in readers(&seeds).into_iter().enumerate() {
         let (mut accepted, mut slowest) = (0u64, Duration::ZERO);
         for case in 0..cases {
             let mut rng = case_rng(seed, (reader_index as u64) << 40 | case);
@@ -169,19 +267,29 @@ fn every_reader_survives_mutated_files() {
                     accepted += 1;
                     None
                 }
-                Ok((file, Err(message))) if !message.contains(&file) => Some(format!("error does not name the file: {message}")),
+                Ok((file, Err(message))) if !message.contains(&file) => {
+                    Some(format!("error does not name the file: {message}"))
+                }
                 Ok(_) => None,
             };
             if let Some(problem) = problem {
                 failures.push(format!("{reader} seed {seed} case {case}: {problem}"));
             }
         }
-        println!("{reader}: {cases} cases, {accepted} accepted, {} refused, slowest {slowest:?}", cases - accepted);
+        println!(
+            "{reader}: {cases} cases, {accepted} accepted, {} refused, slowest {slowest:?}",
+            cases - accepted
+        );
     }
     std::panic::set_hook(hook);
     let peak = peak_resident_mb();
     println!("peak resident memory: {peak:?} MB");
-    assert!(failures.is_empty(), "{} failures, the first: {:#?}", failures.len(), &failures[..failures.len().min(10)]);
+    assert!(
+        failures.is_empty(),
+        "{} failures, the first: {:#?}",
+        failures.len(),
+        &failures[..failures.len().min(10)]
+    );
     if let Some(peak) = peak {
         assert!(peak <= PEAK_BOUND_MB, "peak resident memory {peak} MB");
     }

@@ -31,9 +31,21 @@ fn assert_affine_close(a: &Affine, b: &Affine, tol: f64) {
 }
 
 /// `vol` written to `path` with `customise` applied to its header, and the header read back.
-fn written_with(path: &Path, vol: &posereg::Volume, customise: impl FnOnce(&mut nifti::NiftiHeader)) -> HeaderInfo {
+fn written_with(
+    path: &Path,
+    vol: &posereg::Volume,
+    customise: impl FnOnce(&mut nifti::NiftiHeader),
+) -> HeaderInfo {
     let g = &vol.grid;
-    write_image(path, &g.dims, &g.affine, &vol.data, DataType::F32, customise).unwrap();
+    write_image(
+        path,
+        &g.dims,
+        &g.affine,
+        &vol.data,
+        DataType::F32,
+        customise,
+    )
+    .unwrap();
     read_header(path).unwrap()
 }
 
@@ -63,7 +75,11 @@ fn reads_the_qform_when_there_is_no_sform() {
     let path = data_dir().join("oblique_qform_only.nii.gz");
     let info = read_header(&path).unwrap();
     assert_eq!(info.affine_source, AffineSource::Qform);
-    assert_affine_close(&info.affine, &json_affine(&expected["qform_only_affine"]), 1e-6);
+    assert_affine_close(
+        &info.affine,
+        &json_affine(&expected["qform_only_affine"]),
+        1e-6,
+    );
 }
 
 #[test]
@@ -96,7 +112,9 @@ fn oblique_volume_round_trips_with_sform_exact_and_qform_consistent() {
         // The sform stores f32: exact to f32 rounding of each entry.
         assert_affine_close(&back.grid.affine, &grid.affine, 1e-5);
         // A rotation with zooms is represented exactly by the qform too.
-        let q = written_with(&dir.path().join(format!("q{name}")), &vol, |h| h.sform_code = 0);
+        let q = written_with(&dir.path().join(format!("q{name}")), &vol, |h| {
+            h.sform_code = 0
+        });
         assert_eq!(q.affine_source, AffineSource::Qform);
         assert_affine_close(&q.affine, &grid.affine, 1e-5);
     }
@@ -126,7 +144,10 @@ fn sheared_affine_keeps_sform_exact_and_qform_nearest_rigid() {
     let vol = smooth_volume(&grid, 2);
     save_volume(&path, &vol, DataType::F32).unwrap();
     assert_affine_close(&load_volume(&path).unwrap().grid.affine, &a, 1e-6);
-    let q = written_with(&dir.path().join("shear_q.nii.gz"), &vol, |h| h.sform_code = 0).affine;
+    let q = written_with(&dir.path().join("shear_q.nii.gz"), &vol, |h| {
+        h.sform_code = 0
+    })
+    .affine;
     let r = q.fixed_view::<3, 3>(0, 0);
     let zooms: Vec<f64> = (0..3).map(|c| r.column(c).norm()).collect();
     let rot = nalgebra::Matrix3::from_fn(|i, j| r[(i, j)] / zooms[j]);
@@ -335,8 +356,101 @@ fn nifti2_big_endian_pairs_and_extensions_read_like_the_plain_file() {
     }
     let info = read_header(&data_dir().join("oblique_nifti2.nii.gz")).unwrap();
     assert_eq!(info.header.version, posereg::io::nifti::Version::Nifti2);
-    assert!(read_header(&data_dir().join("oblique_pair_be.img")).unwrap().header.big_endian);
+    assert!(
+        read_header(&data_dir().join("oblique_pair_be.img"))
+            .unwrap()
+            .header
+            .big_endian
+    );
     let ext = read_header(&data_dir().join("oblique_extension.nii")).unwrap();
-    assert_eq!(ext.header.vox_offset, expected["extension_vox_offset"].as_u64().unwrap());
-    assert!(ext.header.vox_offset > 352, "the extension moves the voxels");
+    assert_eq!(
+        ext.header.vox_offset,
+        expected["extension_vox_offset"].as_u64().unwrap()
+    );
+    assert!(
+        ext.header.vox_offset > 352,
+        "the extension moves the voxels"
+    );
+}
+
+#[test]
+fn spatial_units_in_metres_are_read_in_millimetres_as_itk_does() {
+    // SimpleITK reads a header with pixdim 0.001 m and xyzt_units = metres as 1 mm spacing.
+    let dir = tempfile::tempdir().unwrap();
+    let grid = oblique_grid([4, 3, 5]);
+    let mut metres = grid.affine;
+    for r in 0..3 {
+        for c in 0..4 {
+            metres[(r, c)] *= 0.001;
+        }
+    }
+    let path = dir.path().join("metres.nii");
+    let vol = smooth_volume(&grid, 9);
+    write_image(&path, &grid.dims, &metres, &vol.data, DataType::F32, |h| {
+        h.xyzt_units = 1
+    })
+    .unwrap();
+    assert_affine_close(&load_volume(&path).unwrap().grid.affine, &grid.affine, 1e-4);
+}
+
+/// nibabel's big-endian pair copied to `dir` under `stem` with upper- or lower-case
+/// extensions, its .img bytes changed by `patch`; returns the .hdr and .img paths.
+fn pair_copy(
+    dir: &Path,
+    stem: &str,
+    upper: bool,
+    patch: impl FnOnce(&mut Vec<u8>),
+) -> (PathBuf, PathBuf) {
+    let (h, i) = if upper {
+        ("HDR", "IMG")
+    } else {
+        ("hdr", "img")
+    };
+    let hdr = dir.join(format!("{stem}.{h}"));
+    let img = dir.join(format!("{stem}.{i}"));
+    std::fs::copy(data_dir().join("oblique_pair_be.hdr"), &hdr).unwrap();
+    let mut bytes = std::fs::read(data_dir().join("oblique_pair_be.img")).unwrap();
+    patch(&mut bytes);
+    std::fs::write(&img, bytes).unwrap();
+    (hdr, img)
+}
+
+#[test]
+fn pair_data_is_gzipped_only_by_name_and_partners_keep_their_case() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = load_volume(&data_dir().join("oblique_pair_be.img")).unwrap();
+    // An uncompressed .img whose first voxel's bytes are gzip's magic 1f 8b.
+    let (_, img) = pair_copy(dir.path(), "magic", false, |b| {
+        b[..2].copy_from_slice(&[0x1f, 0x8b])
+    });
+    let vol = load_volume(&img).unwrap();
+    let first = i16::from_be_bytes([0x1f, 0x8b]) as f32 * 0.5 + 10.0;
+    assert_eq!(vol.data[0], first);
+    assert_eq!(vol.data[1..], plain.data[1..]);
+    let (hdr, img) = pair_copy(dir.path(), "UPPER", true, |_| {});
+    assert_eq!(load_volume(&hdr).unwrap().data, plain.data);
+    assert_eq!(load_volume(&img).unwrap().data, plain.data);
+}
+
+#[test]
+fn a_slope_that_is_zero_or_not_finite_means_unscaled_as_nibabel_reads_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = oblique_grid([3, 4, 2]);
+    let vol = smooth_volume(&grid, 5);
+    for slope in [0.0, f32::NAN, f32::INFINITY] {
+        let path = dir.path().join("slope.nii");
+        write_image(
+            &path,
+            &grid.dims,
+            &grid.affine,
+            &vol.data,
+            DataType::F32,
+            |h| {
+                h.scl_slope = slope;
+                h.scl_inter = 7.0;
+            },
+        )
+        .unwrap();
+        assert_eq!(load_volume(&path).unwrap().data, vol.data, "slope {slope}");
+    }
 }

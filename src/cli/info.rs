@@ -58,10 +58,14 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     println!("file:        {}", args.file.display());
     println!("dims:        {}", dims.join(" x "));
     println!(
-        "datatype:    {} ({:?}, {})",
+        "datatype:    {} ({}, {})",
         info.header.datatype.name(),
-        info.header.version,
-        if info.header.big_endian { "big-endian" } else { "little-endian" }
+        info.header.version.name(),
+        if info.header.big_endian {
+            "big-endian"
+        } else {
+            "little-endian"
+        }
     );
     println!(
         "spacing:     {:.6} x {:.6} x {:.6} mm",

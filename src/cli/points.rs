@@ -7,9 +7,9 @@
 
 use super::fields::registration_field;
 use clap::{Args, ValueEnum};
-use posereg::points::{source_to_target, target_to_source};
 use nalgebra::Vector3;
 use posereg::io::points::load_points;
+use posereg::points::{source_to_target, target_to_source};
 use posereg::Error;
 use std::path::{Path, PathBuf};
 
@@ -57,7 +57,13 @@ pub fn run(args: &PointsArgs) -> anyhow::Result<()> {
     };
     if args.direction == Direction::SourceToTarget {
         let targets: Vec<Vector3<f64>> = mapped.iter().map(|m| m.0).collect();
-        refuse_outside(&args.points, &targets, &outside, "maps to a point", &field_path)?;
+        refuse_outside(
+            &args.points,
+            &targets,
+            &outside,
+            "maps to a point",
+            &field_path,
+        )?;
     }
     let [cx, cy, cz] = table.columns;
     let mut out = table.header.join(",") + ",inversion_residual_mm\n";

@@ -67,7 +67,10 @@ pub fn field_from_raw(path: &Path, raw: RawImage) -> Result<Field> {
     if let Some(i) = raw.data.iter().position(|v| !v.is_finite()) {
         return Err(Error::bad_file(
             path,
-            format!("displacement field has NaN or Inf vectors, the first at voxel {}", i % n),
+            format!(
+                "displacement field has NaN or Inf vectors, the first at voxel {}",
+                i % n
+            ),
         ));
     }
     let data = (0..n)

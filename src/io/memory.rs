@@ -24,7 +24,10 @@ pub fn check(needed: u64) -> Result<(), String> {
 const LIMIT_VAR: &str = "POSEREG_MEMORY_LIMIT_MB";
 
 fn budget() -> Option<u64> {
-    if let Some(mb) = std::env::var(LIMIT_VAR).ok().and_then(|v| v.trim().parse::<u64>().ok()) {
+    if let Some(mb) = std::env::var(LIMIT_VAR)
+        .ok()
+        .and_then(|v| v.trim().parse::<u64>().ok())
+    {
         return Some(mb << 20);
     }
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;

@@ -3,9 +3,9 @@
 
 pub mod config;
 pub mod field;
+pub mod memory;
 pub mod nifti;
 pub mod points;
-pub mod memory;
 pub mod transform;
 
 use crate::error::{Error, Result};
@@ -63,7 +63,10 @@ impl Drop for OutputFolder {
 /// removing a file in it, so an unusable folder is refused before any computation.
 pub fn prepare_output_folder(dir: &Path) -> Result<OutputFolder> {
     if dir.exists() && !dir.is_dir() {
-        return Err(Error::bad_file(dir, "is a file, not a folder: the outputs need a folder"));
+        return Err(Error::bad_file(
+            dir,
+            "is a file, not a folder: the outputs need a folder",
+        ));
     }
     let created: Vec<PathBuf> = dir
         .ancestors()
@@ -81,7 +84,10 @@ pub fn prepare_output_folder(dir: &Path) -> Result<OutputFolder> {
 pub fn check_output_file(path: &Path, extensions: &[&str]) -> Result<()> {
     check_output_name(path, extensions)?;
     if path.is_dir() {
-        return Err(Error::bad_file(path, "is a folder; the output needs a file name"));
+        return Err(Error::bad_file(
+            path,
+            "is a folder; the output needs a file name",
+        ));
     }
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),

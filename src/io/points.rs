@@ -28,7 +28,12 @@ pub fn load_points(path: &Path) -> Result<PointTable> {
 
 /// Parses the text of the point CSV `path`.
 pub fn parse_points(path: &Path, text: &str) -> Result<PointTable> {
-    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    // Spreadsheets write UTF-8 CSV with a byte-order mark before the header.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty());
     let header: Vec<String> = lines
         .next()
         .ok_or_else(|| Error::bad_file(path, "is empty: a header x,y,z and one point a row"))?
@@ -40,8 +45,14 @@ pub fn parse_points(path: &Path, text: &str) -> Result<PointTable> {
         let mut found = header.iter().enumerate().filter(|(_, h)| *h == name);
         match (found.next(), found.next()) {
             (Some((c, _)), None) => Ok(c),
-            (Some(_), Some(_)) => Err(Error::bad_file(path, format!("names column {name:?} twice"))),
-            _ => Err(Error::bad_file(path, format!("has no column {name:?} in its header"))),
+            (Some(_), Some(_)) => Err(Error::bad_file(
+                path,
+                format!("names column {name:?} twice"),
+            )),
+            _ => Err(Error::bad_file(
+                path,
+                format!("has no column {name:?} in its header"),
+            )),
         }
     };
     let columns = [column("x")?, column("y")?, column("z")?];
@@ -53,15 +64,33 @@ pub fn parse_points(path: &Path, text: &str) -> Result<PointTable> {
         if cells.len() != header.len() {
             return Err(Error::bad_file(
                 path,
-                format!("row {row} has {} cells, its header {}", cells.len(), header.len()),
+                format!(
+                    "row {row} has {} cells, its header {}",
+                    cells.len(),
+                    header.len()
+                ),
             ));
         }
         let value = |c: usize| -> Result<f64> {
-            cells[c].parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
-                Error::bad_file(path, format!("row {row}: {} = {:?} is not a finite number", header[c], cells[c]))
-            })
+            cells[c]
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    Error::bad_file(
+                        path,
+                        format!(
+                            "row {row}: {} = {:?} is not a finite number",
+                            header[c], cells[c]
+                        ),
+                    )
+                })
         };
-        points.push(Vector3::new(value(columns[0])?, value(columns[1])?, value(columns[2])?));
+        points.push(Vector3::new(
+            value(columns[0])?,
+            value(columns[1])?,
+            value(columns[2])?,
+        ));
         rows.push(cells);
     }
     Ok(PointTable {
@@ -70,4 +99,16 @@ pub fn parse_points(path: &Path, text: &str) -> Result<PointTable> {
         columns,
         points,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_spreadsheets_byte_order_mark_and_any_column_order_are_read() {
+        let table = parse_points(Path::new("p.csv"), "\u{feff}Name,Z,y,X\nA,3,2,1\n").unwrap();
+        assert_eq!(table.columns, [3, 2, 1]);
+        assert_eq!(table.points, vec![Vector3::new(1.0, 2.0, 3.0)]);
+    }
 }

@@ -71,7 +71,8 @@ impl BoneTransforms {
     /// 0 0 0 1, no label twice.
     pub fn load(path: &Path) -> Result<Self> {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        let text = String::from_utf8(bytes).map_err(|_| Error::bad_file(path, "is not UTF-8 text"))?;
+        let text =
+            String::from_utf8(bytes).map_err(|_| Error::bad_file(path, "is not UTF-8 text"))?;
         Self::parse(path, &text)
     }
 

@@ -16,9 +16,10 @@ pub fn case_rng(seed: u64, case: u64) -> ChaCha8Rng {
     rng
 }
 
-/// Byte offsets of NIfTI-1 header fields (sizeof_hdr, dim[0..8], datatype, bitpix, pixdim,
-/// vox_offset, scl_slope, scl_inter, xyzt_units, qform/sform codes, quaternion, srow, magic)
-/// and their width in bytes.
+/// Byte offsets and widths of NIfTI-1 header fields: sizeof_hdr, dim[0..6], intent_code,
+/// datatype, bitpix, pixdim[0..4], vox_offset, scl_slope, scl_inter, xyzt_units, qform and
+/// sform codes, quaternion, qoffset_x, srow entries, magic.
+#[rustfmt::skip]
 const NIFTI1_FIELDS: &[(usize, usize)] = &[
     (0, 4), (40, 2), (42, 2), (44, 2), (46, 2), (48, 2), (50, 2), (68, 2), (70, 2), (72, 2),
     (76, 4), (80, 4), (84, 4), (88, 4), (108, 4), (112, 4), (116, 4), (123, 1), (252, 2),
@@ -26,14 +27,55 @@ const NIFTI1_FIELDS: &[(usize, usize)] = &[
     (344, 4),
 ];
 
-/// Extreme values a header field is set to (little-endian, cut to the field's width).
+/// The same fields of a NIfTI-2 header (64-bit dims, offsets and reals, 32-bit codes).
+#[rustfmt::skip]
+const NIFTI2_FIELDS: &[(usize, usize)] = &[
+    (0, 4), (4, 8), (12, 2), (14, 2), (16, 8), (24, 8), (32, 8), (40, 8), (48, 8), (104, 8),
+    (112, 8), (120, 8), (128, 8), (168, 8), (176, 8), (184, 8), (344, 4), (348, 4), (352, 8),
+    (360, 8), (368, 8), (376, 8), (400, 8), (408, 8), (432, 8), (464, 8), (500, 4), (504, 4),
+];
+
+/// Extreme values a header field is set to (little-endian): reals for 4- and 8-byte fields
+/// half the time, else integers cut to the field's width.
 fn extreme(rng: &mut ChaCha8Rng, width: usize) -> Vec<u8> {
-    let f32s = [0.0f32, -1.0, f32::NAN, f32::INFINITY, 1e30, -1e-30, 0.5, 480.0, 1e9];
-    let ints: [i64; 9] = [0, -1, 1, 7, 8, 32767, -32768, i32::MAX as i64, 65536];
-    if width == 4 && rng.random_bool(0.5) {
-        return f32s[rng.random_range(0..f32s.len())].to_le_bytes().to_vec();
+    let reals = [
+        0.0f64,
+        -1.0,
+        f64::NAN,
+        f64::INFINITY,
+        1e30,
+        -1e-30,
+        0.5,
+        480.0,
+        1e9,
+        1e300,
+    ];
+    let ints: [i64; 10] = [
+        0,
+        -1,
+        1,
+        7,
+        8,
+        32767,
+        -32768,
+        i32::MAX as i64,
+        65536,
+        i64::MAX,
+    ];
+    let real = reals[rng.random_range(0..reals.len())];
+    match width {
+        4 if rng.random_bool(0.5) => (real as f32).to_le_bytes().to_vec(),
+        8 if rng.random_bool(0.5) => real.to_le_bytes().to_vec(),
+        _ => ints[rng.random_range(0..ints.len())].to_le_bytes()[..width].to_vec(),
     }
-    ints[rng.random_range(0..ints.len())].to_le_bytes()[..width].to_vec()
+}
+
+/// The header field table for `bytes`, by its sizeof_hdr.
+fn fields_of(bytes: &[u8]) -> &'static [(usize, usize)] {
+    match bytes.get(..4) {
+        Some(b) if i32::from_le_bytes(b.try_into().unwrap()) == 540 => NIFTI2_FIELDS,
+        _ => NIFTI1_FIELDS,
+    }
 }
 
 /// One mutation of a binary file; `header` says whether NIfTI-1 field offsets apply.
@@ -54,10 +96,13 @@ pub fn mutate_bytes(rng: &mut ChaCha8Rng, bytes: &[u8], header: bool) -> Vec<u8>
                 let at = rng.random_range(0..out.len());
                 out[at] = [0x00, 0xff, 0x7f, 0x80][rng.random_range(0..4)];
             }
-            2 if header && out.len() >= 348 => {
-                let (at, width) = NIFTI1_FIELDS[rng.random_range(0..NIFTI1_FIELDS.len())];
+            2 if header => {
+                let fields = fields_of(&out);
+                let (at, width) = fields[rng.random_range(0..fields.len())];
                 let value = extreme(rng, width);
-                out[at..at + width].copy_from_slice(&value);
+                if at + width <= out.len() {
+                    out[at..at + width].copy_from_slice(&value);
+                }
             }
             3 => out.truncate(rng.random_range(0..out.len())),
             4 => {
@@ -110,10 +155,24 @@ pub fn mutate_text(rng: &mut ChaCha8Rng, text: &str) -> String {
                 let copy: Vec<char> = chars[at..at + len].to_vec();
                 chars.splice(at..at, copy);
             }
-            2 => chars[at] = ['"', ',', '[', ']', '{', '}', '=', '\n', '.', '-', '\u{0}', 'é'][rng.random_range(0..12)],
+            2 => {
+                chars[at] = [
+                    '"', ',', '[', ']', '{', '}', '=', '\n', '.', '-', '\u{0}', 'é',
+                ][rng.random_range(0..12)]
+            }
             3 => chars.truncate(at),
             _ => {
-                let numbers = ["nan", "inf", "-1", "0", "1e308", "-0", "99999999999999999999", "1e-320", "4294967296"];
+                let numbers = [
+                    "nan",
+                    "inf",
+                    "-1",
+                    "0",
+                    "1e308",
+                    "-0",
+                    "99999999999999999999",
+                    "1e-320",
+                    "4294967296",
+                ];
                 let word = numbers[rng.random_range(0..numbers.len())];
                 // Replace the number (digits, sign, point) around `at`, or insert at `at`.
                 let is_num = |c: char| c.is_ascii_digit() || c == '.' || c == '-' || c == 'e';

@@ -87,7 +87,13 @@ impl Datatype {
 
     /// Appends the voxels of `bytes` (whole voxels, in file order) to `out` as f32, each
     /// scaled by `slope · v + inter` in f64 when `scaling` is given.
-    pub fn decode(self, bytes: &[u8], big_endian: bool, scaling: Option<(f64, f64)>, out: &mut Vec<f32>) {
+    pub fn decode(
+        self,
+        bytes: &[u8],
+        big_endian: bool,
+        scaling: Option<(f64, f64)>,
+        out: &mut Vec<f32>,
+    ) {
         macro_rules! each {
             ($t:ty) => {{
                 const N: usize = std::mem::size_of::<$t>();
@@ -138,10 +144,17 @@ mod tests {
 
     #[test]
     fn unsupported_types_are_named() {
-        for (code, name) in [(32, "complex64"), (128, "RGB24"), (2304, "RGBA32"), (0, "DT_UNKNOWN")] {
+        for (code, name) in [
+            (32, "complex64"),
+            (128, "RGB24"),
+            (2304, "RGBA32"),
+            (0, "DT_UNKNOWN"),
+        ] {
             let err = Datatype::from_code(code).unwrap_err();
             assert!(err.contains(name), "{err}");
         }
-        assert!(Datatype::from_code(7).unwrap_err().contains("not a NIfTI datatype"));
+        assert!(Datatype::from_code(7)
+            .unwrap_err()
+            .contains("not a NIfTI datatype"));
     }
 }

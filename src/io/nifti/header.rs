@@ -10,6 +10,9 @@ use nalgebra::Matrix3;
 pub const NIFTI1_SIZE: usize = 348;
 /// Bytes in a NIfTI-2 header (sizeof_hdr).
 pub const NIFTI2_SIZE: usize = 540;
+/// Offsets and sizes beyond this (1 EiB) are no file's: refusing them keeps every sum of an
+/// offset and a size far from overflowing.
+const MAX_BYTES: u64 = 1 << 60;
 /// A single-file image's header is followed by 4 bytes of extension flags.
 const EXTENSION_FLAGS: u64 = 4;
 
@@ -25,6 +28,14 @@ pub enum Version {
 }
 
 impl Version {
+    /// "NIfTI-1" or "NIfTI-2".
+    pub fn name(self) -> &'static str {
+        match self {
+            Version::Nifti1 => "NIfTI-1",
+            Version::Nifti2 => "NIfTI-2",
+        }
+    }
+
     /// Header size in bytes.
     pub fn header_size(self) -> usize {
         match self {
@@ -98,7 +109,10 @@ impl Fields<'_> {
 
 /// The version and byte order that the first four bytes (sizeof_hdr) announce.
 pub fn sizeof_hdr(first: [u8; 4]) -> Result<(Version, bool), String> {
-    for (version, size) in [(Version::Nifti1, NIFTI1_SIZE), (Version::Nifti2, NIFTI2_SIZE)] {
+    for (version, size) in [
+        (Version::Nifti1, NIFTI1_SIZE),
+        (Version::Nifti2, NIFTI2_SIZE),
+    ] {
         if i32::from_le_bytes(first) == size as i32 {
             return Ok((version, false));
         }
@@ -116,7 +130,11 @@ pub fn sizeof_hdr(first: [u8; 4]) -> Result<(Version, bool), String> {
 pub fn parse(bytes: &[u8], version: Version, big_endian: bool) -> Result<Header, String> {
     let f = Fields { bytes, big_endian };
     let layout = Layout::of(version);
-    let paired = check_magic(&bytes[layout.magic..layout.magic + 4], version)?;
+    let magic_len = match version {
+        Version::Nifti1 => 4,
+        Version::Nifti2 => 8,
+    };
+    let paired = check_magic(&bytes[layout.magic..layout.magic + magic_len], version)?;
     let dims = dims(&f, version)?;
     let datatype = Datatype::from_code(f.i16(layout.datatype))?;
     let bitpix = f.i16(layout.bitpix);
@@ -161,7 +179,9 @@ pub fn parse(bytes: &[u8], version: Version, big_endian: bool) -> Result<Header,
         sform_code: int(layout.sform_code),
         quatern: std::array::from_fn(|i| float(layout.quatern + i * step)),
         qoffset: std::array::from_fn(|i| float(layout.quatern + (3 + i) * step)),
-        srow: std::array::from_fn(|r| std::array::from_fn(|c| float(layout.srow + (4 * r + c) * step))),
+        srow: std::array::from_fn(|r| {
+            std::array::from_fn(|c| float(layout.srow + (4 * r + c) * step))
+        }),
     })
 }
 
@@ -224,9 +244,10 @@ impl Layout {
 
 /// True for a header whose voxels are in a separate .img file.
 fn check_magic(magic: &[u8], version: Version) -> Result<bool, String> {
+    // NIfTI-2's magic goes on with \r\n\x1a\n, which a text-mode transfer damages.
     let (single, paired): (&[u8], &[u8]) = match version {
         Version::Nifti1 => (b"n+1\0", b"ni1\0"),
-        Version::Nifti2 => (b"n+2\0", b"ni2\0"),
+        Version::Nifti2 => (b"n+2\0\r\n\x1a\n", b"ni2\0\r\n\x1a\n"),
     };
     if magic == single {
         Ok(false)
@@ -249,12 +270,16 @@ fn dims(f: &Fields, version: Version) -> Result<Vec<usize>, String> {
     };
     let ndim = dim(0);
     if !(1..=7).contains(&ndim) {
-        return Err(format!("dim[0] is {ndim}: the number of dimensions must be 1 to 7"));
+        return Err(format!(
+            "dim[0] is {ndim}: the number of dimensions must be 1 to 7"
+        ));
     }
     (1..=ndim as usize)
         .map(|i| match dim(i) {
             d if d >= 1 => Ok(d as usize),
-            d => Err(format!("dim[{i}] is {d}: every dimension must be at least 1")),
+            d => Err(format!(
+                "dim[{i}] is {d}: every dimension must be at least 1"
+            )),
         })
         .collect()
 }
@@ -263,7 +288,7 @@ fn dims(f: &Fields, version: Version) -> Result<Vec<usize>, String> {
 pub fn voxel_bytes(dims: &[usize], datatype: Datatype) -> Result<u64, String> {
     dims.iter()
         .try_fold(datatype.size() as u64, |n, &d| n.checked_mul(d as u64))
-        .filter(|&n| n < 1 << 60)
+        .filter(|&n| n < MAX_BYTES)
         .ok_or_else(|| format!("dims {dims:?} promise more voxel data than any file can hold"))
 }
 
@@ -273,8 +298,10 @@ fn vox_offset(f: &Fields, version: Version, paired: bool) -> Result<u64, String>
         Version::Nifti1 => f.f32(at) as f64,
         Version::Nifti2 => f.i64(at) as f64,
     };
-    if !(value.is_finite() && value >= 0.0 && value.fract() == 0.0) {
-        return Err(format!("vox_offset is {value}: it must be a whole number of bytes"));
+    if !(value.is_finite() && value >= 0.0 && value.fract() == 0.0 && value < MAX_BYTES as f64) {
+        return Err(format!(
+            "vox_offset is {value}: it must be a whole number of bytes within a file"
+        ));
     }
     let least = if paired {
         0
@@ -283,21 +310,27 @@ fn vox_offset(f: &Fields, version: Version, paired: bool) -> Result<u64, String>
     };
     if (value as u64) < least {
         return Err(format!(
-            "vox_offset is {value}, inside the header: the voxels of a single-file {version:?} \
-             start at byte {least} or later"
+            "vox_offset is {value}, inside the header: the voxels of a single-file {} \
+             start at byte {least} or later",
+            version.name()
         ));
     }
     Ok(value as u64)
 }
 
+/// The specification: scl_slope 0 means the voxels are not scaled; nifti1_io and nibabel read
+/// a slope that is not finite the same way. A used slope with a non-finite intercept would
+/// make every voxel NaN.
 fn scaling(slope: f64, inter: f64) -> Result<Option<(f64, f64)>, String> {
-    if !slope.is_finite() || !inter.is_finite() {
+    if slope == 0.0 || !slope.is_finite() {
+        return Ok(None);
+    }
+    if !inter.is_finite() {
         return Err(format!(
-            "scl_slope {slope} and scl_inter {inter} must be finite"
+            "scl_inter is {inter} with scl_slope {slope}: every voxel would be {inter}"
         ));
     }
-    // The specification: scl_slope 0 means the voxels are not scaled.
-    Ok((slope != 0.0).then_some((slope, inter)))
+    Ok(Some((slope, inter)))
 }
 
 fn mm_per_unit(xyzt_units: i32) -> Result<f64, String> {
@@ -305,7 +338,9 @@ fn mm_per_unit(xyzt_units: i32) -> Result<f64, String> {
         0 | 2 => Ok(1.0), // unknown (read as mm, as nibabel and ITK do) or mm
         1 => Ok(1000.0),  // metres
         3 => Ok(0.001),   // microns
-        code => Err(format!("xyzt_units gives spatial unit code {code}, which NIfTI does not define")),
+        code => Err(format!(
+            "xyzt_units gives spatial unit code {code}, which NIfTI does not define"
+        )),
     }
 }
 
@@ -330,7 +365,10 @@ impl Header {
             (self.qform()?, AffineSource::Qform)
         } else {
             let zooms = self.zooms("there is neither an sform nor a qform, so pixdim")?;
-            (Affine::from_diagonal(&nalgebra::Vector4::new(zooms[0], zooms[1], zooms[2], 1.0)), AffineSource::Pixdim)
+            (
+                Affine::from_diagonal(&nalgebra::Vector4::new(zooms[0], zooms[1], zooms[2], 1.0)),
+                AffineSource::Pixdim,
+            )
         };
         for r in 0..3 {
             for c in 0..4 {
@@ -366,7 +404,13 @@ impl Header {
         let zooms = self.zooms("the qform is used, and pixdim")?;
         let [b, c, d] = self.quatern;
         let norm2 = b * b + c * c + d * d;
-        if self.quatern.iter().chain(&self.qoffset).any(|v| !v.is_finite()) || norm2 > 1.0 + 1e-5 {
+        if self
+            .quatern
+            .iter()
+            .chain(&self.qoffset)
+            .any(|v| !v.is_finite())
+            || norm2 > 1.0 + 1e-5
+        {
             return Err(format!(
                 "the qform's quaternion ({b}, {c}, {d}) or offset {:?} is not a rotation",
                 self.qoffset

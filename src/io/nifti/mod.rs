@@ -20,7 +20,7 @@ pub use write::{header_for, save_labels, save_volume, write_image, DataType};
 
 use crate::error::{Error, Result};
 use crate::volume::{Affine, Grid, Image, Labels, Volume};
-use read::{locate, open_file, read_header as read_header_from, read_voxels, Opened};
+use read::{gzip_by_name, locate, open_file, read_header as read_header_from, read_voxels, Opened};
 use std::path::Path;
 
 /// What a NIfTI header says, decoded.
@@ -59,23 +59,31 @@ pub struct RawImage {
 /// Reads and checks the header of an image (no voxels are read).
 pub fn read_header(path: &Path) -> Result<HeaderInfo> {
     let files = locate(path);
-    let header = read_header_from(&mut open_file(&files.header)?, &files.header)?;
+    let header = read_header_from(&mut open_file(&files.header, None)?, &files.header)?;
     HeaderInfo::new(header, &files.header)
 }
 
 /// Reads any NIfTI-1 or NIfTI-2 image with integer or real voxels, applying the scaling.
 pub fn read_raw(path: &Path) -> Result<RawImage> {
     let files = locate(path);
-    let mut opened = open_file(&files.header)?;
+    let mut opened = open_file(&files.header, None)?;
     let header = read_header_from(&mut opened, &files.header)?;
     let info = HeaderInfo::new(header, &files.header)?;
     let data = if info.header.paired {
-        let mut data_file = open_file(&files.data)?;
-        read_voxels(&mut data_file, info.header.vox_offset, &info.header, &files.data)?
+        let mut data_file = open_file(&files.data, Some(gzip_by_name(&files.data)))?;
+        read_voxels(
+            &mut data_file,
+            info.header.vox_offset,
+            &info.header,
+            &files.data,
+        )?
     } else if files.data != files.header {
         return Err(Error::bad_file(
             &files.data,
-            format!("its header {} is a single-file NIfTI (magic n+1), not the header of a pair", files.header.display()),
+            format!(
+                "its header {} is a single-file NIfTI (magic n+1), not the header of a pair",
+                files.header.display()
+            ),
         ));
     } else {
         let gap = info.header.vox_offset - info.header.version.header_size() as u64;
@@ -86,11 +94,15 @@ pub fn read_raw(path: &Path) -> Result<RawImage> {
 
 /// Reads a single-file image (.nii or .nii.gz) held in memory; `name` names it in errors.
 pub fn read_raw_bytes(name: &Path, bytes: &[u8]) -> Result<RawImage> {
-    let mut opened = Opened::new(bytes, bytes.len() as u64).map_err(|e| Error::io(name, e))?;
+    let mut opened =
+        Opened::new(bytes, bytes.len() as u64, None).map_err(|e| Error::io(name, e))?;
     let header = read_header_from(&mut opened, name)?;
     let info = HeaderInfo::new(header, name)?;
     if info.header.paired {
-        return Err(Error::bad_file(name, "its voxels are in a separate .img file"));
+        return Err(Error::bad_file(
+            name,
+            "its voxels are in a separate .img file",
+        ));
     }
     let gap = info.header.vox_offset - info.header.version.header_size() as u64;
     let data = read_voxels(&mut opened, gap, &info.header, name)?;
@@ -107,7 +119,11 @@ pub fn spatial_grid(path: &Path, info: &HeaderInfo, what: &str) -> Result<Grid> 
             format!("{what} must be a 3-D image, but its dims are {dims:?}"),
         ));
     }
-    let d3 = [dims[0], *dims.get(1).unwrap_or(&1), *dims.get(2).unwrap_or(&1)];
+    let d3 = [
+        dims[0],
+        *dims.get(1).unwrap_or(&1),
+        *dims.get(2).unwrap_or(&1),
+    ];
     Grid::new(d3, info.affine).map_err(|e| Error::bad_file(path, e.to_string()))
 }
 
@@ -122,7 +138,10 @@ pub fn volume_from_raw(path: &Path, raw: RawImage) -> Result<Volume> {
             format!("has {bad} non-finite voxels (NaN or Inf), the first at index {i}"),
         ));
     }
-    Ok(Image { grid, data: raw.data })
+    Ok(Image {
+        grid,
+        data: raw.data,
+    })
 }
 
 /// A label map from its raw read; values must be whole numbers in 0..=65535.

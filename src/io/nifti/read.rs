@@ -27,9 +27,18 @@ pub struct Opened<'a> {
 }
 
 impl<'a> Opened<'a> {
-    /// Wraps `source` (`on_disk` bytes), recognising gzip by its first two bytes.
-    pub fn new<R: BufRead + 'a>(mut source: R, on_disk: u64) -> std::io::Result<Self> {
-        let compressed = source.fill_buf()?.starts_with(&[0x1f, 0x8b]);
+    /// Wraps `source` (`on_disk` bytes), gzipped when `gzip` says so or, when it is None,
+    /// when its first two bytes are gzip's magic (a header's first bytes are sizeof_hdr, never
+    /// that magic).
+    pub fn new<R: BufRead + 'a>(
+        mut source: R,
+        on_disk: u64,
+        gzip: Option<bool>,
+    ) -> std::io::Result<Self> {
+        let compressed = match gzip {
+            Some(known) => known,
+            None => source.fill_buf()?.starts_with(&[0x1f, 0x8b]),
+        };
         let reader: Box<dyn Read + 'a> = if compressed {
             Box::new(MultiGzDecoder::new(source))
         } else {
@@ -70,14 +79,18 @@ impl<'a> Opened<'a> {
 fn damaged(path: &Path, e: std::io::Error) -> Error {
     match e.kind() {
         ErrorKind::InvalidData | ErrorKind::InvalidInput | ErrorKind::UnexpectedEof => {
-            Error::bad_file(path, format!("is damaged: its gzip stream cannot be decompressed ({e})"))
+            Error::bad_file(
+                path,
+                format!("is damaged: its gzip stream cannot be decompressed ({e})"),
+            )
         }
         _ => Error::io(path, e),
     }
 }
 
-/// Opens a file for reading, refusing folders and missing files by name.
-pub fn open_file(path: &Path) -> Result<Opened<'static>> {
+/// Opens a file for reading (gzipped as [`Opened::new`] says), refusing folders and missing
+/// files by name.
+pub fn open_file(path: &Path, gzip: Option<bool>) -> Result<Opened<'static>> {
     let meta = std::fs::metadata(path).map_err(|e| match e.kind() {
         ErrorKind::NotFound => Error::bad_file(path, "no such file"),
         _ => Error::io(path, e),
@@ -86,7 +99,7 @@ pub fn open_file(path: &Path) -> Result<Opened<'static>> {
         return Err(Error::bad_file(path, "is a folder, not a NIfTI file"));
     }
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    Opened::new(BufReader::new(file), meta.len()).map_err(|e| Error::io(path, e))
+    Opened::new(BufReader::new(file), meta.len(), gzip).map_err(|e| Error::io(path, e))
 }
 
 /// The files holding an image's header and its voxels.
@@ -98,44 +111,70 @@ pub struct Files {
 }
 
 /// Finds the header and data files from any of their names: a .hdr or .img finds the other
-/// half of its pair, gzipped or not.
+/// half of its pair, gzipped or not, in the same letter case.
 pub fn locate(path: &Path) -> Files {
-    let name = path.to_string_lossy();
-    let lower = name.to_ascii_lowercase();
-    let partner = |from: &str, to: &[&str]| -> Option<PathBuf> {
-        let stem = &name[..name.len() - from.len()];
-        let candidates: Vec<PathBuf> = to.iter().map(|ext| PathBuf::from(format!("{stem}{ext}"))).collect();
-        let found = candidates.iter().find(|p| p.exists()).cloned();
-        Some(found.unwrap_or_else(|| candidates[0].clone()))
-    };
-    for (ext, other) in [
-        (".hdr.gz", [".img.gz", ".img"]),
-        (".hdr", [".img", ".img.gz"]),
-    ] {
-        if lower.ends_with(ext) {
-            let data = partner(ext, &other).expect("always a candidate");
-            return Files { header: path.into(), data };
-        }
-    }
-    for (ext, other) in [
-        (".img.gz", [".hdr.gz", ".hdr"]),
-        (".img", [".hdr", ".hdr.gz"]),
-    ] {
-        if lower.ends_with(ext) {
-            let header = partner(ext, &other).expect("always a candidate");
-            return Files { header, data: path.into() };
-        }
-    }
-    Files {
+    let same = Files {
         header: path.into(),
         data: path.into(),
+    };
+    let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
+        return same;
+    };
+    let lower = name.to_ascii_lowercase();
+    // (extension, the partner's extensions in the order they are looked for, is the header)
+    let pairs = [
+        (".hdr.gz", [".img.gz", ".img"], true),
+        (".hdr", [".img", ".img.gz"], true),
+        (".img.gz", [".hdr.gz", ".hdr"], false),
+        (".img", [".hdr", ".hdr.gz"], false),
+    ];
+    for (ext, partners, is_header) in pairs {
+        if !lower.ends_with(ext) {
+            continue;
+        }
+        // to_ascii_lowercase keeps byte lengths, so the stem ends at the same byte in `name`.
+        let stem = &name[..name.len() - ext.len()];
+        let upper = name[stem.len()..].chars().any(|c| c.is_ascii_uppercase());
+        let candidates = partners.map(|p| {
+            let p = if upper {
+                p.to_ascii_uppercase()
+            } else {
+                p.to_string()
+            };
+            path.with_file_name(format!("{stem}{p}"))
+        });
+        let partner = candidates
+            .iter()
+            .find(|p| p.exists())
+            .unwrap_or(&candidates[0])
+            .clone();
+        return match is_header {
+            true => Files {
+                header: path.into(),
+                data: partner,
+            },
+            false => Files {
+                header: partner,
+                data: path.into(),
+            },
+        };
     }
+    same
+}
+
+/// Whether a pair's data file is gzipped, by its name: its first bytes are voxels, which may
+/// be anything, gzip's magic included.
+pub fn gzip_by_name(path: &Path) -> bool {
+    path.to_string_lossy().to_ascii_lowercase().ends_with(".gz")
 }
 
 /// Reads and checks the header at the start of `opened`.
 pub fn read_header(opened: &mut Opened, path: &Path) -> Result<Header> {
     let truncated = |got: u64| {
-        Error::bad_file(path, format!("is truncated: it ends after {got} bytes, inside its header"))
+        Error::bad_file(
+            path,
+            format!("is truncated: it ends after {got} bytes, inside its header"),
+        )
     };
     let mut first = [0u8; 4];
     if opened.fill(&mut first, path)? < 4 {
@@ -152,12 +191,19 @@ pub fn read_header(opened: &mut Opened, path: &Path) -> Result<Header> {
 
 /// Reads the voxels that `header` promises from `opened`, which is positioned
 /// `skip` bytes before the first voxel, as f32 in file order with the scaling applied.
-pub fn read_voxels(opened: &mut Opened, skip: u64, header: &Header, path: &Path) -> Result<Vec<f32>> {
+pub fn read_voxels(
+    opened: &mut Opened,
+    skip: u64,
+    header: &Header,
+    path: &Path,
+) -> Result<Vec<f32>> {
     let promised = header.data_bytes();
+    // Each term is below 2^60 (header.rs), so the sum cannot overflow.
     let end = opened.position + skip + promised;
     check_size(opened, end, header, path)?;
-    memory::check(header.voxels() * 4 + CHUNK as u64)
-        .map_err(|p| Error::bad_file(path, format!("holds {} voxels, which {p}", header.voxels())))?;
+    memory::check(header.voxels() * 4 + CHUNK as u64).map_err(|p| {
+        Error::bad_file(path, format!("holds {} voxels, which {p}", header.voxels()))
+    })?;
     let truncated = |got: u64| {
         Error::bad_file(
             path,
@@ -180,7 +226,9 @@ pub fn read_voxels(opened: &mut Opened, skip: u64, header: &Header, path: &Path)
         let n = remaining.min(CHUNK as u64) as usize;
         let got = opened.fill(&mut chunk[..n], path)?;
         let whole = got - got % header.datatype.size();
-        header.datatype.decode(&chunk[..whole], header.big_endian, header.scaling, &mut out);
+        header
+            .datatype
+            .decode(&chunk[..whole], header.big_endian, header.scaling, &mut out);
         if got < n {
             return Err(truncated(promised - remaining + got as u64));
         }
