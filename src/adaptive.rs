@@ -100,6 +100,19 @@ impl AdaptiveOptions {
         if !(1..=MAX_LEVELS).contains(&self.levels) {
             return bad(&format!("levels must be 1 to {MAX_LEVELS}"));
         }
+        // Every cell of the first refinement gets a point (crate::adaptive): 16³ there made
+        // thousands, and the dense RBF system stalled.
+        let rising = self.cell_levels.windows(2).all(|w| w[0] < w[1]);
+        if !rising
+            || self
+                .cell_levels
+                .first()
+                .is_some_and(|&c| c > MAX_FIRST_CELLS)
+        {
+            return bad(&format!(
+                "cell_levels must rise coarse to fine and start at {MAX_FIRST_CELLS} cells or fewer"
+            ));
+        }
         if self.cell_levels.is_empty() || self.cell_levels.iter().any(|&c| c == 0 || c > MAX_CELLS)
         {
             return bad(&format!(
@@ -155,6 +168,8 @@ impl AdaptiveOptions {
 
 /// Most pyramid levels a setting may ask for.
 pub const MAX_LEVELS: usize = 8;
+/// Most cells per axis at the first refinement, where every cell gets a point.
+const MAX_FIRST_CELLS: usize = 4;
 /// Most cells per axis at a refinement (64³ cells).
 const MAX_CELLS: usize = 64;
 /// Most L-BFGS iterations per refinement.

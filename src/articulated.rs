@@ -82,6 +82,9 @@ impl InitOptions {
         if !within(self.search_tilt_degrees, 0.0, 90.0) {
             return bad("search_tilt_degrees must be 0 to 90");
         }
+        if (1..self.bones.len()).any(|i| self.bones[..i].contains(&self.bones[i])) {
+            return bad("bones must not name a bone twice");
+        }
         if self.bones.contains(&0) || self.bones.contains(&1) {
             return bad(
                 "bones must list bone label codes; 0 is outside the body and 1 soft tissue",

@@ -776,6 +776,11 @@ fn points_cases(x: &Inputs) -> Vec<Case> {
             &["short.csv", "cells"],
         ),
         case(
+            "a header and no points",
+            apply("reg/transform.json", csv("header.csv", "x,y,z\n")),
+            &["header.csv", "no points"],
+        ),
+        case(
             "a NaN coordinate",
             apply("reg/transform.json", csv("nanpt.csv", "x,y,z\n1,NaN,3\n")),
             &["nanpt.csv", "finite number"],
@@ -828,6 +833,194 @@ fn usage_cases(x: &Inputs) -> Vec<Case> {
             ),
             &["--threshold", "abc"],
         ),
+    ]
+}
+
+/// The other verbs: eval, phantom, bend, init --init, apply, resample, bench.
+fn verb_cases(x: &Inputs) -> Vec<Case> {
+    let arg = |parts: &[&str]| -> Vec<String> {
+        let mut args: Vec<String> = vec!["--device".into(), "cpu".into()];
+        args.extend(parts.iter().map(|p| p.to_string()));
+        args
+    };
+    let (field, src, lab, tgt) = (
+        x.s("reg/field.nii.gz"),
+        x.s("source.nii.gz"),
+        x.s("labels.nii.gz"),
+        x.s("target.nii.gz"),
+    );
+    let out = x.s("out");
+    let init_json = |name: &str, matrix: &str| {
+        let text = format!(
+            r#"{{"space": "RAS", "bones": [{{"label": 2, "name": "femur", "matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}}, {{"label": 3, "name": "tibia", "matrix": {matrix}}}]}}"#
+        );
+        std::fs::write(x.path(name), text).unwrap();
+        x.s(name)
+    };
+    let reflection = init_json("reflect.json", "[[-1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]");
+    let far = init_json(
+        "far_init.json",
+        "[[1,0,0,100000],[0,1,0,0],[0,0,1,0],[0,0,0,1]]",
+    );
+    let init = |given: &str| {
+        arg(&[
+            "init",
+            "--source",
+            &src,
+            "--source-labels",
+            &lab,
+            "--target",
+            &tgt,
+            "-o",
+            &out,
+            "--init",
+            given,
+        ])
+    };
+    let apply = |image: &str, nearest: bool| {
+        let mut a = arg(&[
+            "apply",
+            &x.s("reg/transform.json"),
+            &x.s(image),
+            "--like",
+            &tgt,
+            "-o",
+            &x.s("applied.nii.gz"),
+        ]);
+        if nearest {
+            a.push("--nearest".into());
+        }
+        a
+    };
+    let cells = x.path("cells.toml");
+    std::fs::write(&cells, "[adaptive]\ncell_levels = [16, 8, 4]\n").unwrap();
+    vec![
+        case(
+            "warped image on another grid",
+            arg(&[
+                "eval",
+                "--field",
+                &field,
+                "--truth",
+                &field,
+                "--warped",
+                &x.s("small.nii"),
+                "--target",
+                &tgt,
+            ]),
+            &["small.nii", "is not on the grid"],
+        ),
+        case(
+            "phantom noise 1e38",
+            arg(&["phantom", "--size", "quarter", "--noise=1e38", "-o", &out]),
+            &["noise"],
+        ),
+        case(
+            "bend axis with NaN",
+            arg(&[
+                "bend",
+                &src,
+                "--labels",
+                &lab,
+                "--degrees",
+                "10",
+                "--axis",
+                "NaN",
+                "0",
+                "0",
+                "1",
+                "0",
+                "0",
+                "-o",
+                &out,
+            ]),
+            &["--axis", "finite"],
+        ),
+        case(
+            "bend axis outside the image",
+            arg(&[
+                "bend",
+                &src,
+                "--labels",
+                &lab,
+                "--degrees",
+                "10",
+                "--axis",
+                "1e300",
+                "0",
+                "0",
+                "1",
+                "0",
+                "0",
+                "-o",
+                &out,
+            ]),
+            &["--axis", "outside"],
+        ),
+        case(
+            "a reflection to start from",
+            init(&reflection),
+            &["reflect.json", "not a rotation"],
+        ),
+        case(
+            "a bone moved 100 m",
+            init(&far),
+            &["far_init.json", "translation"],
+        ),
+        case(
+            "cell levels falling",
+            x.register(
+                "source.nii.gz",
+                "labels.nii.gz",
+                "target.nii.gz",
+                &["--config", cells.to_str().unwrap()],
+            ),
+            &["cells.toml", "cell_levels"],
+        ),
+        case(
+            "a bone named twice",
+            x.register(
+                "source.nii.gz",
+                "labels.nii.gz",
+                "target.nii.gz",
+                &["--bones", "2,2,3"],
+            ),
+            &["init.bones", "twice"],
+        ),
+        case(
+            "fractional labels applied --nearest",
+            apply("frac_labels.nii.gz", true),
+            &["frac_labels.nii.gz", "whole number"],
+        ),
+        case(
+            "an image far from the source",
+            apply("far.nii.gz", false),
+            &["far.nii.gz", "outside the field's source points"],
+        ),
+        case(
+            "resample background NaN",
+            arg(&[
+                "resample",
+                &src,
+                "--field",
+                &field,
+                "--like",
+                &tgt,
+                "-o",
+                &x.s("r.nii.gz"),
+                "--background",
+                "NaN",
+            ]),
+            &["--background"],
+        ),
+        Case {
+            exit: 2,
+            ..case(
+                "bench of zero runs",
+                arg(&["bench", "--runs", "0"]),
+                &["--runs"],
+            )
+        },
     ]
 }
 
@@ -900,6 +1093,7 @@ fn every_bad_input_is_refused_clearly() {
         settings_cases(&x),
         field_and_output_cases(&x),
         points_cases(&x),
+        verb_cases(&x),
         usage_cases(&x),
     ]
     .into_iter()

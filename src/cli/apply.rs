@@ -4,10 +4,10 @@
 //! (articulated initialisation and RBF) sampled on the target grid, which is what the warped
 //! image was made with, so applying it reproduces that resampling exactly.
 
-use super::fields::{check_on_field_grid, interpolation, registration_field};
+use super::fields::{check_on_field_grid, interpolation, load_moving, registration_field};
 use clap::Args;
 use posereg::device::{open_backend, DeviceChoice};
-use posereg::io::nifti::{load_volume, save_volume, DataType};
+use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::{check_output_file, NIFTI_NAMES};
 use std::path::PathBuf;
 
@@ -34,7 +34,7 @@ pub fn run(args: &ApplyArgs, device: DeviceChoice) -> anyhow::Result<()> {
     check_output_file(&args.output, NIFTI_NAMES)?;
     let (field_path, field) = registration_field(&args.transform)?;
     check_on_field_grid(&args.like, &field, &field_path)?;
-    let image = load_volume(&args.image)?;
+    let image = load_moving(&args.image, args.nearest, &field)?;
     let (backend, line) = open_backend(device)?;
     eprintln!("{line}");
     let moved = backend.resample(&image, &field, 0.0, interpolation(args.nearest))?;

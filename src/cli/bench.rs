@@ -31,8 +31,8 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 30.0)]
     pub flexion: f64,
     /// Runs per backend (the median is reported).
-    #[arg(long, default_value_t = 3)]
-    pub runs: usize,
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=100))]
+    pub runs: u64,
     /// Backends to time.
     #[arg(long = "backends", value_enum, default_value_t = Which::Both)]
     pub which: Which,
@@ -53,11 +53,11 @@ fn peak_rss_mib() -> Option<f64> {
 
 fn time(
     backend: &dyn Backend,
-    runs: usize,
+    runs: u64,
     pair: &(posereg::phantom::Phantom, posereg::phantom::Phantom),
 ) -> anyhow::Result<[f64; 4]> {
     let mut all: Vec<StageTimes> = Vec::new();
-    for _ in 0..runs.max(1) {
+    for _ in 0..runs {
         let r = register(
             backend,
             &pair.0.image,

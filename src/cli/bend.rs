@@ -35,6 +35,31 @@ pub struct BendArgs {
     pub output: PathBuf,
 }
 
+/// The axis of `--axis px,py,pz,dx,dy,dz`: finite, a non-zero direction (scaled before it is
+/// normalised, so 1e300 does not overflow to a zero vector), through a point of the source.
+fn given_axis(a: &[f64], source: &posereg::volume::Grid) -> anyhow::Result<JointAxis> {
+    let point = nalgebra::Vector3::new(a[0], a[1], a[2]);
+    let direction = nalgebra::Vector3::new(a[3], a[4], a[5]);
+    let largest = direction.amax();
+    if !a.iter().all(|v| v.is_finite()) || largest == 0.0 {
+        let problem = "--axis must be six finite numbers with a non-zero direction";
+        return Err(Error::InvalidInput(problem.into()).into());
+    }
+    if !source.contains(&point) {
+        let problem = format!(
+            "--axis point {:?} lies outside the source image",
+            a[..3].to_vec()
+        );
+        return Err(Error::InvalidInput(problem).into());
+    }
+    Ok(JointAxis {
+        point,
+        direction: (direction / largest).normalize(),
+        long_axis: nalgebra::Vector3::z(),
+        anterior: nalgebra::Vector3::y(),
+    })
+}
+
 /// Bends and writes target.nii.gz, target_labels.nii.gz, truth_field.nii.gz, truth.json and
 /// picture.png (three planes through the knee).
 pub fn run(args: &BendArgs, device: DeviceChoice) -> anyhow::Result<()> {
@@ -46,21 +71,10 @@ pub fn run(args: &BendArgs, device: DeviceChoice) -> anyhow::Result<()> {
             Error::bad_file(&args.labels, "label map is not on the source image's grid").into(),
         );
     }
-    let axis = args.axis.as_ref().map(|a| {
-        let direction = nalgebra::Vector3::new(a[3], a[4], a[5]);
-        JointAxis {
-            point: nalgebra::Vector3::new(a[0], a[1], a[2]),
-            direction: direction.normalize(),
-            long_axis: nalgebra::Vector3::z(),
-            anterior: nalgebra::Vector3::y(),
-        }
-    });
-    if axis
-        .as_ref()
-        .is_some_and(|a| !a.direction.iter().all(|v| v.is_finite()))
-    {
-        return Err(Error::InvalidInput("--axis direction must be non-zero".into()).into());
-    }
+    let axis = match &args.axis {
+        Some(a) => Some(given_axis(a, &source.grid)?),
+        None => None,
+    };
     let (backend, line) = open_backend(device)?;
     eprintln!("{line}");
     let bent = bend(

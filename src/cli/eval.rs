@@ -25,7 +25,7 @@ pub struct EvalArgs {
     #[arg(long, requires = "target")]
     pub warped: Option<PathBuf>,
     /// Target image, for the correlation.
-    #[arg(long)]
+    #[arg(long, requires = "warped")]
     pub target: Option<PathBuf>,
     /// Print one JSON object.
     #[arg(long)]
@@ -53,10 +53,21 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
         }
         None => vec![true; estimate.grid.len()],
     };
-    let e = field_error(&estimate, &truth, |n| mask[n])?;
+    let e = field_error(&estimate, &truth, |n| mask[n]).map_err(|err| match &args.mask {
+        Some(path) => Error::bad_file(path, err.to_string()),
+        None => err,
+    })?;
     let r = match (&args.warped, &args.target) {
         (Some(w), Some(t)) => {
-            let (w, t) = (load_volume(w)?, load_volume(t)?);
+            let on_grid = |path: &PathBuf| -> anyhow::Result<posereg::Volume> {
+                let volume = load_volume(path)?;
+                if !volume.grid.same_as(&estimate.grid, 1e-3) {
+                    let problem = format!("is not on the grid of {}", args.field.display());
+                    return Err(Error::bad_file(path, problem).into());
+                }
+                Ok(volume)
+            };
+            let (w, t) = (on_grid(w)?, on_grid(t)?);
             Some(correlation(&w.data, &t.data, |n| mask[n]))
         }
         _ => None,

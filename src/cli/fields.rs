@@ -2,10 +2,11 @@
 //! found beside its transform.json, and the check that a reference image is on a field's grid.
 
 use posereg::abi::Interpolation;
+use posereg::evaluate::seen_by_both;
 use posereg::io::field::load_field;
-use posereg::io::nifti::read_raw;
+use posereg::io::nifti::{load_labels, load_volume, read_header};
 use posereg::io::transform::BoneTransforms;
-use posereg::{Error, Field};
+use posereg::{Error, Field, Image, Volume};
 use std::path::{Path, PathBuf};
 
 /// The total field of a registration: field.nii.gz in the folder of its `transform.json`
@@ -24,7 +25,7 @@ pub fn registration_field(transform: &Path) -> anyhow::Result<(PathBuf, Field)> 
 /// Refuses a reference image `like` whose grid is not the grid `field` (read from
 /// `field_path`) is sampled on, naming both files.
 pub fn check_on_field_grid(like: &Path, field: &Field, field_path: &Path) -> anyhow::Result<()> {
-    let info = read_raw(like)?.info;
+    let info = read_header(like)?;
     let dims: Vec<usize> = info.dims.iter().take(3).copied().collect();
     let affine_gap = (info.affine - field.grid.affine).abs().max();
     if dims != field.grid.dims || affine_gap > 1e-3 {
@@ -40,6 +41,34 @@ pub fn check_on_field_grid(like: &Path, field: &Field, field_path: &Path) -> any
         .into());
     }
     Ok(())
+}
+
+/// The image `apply` and `resample` move: a label map (whole numbers, so that nearest
+/// neighbour keeps its codes) with `nearest`, else an intensity image; refused when under 1%
+/// of the field's source points fall inside it (it would come out empty).
+pub fn load_moving(path: &Path, nearest: bool, field: &Field) -> anyhow::Result<Volume> {
+    let image = match nearest {
+        true => {
+            let labels = load_labels(path)?;
+            let data = labels.data.iter().map(|&l| l as f32).collect();
+            Image {
+                grid: labels.grid,
+                data,
+            }
+        }
+        false => load_volume(path)?,
+    };
+    let seen = seen_by_both(field, &image.grid, -0.5);
+    let share = seen.iter().filter(|&&s| s).count() as f64 / seen.len() as f64;
+    if share < 0.01 {
+        let problem = format!(
+            "lies outside the field's source points ({:.1}% of them inside it): it is not in \
+             the source's world frame",
+            100.0 * share
+        );
+        return Err(Error::bad_file(path, problem).into());
+    }
+    Ok(image)
 }
 
 /// Nearest neighbour for label maps, trilinear otherwise.

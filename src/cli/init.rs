@@ -4,7 +4,7 @@
 use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Interpolation;
-use posereg::articulated::{bone_name, initialise, rigid_field, InitOptions};
+use posereg::articulated::{bone_name, initialise, present_bones, rigid_field, InitOptions};
 use posereg::backend::resample_onto;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::inputs::{check_bones, load_pair, Pair, PairPaths};
@@ -15,7 +15,8 @@ use posereg::io::{prepare_output_folder, OutputFolder};
 use posereg::joint::rotation_degrees;
 use posereg::metric::correlation;
 use posereg::vsd::Blending;
-use std::path::PathBuf;
+use posereg::Error;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `posereg init`.
 #[derive(Args, Debug)]
@@ -76,6 +77,37 @@ impl PairArgs {
     }
 }
 
+/// The bone motions of `--init`: rigid, each for a bone present in the labels, and one for
+/// every bone registered (`bones`, or every bone present when empty).
+fn load_given(
+    path: &Path,
+    labels: &posereg::Labels,
+    bones: &[u16],
+) -> anyhow::Result<BoneTransforms> {
+    let given = BoneTransforms::load(path)?;
+    given.check_rigid(path)?;
+    let present = present_bones(labels);
+    if let Some(b) = given.bones.iter().find(|b| !present.contains(&b.label)) {
+        let problem = format!(
+            "bone {} ({}) is not among the labels' bones {present:?}",
+            b.label, b.name
+        );
+        return Err(Error::bad_file(path, problem).into());
+    }
+    let wanted = if bones.is_empty() {
+        &present[..]
+    } else {
+        bones
+    };
+    if let Some(b) = wanted
+        .iter()
+        .find(|b| !given.bones.iter().any(|g| g.label == **b))
+    {
+        return Err(Error::bad_file(path, format!("has no transform for bone label {b}")).into());
+    }
+    Ok(given)
+}
+
 /// Runs the initialisation and writes init.json, init_field.nii.gz, initialised.nii.gz.
 pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
     let (_folder, pair) = args.pair.load(reporter)?;
@@ -85,11 +117,10 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         target,
         ..
     } = pair;
-    let given = args
-        .init
-        .as_ref()
-        .map(|p| BoneTransforms::load(p))
-        .transpose()?;
+    let given = match &args.init {
+        Some(path) => Some(load_given(path, &labels, &args.bones)?),
+        None => None,
+    };
     let (backend, line) = open_backend(device)?;
     reporter.say(&line);
     let defaults = InitOptions::default();

@@ -1,10 +1,10 @@
 //! `posereg resample SOURCE --field FIELD --like TARGET -o OUT`.
 
-use super::fields::{check_on_field_grid, interpolation};
+use super::fields::{check_on_field_grid, interpolation, load_moving};
 use clap::Args;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::load_field;
-use posereg::io::nifti::{load_volume, save_volume, DataType};
+use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::{check_output_file, NIFTI_NAMES};
 use std::path::PathBuf;
 
@@ -36,9 +36,16 @@ pub struct ResampleArgs {
 /// Applies the field and writes the resampled image.
 pub fn run(args: &ResampleArgs, device: DeviceChoice) -> anyhow::Result<()> {
     check_output_file(&args.output, NIFTI_NAMES)?;
-    let source = load_volume(&args.source)?;
+    if !args.background.is_finite() {
+        let problem = format!(
+            "--background is {}: it must be a finite number",
+            args.background
+        );
+        return Err(posereg::Error::InvalidInput(problem).into());
+    }
     let field = load_field(&args.field)?;
     check_on_field_grid(&args.like, &field, &args.field)?;
+    let source = load_moving(&args.source, args.nearest, &field)?;
     let (backend, line) = open_backend(device)?;
     eprintln!("{line}");
     let warped = backend.resample(

@@ -56,6 +56,10 @@ pub fn parse_points(path: &Path, text: &str) -> Result<PointTable> {
         }
     };
     let columns = [column("x")?, column("y")?, column("z")?];
+    let mut lines = lines.peekable();
+    if lines.peek().is_none() {
+        return Err(Error::bad_file(path, "has a header but no points"));
+    }
     let mut rows = Vec::new();
     let mut points = Vec::new();
     for (index, line) in lines {

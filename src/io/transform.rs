@@ -9,6 +9,10 @@ use crate::volume::Affine;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+/// The largest translation a bone motion may have: a scanner's field of view is under a metre,
+/// and a bone turned about a joint half a metre from the scanner's origin moves under two.
+pub const MAX_TRANSLATION_MM: f64 = 2000.0;
+
 /// One bone's rigid motion.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BoneTransform {
@@ -65,6 +69,41 @@ impl BoneTransforms {
         super::write_atomically(path, |tmp| {
             std::fs::write(tmp, text + "\n").map_err(|e| Error::io(path, e))
         })
+    }
+
+    /// Refuses motions that are not rigid (rotation and translation: RᵀR = I to 10⁻³,
+    /// det R = +1) or that move a bone farther than [`MAX_TRANSLATION_MM`]: the bone motions
+    /// the initialisation starts from. A scale, shear or reflection would be blended into the
+    /// soft tissue as if it were a rotation.
+    pub fn check_rigid(&self, path: &Path) -> Result<()> {
+        for b in &self.bones {
+            let m = b.affine();
+            let r = m.fixed_view::<3, 3>(0, 0);
+            let orthogonal = (r.transpose() * r - nalgebra::Matrix3::identity())
+                .abs()
+                .max()
+                < 1e-3;
+            if !orthogonal || r.determinant() < 0.0 {
+                return Err(Error::bad_file(
+                    path,
+                    format!(
+                        "bone {} ({}): matrix is not a rotation and translation",
+                        b.label, b.name
+                    ),
+                ));
+            }
+            let moved = m.fixed_view::<3, 1>(0, 3).norm();
+            if moved > MAX_TRANSLATION_MM {
+                return Err(Error::bad_file(
+                    path,
+                    format!(
+                        "bone {} ({}): translation of {moved:.0} mm, beyond {MAX_TRANSLATION_MM} mm",
+                        b.label, b.name
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Reads and checks a file: RAS space, finite rigid-or-affine matrices with last row

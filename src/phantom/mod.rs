@@ -116,10 +116,12 @@ pub fn generate(spec: &PhantomSpec) -> Result<Phantom> {
         )));
     }
     let bias_ok = (0.0..1.0).contains(&spec.bias);
-    let noise_ok = spec.noise >= 0.0 && spec.noise.is_finite();
+    // Noise is relative to the brightest tissue: beyond 1 it swamps every edge, and large
+    // values overflow f32 (1e20 gave an image of Inf).
+    let noise_ok = (0.0..=1.0).contains(&spec.noise);
     if !(bias_ok && noise_ok) {
         return Err(Error::InvalidInput(format!(
-            "bias must be in [0, 1) and noise >= 0 (got {}, {})",
+            "bias must be in [0, 1) and noise in [0, 1] (got {}, {})",
             spec.bias, spec.noise
         )));
     }

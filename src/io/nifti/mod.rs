@@ -135,7 +135,10 @@ pub fn volume_from_raw(path: &Path, raw: RawImage) -> Result<Volume> {
         let bad = raw.data.iter().filter(|v| !v.is_finite()).count();
         return Err(Error::bad_file(
             path,
-            format!("has {bad} non-finite voxels (NaN or Inf), the first at index {i}"),
+            format!(
+                "has {bad} non-finite voxels (NaN, Inf, or beyond float32's range), the first at \
+                 index {i}"
+            ),
         ));
     }
     Ok(Image {
