@@ -5,6 +5,7 @@
 //! image was made with, so applying it reproduces that resampling exactly.
 
 use super::fields::{check_on_field_grid, interpolation, load_moving, registration_field};
+use super::progress::Reporter;
 use clap::Args;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::nifti::{save_volume, DataType};
@@ -30,13 +31,13 @@ pub struct ApplyArgs {
 }
 
 /// Applies the registration's field to the image.
-pub fn run(args: &ApplyArgs, device: DeviceChoice) -> anyhow::Result<()> {
+pub fn run(args: &ApplyArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
     check_output_file(&args.output, NIFTI_NAMES)?;
     let (field_path, field) = registration_field(&args.transform)?;
     check_on_field_grid(&args.like, &field, &field_path)?;
     let image = load_moving(&args.image, args.nearest, &field)?;
     let (backend, line) = open_backend(device)?;
-    eprintln!("{line}");
+    reporter.say(&line);
     let moved = backend.resample(&image, &field, 0.0, interpolation(args.nearest))?;
     let dtype = if args.nearest {
         DataType::I32

@@ -1,6 +1,7 @@
 //! `posereg bend SOURCE --labels LABELS --degrees D [--axis ...] -o DIR`: the paper's synthetic
 //! experiment — bend a labelled volume with volume skeletal deformation and keep the truth.
 
+use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Interpolation;
 use posereg::articulated::bend;
@@ -62,7 +63,7 @@ fn given_axis(a: &[f64], source: &posereg::volume::Grid) -> anyhow::Result<Joint
 
 /// Bends and writes target.nii.gz, target_labels.nii.gz, truth_field.nii.gz, truth.json and
 /// picture.png (three planes through the knee).
-pub fn run(args: &BendArgs, device: DeviceChoice) -> anyhow::Result<()> {
+pub fn run(args: &BendArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
     let _folder = posereg::io::prepare_output_folder(&args.output)?;
     let source = load_volume(&args.source)?;
     let labels = load_labels(&args.labels)?;
@@ -76,7 +77,7 @@ pub fn run(args: &BendArgs, device: DeviceChoice) -> anyhow::Result<()> {
         None => None,
     };
     let (backend, line) = open_backend(device)?;
-    eprintln!("{line}");
+    reporter.say(&line);
     let bent = bend(
         backend.as_ref(),
         &source,

@@ -63,16 +63,16 @@ pub enum Command {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     let reporter = progress::Reporter::new(cli.quiet);
     match cli.command {
-        Command::Apply(args) => apply::run(&args, cli.device),
-        Command::ApplyPoints(args) => points::run(&args),
+        Command::Apply(args) => apply::run(&args, cli.device, &reporter),
+        Command::ApplyPoints(args) => points::run(&args, &reporter),
         Command::Bench(args) => bench::run(&args),
-        Command::Bend(args) => bend::run(&args, cli.device),
+        Command::Bend(args) => bend::run(&args, cli.device, &reporter),
         Command::Demo(args) => demo::run(&args, cli.device, &reporter),
         Command::Eval(args) => eval::run(&args),
         Command::Info(args) => info::run(&args),
         Command::Init(args) => init::run(&args, cli.device, &reporter),
         Command::Phantom(args) => phantom::run(&args),
         Command::Register(args) => register::run(&args, cli.device, &reporter),
-        Command::Resample(args) => resample::run(&args, cli.device),
+        Command::Resample(args) => resample::run(&args, cli.device, &reporter),
     }
 }

@@ -6,6 +6,7 @@
 //! on one scan wants to find on the other; `--direction target-to-source` goes the other way.
 
 use super::fields::registration_field;
+use super::progress::Reporter;
 use clap::{Args, ValueEnum};
 use nalgebra::Vector3;
 use posereg::io::points::load_points;
@@ -38,7 +39,7 @@ pub struct PointsArgs {
 }
 
 /// Reads, maps, writes.
-pub fn run(args: &PointsArgs) -> anyhow::Result<()> {
+pub fn run(args: &PointsArgs, reporter: &Reporter) -> anyhow::Result<()> {
     posereg::io::check_output_file(&args.output, &[])?;
     let (field_path, field) = registration_field(&args.transform)?;
     let mut table = load_points(&args.points)?;
@@ -64,6 +65,21 @@ pub fn run(args: &PointsArgs) -> anyhow::Result<()> {
             "maps to a point",
             &field_path,
         )?;
+    }
+    // The inversion is fixed-point iteration: where the field folds or compresses sharply it
+    // may stop short, and the residual says by how much.
+    let voxel = grid.finest_spacing();
+    let poor = mapped
+        .iter()
+        .filter(|(_, residual)| *residual > voxel)
+        .count();
+    if poor > 0 {
+        reporter.warn(&format!(
+            "{poor} of {} points were inverted only to more than a voxel ({voxel:.2} mm); see \
+             the inversion_residual_mm column of {}",
+            mapped.len(),
+            args.output.display()
+        ));
     }
     let [cx, cy, cz] = table.columns;
     let mut out = table.header.join(",") + ",inversion_residual_mm\n";

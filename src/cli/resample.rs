@@ -1,6 +1,7 @@
 //! `posereg resample SOURCE --field FIELD --like TARGET -o OUT`.
 
 use super::fields::{check_on_field_grid, interpolation, load_moving};
+use super::progress::Reporter;
 use clap::Args;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::load_field;
@@ -34,7 +35,7 @@ pub struct ResampleArgs {
 }
 
 /// Applies the field and writes the resampled image.
-pub fn run(args: &ResampleArgs, device: DeviceChoice) -> anyhow::Result<()> {
+pub fn run(args: &ResampleArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
     check_output_file(&args.output, NIFTI_NAMES)?;
     if !args.background.is_finite() {
         let problem = format!(
@@ -47,13 +48,26 @@ pub fn run(args: &ResampleArgs, device: DeviceChoice) -> anyhow::Result<()> {
     check_on_field_grid(&args.like, &field, &args.field)?;
     let source = load_moving(&args.source, args.nearest, &field)?;
     let (backend, line) = open_backend(device)?;
-    eprintln!("{line}");
+    reporter.say(&line);
     let warped = backend.resample(
         &source,
         &field,
         args.background,
         interpolation(args.nearest),
     )?;
+    if let Some((lo, hi)) = args.dtype.integer_range() {
+        let clipped = warped
+            .data
+            .iter()
+            .filter(|&&v| v < lo - 0.5 || v > hi + 0.5)
+            .count();
+        if clipped > 0 {
+            reporter.warn(&format!(
+                "{clipped} voxels lie outside {:?}'s range {lo}..{hi} and are clipped to it",
+                args.dtype
+            ));
+        }
+    }
     save_volume(&args.output, &warped, args.dtype)?;
     Ok(())
 }

@@ -28,6 +28,19 @@ pub enum DataType {
     F64,
 }
 
+impl DataType {
+    /// The values an integer type holds (writing saturates beyond them); None for floats.
+    pub fn integer_range(self) -> Option<(f32, f32)> {
+        match self {
+            DataType::U8 => Some((0.0, u8::MAX as f32)),
+            DataType::I16 => Some((i16::MIN as f32, i16::MAX as f32)),
+            DataType::U16 => Some((0.0, u16::MAX as f32)),
+            DataType::I32 => Some((i32::MIN as f32, i32::MAX as f32)),
+            DataType::F32 | DataType::F64 => None,
+        }
+    }
+}
+
 /// A header for `dims` placed by `affine`: sform exact, qform the nearest rotation + zooms.
 pub fn header_for(dims: &[usize], affine: &Affine, datatype: NiftiType) -> Result<NiftiHeader> {
     let mut dim = [1u16; 8];
