@@ -60,6 +60,14 @@ pub struct InitOptions {
 }
 
 impl InitOptions {
+    /// The bones registered: those `bones` names, or every bone present in `labels`.
+    pub fn bones_in(&self, labels: &Labels) -> Vec<u16> {
+        match self.bones.is_empty() {
+            true => present_bones(labels),
+            false => self.bones.clone(),
+        }
+    }
+
     /// Rejects settings the stage cannot run with, naming the setting.
     pub fn check(&self) -> Result<()> {
         let bad = |what: &str| Err(Error::InvalidInput(format!("init.{what}")));
@@ -327,11 +335,7 @@ pub fn initialise(
             "the label map is not on the source image's grid".into(),
         ));
     }
-    let bones = if options.bones.is_empty() {
-        present_bones(labels)
-    } else {
-        options.bones.clone()
-    };
+    let bones = options.bones_in(labels);
     for b in &bones {
         if !labels.data.contains(b) {
             return Err(Error::InvalidInput(format!(

@@ -179,10 +179,7 @@ pub fn check_bones(init: &InitOptions, labels: &Labels, paths: PairPaths) -> Res
             .collect::<Vec<_>>()
             .join(", ")
     };
-    let chosen = match init.bones.is_empty() {
-        true => present.clone(),
-        false => init.bones.clone(),
-    };
+    let chosen = init.bones_in(labels);
     for &bone in &chosen {
         let count = labels.data.iter().filter(|&&l| l == bone).count();
         if count == 0 {

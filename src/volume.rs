@@ -108,7 +108,11 @@ impl Grid {
     /// True when world point `p` lies inside the field of view: within half a voxel of the
     /// outermost voxel centres.
     pub fn contains(&self, p: &nalgebra::Vector3<f64>) -> bool {
-        let q = self.world_to_voxel_affine() * p.push(1.0);
+        self.holds_index(&(self.world_to_voxel_affine() * p.push(1.0)))
+    }
+
+    /// True when the continuous voxel index `q` lies within half a voxel of the grid.
+    fn holds_index(&self, q: &nalgebra::Vector4<f64>) -> bool {
         (0..3).all(|a| q[a] > -0.5 && q[a] < self.dims[a] as f64 - 0.5)
     }
 
@@ -123,7 +127,7 @@ impl Grid {
                 for i in (0..self.dims[0]).step_by(stride[0]) {
                     let q = to_other * nalgebra::Vector4::new(i as f64, j as f64, k as f64, 1.0);
                     total += 1;
-                    if (0..3).all(|a| q[a] > -0.5 && q[a] < other.dims[a] as f64 - 0.5) {
+                    if other.holds_index(&q) {
                         inside += 1;
                     }
                 }

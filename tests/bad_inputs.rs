@@ -1117,10 +1117,7 @@ fn every_bad_input_is_refused_clearly() {
 fn the_inputs_the_cases_start_from_are_accepted() {
     let x = Inputs::new();
     for name in ["small.nii", "source.nii.gz", "labels.nii.gz"] {
-        let run = Command::new(env!("CARGO_BIN_EXE_posereg"))
-            .args(["info", &x.s(name)])
-            .output()
-            .unwrap();
+        let run = posereg(&["info".to_string(), x.s(name)]);
         assert!(
             run.status.success(),
             "{name}: {}",
@@ -1133,11 +1130,7 @@ fn the_inputs_the_cases_start_from_are_accepted() {
         "target.nii.gz",
         &["--iterations", "2x0x0", "-q"],
     );
-    let run = Command::new(env!("CARGO_BIN_EXE_posereg"))
-        .args(&args)
-        .env("XDG_RUNTIME_DIR", x.dir.path())
-        .output()
-        .unwrap();
+    let run = posereg(&args);
     assert!(
         run.status.success(),
         "{}",
@@ -1162,11 +1155,7 @@ fn strict_turns_a_failed_check_into_an_error_and_keeps_the_outputs() {
         "target.nii.gz",
         &["--iterations", "2x0x0", "-q", "--strict"],
     );
-    let run = Command::new(env!("CARGO_BIN_EXE_posereg"))
-        .args(&args)
-        .env("XDG_RUNTIME_DIR", x.dir.path())
-        .output()
-        .unwrap();
+    let run = posereg(&args);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(1), "{stderr}");
     assert!(

@@ -6,15 +6,7 @@ use common::*;
 use posereg::io::field::save_field;
 use posereg::io::nifti::{load_volume, save_volume, DataType};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn posereg(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_posereg"))
-        .args(args)
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .output()
-        .expect("the binary runs")
-}
+use std::process::Output;
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()

@@ -216,7 +216,7 @@ fn field_round_trips_and_is_lps_on_disk() {
     let path = dir.path().join("field.nii.gz");
     save_field(&path, &field).unwrap();
     let raw = read_raw(&path).unwrap();
-    assert_eq!(raw.info.dims, vec![4, 5, 6, 1, 3]);
+    assert_eq!(raw.info.header.dims, vec![4, 5, 6, 1, 3]);
     assert_eq!(raw.info.header.intent_code, 1007);
     let n = grid.len();
     for i in [0, 7, n - 1] {

@@ -26,7 +26,7 @@ pub fn registration_field(transform: &Path) -> anyhow::Result<(PathBuf, Field)> 
 /// `field_path`) is sampled on, naming both files.
 pub fn check_on_field_grid(like: &Path, field: &Field, field_path: &Path) -> anyhow::Result<()> {
     let info = read_header(like)?;
-    let dims: Vec<usize> = info.dims.iter().take(3).copied().collect();
+    let dims: Vec<usize> = info.header.dims.iter().take(3).copied().collect();
     let affine_gap = (info.affine - field.grid.affine).abs().max();
     if dims != field.grid.dims || affine_gap > 1e-3 {
         return Err(Error::bad_file(

@@ -19,7 +19,7 @@ pub struct InfoArgs {
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     let raw = read_raw(&args.file)?;
     let info = &raw.info;
-    let dims3 = std::array::from_fn(|i| *info.dims.get(i).unwrap_or(&1));
+    let dims3 = std::array::from_fn(|i| *info.header.dims.get(i).unwrap_or(&1));
     let grid = Grid::new(dims3, info.affine)
         .map_err(|e| posereg::Error::bad_file(&args.file, e.to_string()))?;
     let finite: Vec<f32> = raw.data.iter().copied().filter(|v| v.is_finite()).collect();
@@ -36,7 +36,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     if args.json {
         let value = serde_json::json!({
             "file": args.file,
-            "dims": info.dims,
+            "dims": info.header.dims,
             "datatype": info.header.datatype.name(),
             "format": info.header.version,
             "byte_order": if info.header.big_endian { "big-endian" } else { "little-endian" },
@@ -54,7 +54,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&value)?);
         return Ok(());
     }
-    let dims: Vec<String> = info.dims.iter().map(|d| d.to_string()).collect();
+    let dims: Vec<String> = info.header.dims.iter().map(|d| d.to_string()).collect();
     println!("file:        {}", args.file.display());
     println!("dims:        {}", dims.join(" x "));
     println!(

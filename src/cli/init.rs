@@ -78,11 +78,11 @@ impl PairArgs {
 }
 
 /// The bone motions of `--init`: rigid, each for a bone present in the labels, and one for
-/// every bone registered (`bones`, or every bone present when empty).
+/// every bone `options` registers.
 fn load_given(
     path: &Path,
     labels: &posereg::Labels,
-    bones: &[u16],
+    options: &InitOptions,
 ) -> anyhow::Result<BoneTransforms> {
     let given = BoneTransforms::load(path)?;
     given.check_rigid(path)?;
@@ -94,12 +94,8 @@ fn load_given(
         );
         return Err(Error::bad_file(path, problem).into());
     }
-    let wanted = if bones.is_empty() {
-        &present[..]
-    } else {
-        bones
-    };
-    if let Some(b) = wanted
+    if let Some(b) = options
+        .bones_in(labels)
         .iter()
         .find(|b| !given.bones.iter().any(|g| g.label == **b))
     {
@@ -110,19 +106,6 @@ fn load_given(
 
 /// Runs the initialisation and writes init.json, init_field.nii.gz, initialised.nii.gz.
 pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
-    let (_folder, pair) = args.pair.load(reporter)?;
-    let Pair {
-        source,
-        labels,
-        target,
-        ..
-    } = pair;
-    let given = match &args.init {
-        Some(path) => Some(load_given(path, &labels, &args.bones)?),
-        None => None,
-    };
-    let (backend, line) = open_backend(device)?;
-    reporter.say(&line);
     let defaults = InitOptions::default();
     let options = InitOptions {
         bones: args.bones.clone(),
@@ -130,8 +113,22 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         blending: args.blending.unwrap_or(defaults.blending),
         ..defaults
     };
+    // The flags are checked before any voxel is read.
     options.check()?;
+    let (_folder, pair) = args.pair.load(reporter)?;
+    let Pair {
+        source,
+        labels,
+        target,
+        ..
+    } = pair;
     check_bones(&options, &labels, args.pair.paths())?;
+    let given = match &args.init {
+        Some(path) => Some(load_given(path, &labels, &options)?),
+        None => None,
+    };
+    let (backend, line) = open_backend(device)?;
+    reporter.say(&line);
     let started = std::time::Instant::now();
     let init = initialise(
         backend.as_ref(),

@@ -8,10 +8,7 @@ use std::path::Path;
 
 /// Reads a settings file over the defaults.
 pub fn load_options(path: &Path) -> Result<RegisterOptions> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let text = String::from_utf8(bytes)
-        .map_err(|_| Error::bad_file(path, "is not UTF-8 text: a settings file is TOML or JSON"))?;
-    parse_options(path, &text)
+    parse_options(path, &super::read_text(path)?)
 }
 
 /// Settings from the text of the file `path` (whose extension says TOML or JSON), checked.

@@ -54,7 +54,7 @@ pub fn field_from_raw(path: &Path, raw: RawImage) -> Result<Field> {
             ),
         ));
     }
-    let dims = &raw.info.dims;
+    let dims = &raw.info.header.dims;
     if dims.len() != 5 || dims[3] != 1 || dims[4] != 3 {
         return Err(Error::bad_file(
             path,

@@ -11,6 +11,20 @@ pub mod transform;
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
 
+/// The folder a file `path` is in ("." for a bare name).
+fn folder_of(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// The whole of a text file (settings, transforms, points), refused by name when not UTF-8.
+pub fn read_text(path: &Path) -> Result<String> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    String::from_utf8(bytes).map_err(|_| Error::bad_file(path, "is not UTF-8 text"))
+}
+
 /// Writes `path` through a temporary file in the same folder that `write` fills, renamed into
 /// place only when `write` succeeded, so a failure or interruption never leaves a half-written
 /// output under the real name. The temporary name keeps the real name's extension because
@@ -24,10 +38,7 @@ where
         .ok_or_else(|| Error::bad_file(path, "output path has no file name"))?
         .to_string_lossy()
         .into_owned();
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
+    let dir = folder_of(path);
     if !dir.is_dir() {
         return Err(Error::bad_file(path, "output folder does not exist"));
     }
@@ -89,10 +100,7 @@ pub fn check_output_file(path: &Path, extensions: &[&str]) -> Result<()> {
             "is a folder; the output needs a file name",
         ));
     }
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
+    let dir = folder_of(path);
     if !dir.is_dir() {
         return Err(Error::bad_file(path, "output folder does not exist"));
     }

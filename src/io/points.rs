@@ -21,9 +21,7 @@ pub struct PointTable {
 
 /// Reads a point CSV.
 pub fn load_points(path: &Path) -> Result<PointTable> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let text = String::from_utf8(bytes).map_err(|_| Error::bad_file(path, "is not UTF-8 text"))?;
-    parse_points(path, &text)
+    parse_points(path, &super::read_text(path)?)
 }
 
 /// Parses the text of the point CSV `path`.

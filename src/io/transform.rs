@@ -109,10 +109,7 @@ impl BoneTransforms {
     /// Reads and checks a file: RAS space, finite rigid-or-affine matrices with last row
     /// 0 0 0 1, no label twice.
     pub fn load(path: &Path) -> Result<Self> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        let text =
-            String::from_utf8(bytes).map_err(|_| Error::bad_file(path, "is not UTF-8 text"))?;
-        Self::parse(path, &text)
+        Self::parse(path, &super::read_text(path)?)
     }
 
     /// Parses and checks the text of the bone-transform file `path`.

@@ -1,11 +1,22 @@
-//! Helpers shared by the integration tests: seeded smooth data and the GPU backend.
+//! Helpers shared by the integration tests: seeded smooth data, the GPU backend, the binary.
 #![allow(dead_code)] // each test binary uses a different subset
 
 use posereg::gpu::GpuBackend;
 use posereg::volume::{Affine, Field, Grid, Image, Volume};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use std::ffi::OsStr;
+use std::process::{Command, Output};
 use std::sync::OnceLock;
+
+/// Runs the posereg binary with `args` (Mesa's runtime folder set, so it stays quiet).
+pub fn posereg<S: AsRef<OsStr>>(args: &[S]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_posereg"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("the binary runs")
+}
 
 /// The GPU backend shared by a test binary, or None when there is no adapter. With
 /// REQUIRE_GPU=1 (CI sets it) a missing adapter fails the test instead of skipping it.

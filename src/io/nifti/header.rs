@@ -350,6 +350,12 @@ impl Header {
         self.dims.iter().map(|&d| d as u64).product()
     }
 
+    /// Bytes between a single file's header and its first voxel (vox_offset is checked to
+    /// lie past the header).
+    pub fn gap(&self) -> u64 {
+        self.vox_offset - self.version.header_size() as u64
+    }
+
     /// Bytes of voxel data.
     pub fn data_bytes(&self) -> u64 {
         self.voxels() * self.datatype.size() as u64

@@ -26,10 +26,8 @@ use std::path::Path;
 /// What a NIfTI header says, decoded.
 #[derive(Clone, Debug)]
 pub struct HeaderInfo {
-    /// The header as read.
+    /// The header as read (its `dims` are dim[1..=dim[0]]).
     pub header: Header,
-    /// All dims from dim[1..=dim[0]].
-    pub dims: Vec<usize>,
     /// Voxel→world RAS mm.
     pub affine: Affine,
     /// Where the affine came from.
@@ -40,7 +38,6 @@ impl HeaderInfo {
     fn new(header: Header, path: &Path) -> Result<Self> {
         let (affine, affine_source) = header.affine().map_err(|p| Error::bad_file(path, p))?;
         Ok(HeaderInfo {
-            dims: header.dims.clone(),
             header,
             affine,
             affine_source,
@@ -86,8 +83,7 @@ pub fn read_raw(path: &Path) -> Result<RawImage> {
             ),
         ));
     } else {
-        let gap = info.header.vox_offset - info.header.version.header_size() as u64;
-        read_voxels(&mut opened, gap, &info.header, path)?
+        read_voxels(&mut opened, info.header.gap(), &info.header, path)?
     };
     Ok(RawImage { info, data })
 }
@@ -104,14 +100,13 @@ pub fn read_raw_bytes(name: &Path, bytes: &[u8]) -> Result<RawImage> {
             "its voxels are in a separate .img file",
         ));
     }
-    let gap = info.header.vox_offset - info.header.version.header_size() as u64;
-    let data = read_voxels(&mut opened, gap, &info.header, name)?;
+    let data = read_voxels(&mut opened, info.header.gap(), &info.header, name)?;
     Ok(RawImage { info, data })
 }
 
 /// The 3-D grid of an image whose dims beyond the third are all 1.
 pub fn spatial_grid(path: &Path, info: &HeaderInfo, what: &str) -> Result<Grid> {
-    let dims = &info.dims;
+    let dims = &info.header.dims;
     let extra: usize = dims.iter().skip(3).product();
     if extra != 1 {
         return Err(Error::bad_file(
