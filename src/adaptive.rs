@@ -11,7 +11,7 @@
 //! with the initial field, u = R + u0 ∘ (id + R), and the source resampled once through it.
 
 use crate::abi::RbfGradParams;
-use crate::backend::Backend;
+use crate::backend::{Backend, Traffic};
 use crate::check::finite_non_negative;
 use crate::cpu::rbf_grad::warp_at;
 use crate::cpu::sample::trilinear;
@@ -213,6 +213,28 @@ pub struct Adaptive {
     pub coefficients: RbfCoefficients,
     /// Record per refinement.
     pub stages: Vec<StageReport>,
+    /// What the optimiser's cost evaluations moved between host and device.
+    pub evaluations: Evaluations,
+}
+
+/// The optimiser's cost-and-gradient evaluations and their traffic.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct Evaluations {
+    /// Evaluations over the whole stage.
+    pub count: usize,
+    /// Their traffic together.
+    pub traffic: Traffic,
+    /// The most bytes one evaluation read back.
+    pub most_bytes_down: u64,
+}
+
+impl Evaluations {
+    /// Counts one evaluation that moved `traffic`.
+    fn add(&mut self, traffic: Traffic) {
+        self.count += 1;
+        self.most_bytes_down = self.most_bytes_down.max(traffic.bytes_down);
+        self.traffic += traffic;
+    }
 }
 
 /// A lattice of nodes every `step` voxels over a grid.
@@ -379,6 +401,7 @@ pub fn register(
         })
         .collect();
     let mut stages = Vec::new();
+    let evaluations = std::cell::Cell::new(Evaluations::default());
     progress.begin(
         "adaptive RBF",
         target_levels.len() * options.cell_levels.len(),
@@ -486,6 +509,7 @@ pub fn register(
             let free: Vec<usize> = (0..points.len()).filter(|&i| !points[i].pinned).collect();
             let x0: Vec<f64> = free.iter().flat_map(|&i| points[i].displacement).collect();
             let cost_grad = |x: &[f64]| -> Result<(f64, Vec<f64>)> {
+                let before = backend.traffic();
                 let mut values = vec![Vector3::zeros(); points.len()];
                 for (k, &i) in free.iter().enumerate() {
                     values[i] = Vector3::new(x[3 * k], x[3 * k + 1], x[3 * k + 2]);
@@ -534,6 +558,9 @@ pub fn register(
                     .collect();
                 let (g, q) = coefficient_gradients(&centres, &lattice.nodes, &g_nodes);
                 let df = system.value_gradient(&g, &q)?;
+                let mut counted = evaluations.get();
+                counted.add(backend.traffic() - before);
+                evaluations.set(counted);
                 Ok((
                     cost,
                     free.iter()
@@ -573,6 +600,7 @@ pub fn register(
         points,
         coefficients,
         stages,
+        evaluations: evaluations.get(),
     })
 }
 

@@ -8,10 +8,48 @@ use crate::metric::CellSsd;
 use crate::volume::{Affine, Field, Grid, Volume};
 use crate::vsd::BoneBlend;
 
+/// What a backend has moved between the host and the device, and how much work it launched,
+/// since it was opened. The CPU backend moves nothing and counts nothing.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Traffic {
+    /// Bytes copied from host memory into device buffers (inputs and kernel parameters).
+    pub bytes_up: u64,
+    /// Bytes copied back from device buffers into host memory.
+    pub bytes_down: u64,
+    /// Kernel dispatches recorded.
+    pub dispatches: u64,
+    /// Command submissions to the device's queue (each ends in a blocking wait today).
+    pub submits: u64,
+}
+
+impl std::ops::Sub for Traffic {
+    type Output = Traffic;
+    fn sub(self, before: Traffic) -> Traffic {
+        Traffic {
+            bytes_up: self.bytes_up - before.bytes_up,
+            bytes_down: self.bytes_down - before.bytes_down,
+            dispatches: self.dispatches - before.dispatches,
+            submits: self.submits - before.submits,
+        }
+    }
+}
+
+impl std::ops::AddAssign for Traffic {
+    fn add_assign(&mut self, more: Traffic) {
+        self.bytes_up += more.bytes_up;
+        self.bytes_down += more.bytes_down;
+        self.dispatches += more.dispatches;
+        self.submits += more.submits;
+    }
+}
+
 /// A place kernels run.
 pub trait Backend {
     /// One line saying what this backend is (e.g. "gpu: NVIDIA H100 (Vulkan)", "cpu: 2 threads").
     fn describe(&self) -> String;
+
+    /// Everything counted since the backend was opened.
+    fn traffic(&self) -> Traffic;
 
     /// Resampling of `source` at x + u(x) for every voxel x of `field`'s grid (the target
     /// grid), trilinear or nearest; `background` where that point is outside the source.

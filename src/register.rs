@@ -4,7 +4,7 @@
 use crate::abi::Interpolation;
 use crate::adaptive::{self, compose, Adaptive, AdaptiveOptions, Moving};
 use crate::articulated::{initialise, InitOptions, Initialisation};
-use crate::backend::{resample_onto, Backend};
+use crate::backend::{resample_onto, Backend, Traffic};
 use crate::error::Result;
 use crate::evaluate::seen_by_both;
 use crate::fold_repair::{maps_into_bone, unfold_registration, FoldRepair};
@@ -77,6 +77,21 @@ pub struct Registration {
     pub unfolding: FoldRepair,
     /// Wall time of each stage.
     pub timings: StageTimes,
+    /// Host↔device traffic of each stage.
+    pub traffic: StageTraffic,
+}
+
+/// Bytes moved and work launched by each stage of a registration (zero on the CPU backend).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct StageTraffic {
+    /// Articulated initialisation.
+    pub initialisation: Traffic,
+    /// Adaptive RBF stage.
+    pub adaptive: Traffic,
+    /// Composition, fold check and the final resampling.
+    pub finish: Traffic,
+    /// The three together.
+    pub total: Traffic,
 }
 
 /// Seconds spent in each stage of a registration.
@@ -167,6 +182,7 @@ pub fn register(
     progress: &dyn Progress,
 ) -> Result<Registration> {
     let clock = std::time::Instant::now();
+    let at_start = backend.traffic();
     options.check()?;
     let (init, initial, moving) = match options.initialise.then_some(&options.init) {
         Some(init_options) => {
@@ -199,6 +215,7 @@ pub fn register(
         _ => Vec::new(),
     };
     let initialisation = clock.elapsed().as_secs_f64();
+    let after_init = backend.traffic();
     let coverage = coverage(&initial, &source.grid);
     let adaptive = adaptive::register(
         backend,
@@ -213,6 +230,7 @@ pub fn register(
         progress,
     )?;
     let adaptive_seconds = clock.elapsed().as_secs_f64() - initialisation;
+    let after_adaptive = backend.traffic();
     // Step control: the added warp itself must not fold; while it does, shrink it. Folds of
     // the initial field (skinning at large angles) are carried into the total field and
     // reported, but are not the warp's to undo. (Counting the total field's folds instead
@@ -245,6 +263,13 @@ pub fn register(
         adaptive: adaptive_seconds,
         finish: clock.elapsed().as_secs_f64() - initialisation - adaptive_seconds,
     };
+    let at_end = backend.traffic();
+    let traffic = StageTraffic {
+        initialisation: after_init - at_start,
+        adaptive: after_adaptive - after_init,
+        finish: at_end - after_adaptive,
+        total: at_end - at_start,
+    };
     let min_jacobian = det.data.iter().cloned().fold(f32::INFINITY, f32::min);
     let folded_share = folds(&det) as f64 / det.data.len() as f64;
     Ok(Registration {
@@ -257,6 +282,7 @@ pub fn register(
         warp_scale: scale,
         unfolding,
         timings,
+        traffic,
     })
 }
 

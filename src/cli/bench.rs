@@ -8,7 +8,8 @@ use posereg::cpu::CpuBackend;
 use posereg::gpu::GpuBackend;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
 use posereg::progress::Silent;
-use posereg::register::{register, RegisterOptions, StageTimes};
+use posereg::adaptive::Evaluations;
+use posereg::register::{register, RegisterOptions, StageTimes, StageTraffic};
 
 /// Which backends to time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -51,12 +52,22 @@ fn peak_rss_mib() -> Option<f64> {
     Some(kib / 1024.0)
 }
 
+/// Median seconds per stage (initialisation, adaptive, finish, total) and the traffic of the
+/// last run (the same every run: the work is deterministic).
+struct Timed {
+    seconds: [f64; 4],
+    traffic: StageTraffic,
+    evaluations: Evaluations,
+}
+
 fn time(
     backend: &dyn Backend,
     runs: u64,
     pair: &(posereg::phantom::Phantom, posereg::phantom::Phantom),
-) -> anyhow::Result<[f64; 4]> {
+) -> anyhow::Result<Timed> {
     let mut all: Vec<StageTimes> = Vec::new();
+    let mut traffic = StageTraffic::default();
+    let mut evaluations = Evaluations::default();
     for _ in 0..runs {
         let r = register(
             backend,
@@ -67,14 +78,58 @@ fn time(
             &Silent,
         )?;
         all.push(r.timings);
+        (traffic, evaluations) = (r.traffic, r.adaptive.evaluations);
     }
     let m = |f: fn(&StageTimes) -> f64| median(all.iter().map(f).collect());
-    Ok([
-        m(|t| t.initialisation),
-        m(|t| t.adaptive),
-        m(|t| t.finish),
-        m(|t| t.initialisation + t.adaptive + t.finish),
-    ])
+    Ok(Timed {
+        seconds: [
+            m(|t| t.initialisation),
+            m(|t| t.adaptive),
+            m(|t| t.finish),
+            m(|t| t.initialisation + t.adaptive + t.finish),
+        ],
+        traffic,
+        evaluations,
+    })
+}
+
+fn mib(bytes: u64) -> f64 {
+    bytes as f64 / (1024.0 * 1024.0)
+}
+
+/// One backend's row of the table and its traffic lines.
+fn print_row(describe: &str, timed: &Timed) {
+    let t = timed.seconds;
+    println!(
+        "{describe:<52} {:>10.2} {:>10.2} {:>10.2} {:>10.2}",
+        t[0], t[1], t[2], t[3]
+    );
+    let stages = &timed.traffic;
+    for (stage, traffic) in [
+        ("initialisation", stages.initialisation),
+        ("adaptive", stages.adaptive),
+        ("finish", stages.finish),
+        ("registration", stages.total),
+    ] {
+        println!(
+            "  {stage:<15} up {:>9.2} MiB, down {:>9.2} MiB, {:>7} dispatches, {:>7} submits",
+            mib(traffic.bytes_up),
+            mib(traffic.bytes_down),
+            traffic.dispatches,
+            traffic.submits
+        );
+    }
+    let e = &timed.evaluations;
+    let per = |v: u64| v as f64 / e.count.max(1) as f64;
+    println!(
+        "  per evaluation ({} evaluations): up {:.1} KiB, down {:.1} KiB (most {:.1} KiB), {:.1} dispatches, {:.1} submits",
+        e.count,
+        per(e.traffic.bytes_up) / 1024.0,
+        per(e.traffic.bytes_down) / 1024.0,
+        e.most_bytes_down as f64 / 1024.0,
+        per(e.traffic.dispatches),
+        per(e.traffic.submits)
+    );
 }
 
 /// Runs and prints the table.
@@ -93,6 +148,12 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         args.flexion,
         args.runs
     );
+    let voxels = |p: &posereg::phantom::Phantom| p.image.grid.len() as u64;
+    println!(
+        "inputs (source, labels, target as f32): {:.2} MiB; outputs (field, warped): {:.2} MiB",
+        mib(4 * (2 * voxels(&pair.0) + voxels(&pair.1))),
+        mib(16 * voxels(&pair.1))
+    );
     println!(
         "{:<52} {:>10} {:>10} {:>10} {:>10}",
         "backend", "init s", "adaptive s", "finish s", "total s"
@@ -100,37 +161,23 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let mut totals = Vec::new();
     if args.which != Which::Gpu {
         let t = time(&CpuBackend, args.runs, &pair)?;
-        println!(
-            "{:<52} {:>10.2} {:>10.2} {:>10.2} {:>10.2}",
-            CpuBackend.describe(),
-            t[0],
-            t[1],
-            t[2],
-            t[3]
-        );
+        print_row(&CpuBackend.describe(), &t);
         println!(
             "  peak host memory (process so far): {:.0} MiB",
             peak_rss_mib().unwrap_or(f64::NAN)
         );
-        totals.push(t);
+        totals.push(t.seconds);
     }
     if args.which != Which::Cpu {
         let gpu = GpuBackend::new()?;
         let t = time(&gpu, args.runs, &pair)?;
-        println!(
-            "{:<52} {:>10.2} {:>10.2} {:>10.2} {:>10.2}",
-            gpu.describe(),
-            t[0],
-            t[1],
-            t[2],
-            t[3]
-        );
+        print_row(&gpu.describe(), &t);
         println!(
             "  peak host memory (process so far): {:.0} MiB; largest set of device buffers bound at once: {:.1} MiB",
             peak_rss_mib().unwrap_or(f64::NAN),
             gpu.peak_dispatch_bytes() as f64 / (1024.0 * 1024.0)
         );
-        totals.push(t);
+        totals.push(t.seconds);
     }
     if let [cpu, gpu] = totals.as_slice() {
         println!(

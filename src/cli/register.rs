@@ -144,6 +144,7 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
         "control_points": result.adaptive.points.len(),
         "correlation": { "before": correlations.before, "after": correlations.after },
         "jacobian": { "min": result.min_jacobian, "folded_share": result.folded_share, "unfolding": result.unfolding },
+        "device_traffic": { "stages": result.traffic, "evaluations": result.adaptive.evaluations },
         "checks": checks,
         "warnings": warnings,
     });

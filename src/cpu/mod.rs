@@ -19,7 +19,7 @@ use crate::abi::{
     Interpolation, JacobianParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams,
     ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
 };
-use crate::backend::{check_pair, Backend};
+use crate::backend::{check_pair, Backend, Traffic};
 use crate::error::Result;
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Affine, Field, Grid, Image, Volume};
@@ -32,6 +32,10 @@ pub struct CpuBackend;
 impl Backend for CpuBackend {
     fn describe(&self) -> String {
         format!("cpu: {} threads", rayon::current_num_threads())
+    }
+
+    fn traffic(&self) -> Traffic {
+        Traffic::default()
     }
 
     fn resample(

@@ -10,6 +10,7 @@ use wgpu::util::DeviceExt;
 pub fn storage_from<T: Pod>(ctx: &GpuContext, what: &str, data: &[T]) -> Result<wgpu::Buffer> {
     let bytes: &[u8] = bytemuck::cast_slice(data);
     ctx.check_storage(what, bytes.len() as u64)?;
+    ctx.counters.up(bytes.len() as u64);
     ctx.scoped(what, || {
         ctx.device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -36,6 +37,7 @@ pub fn storage_output<T: Pod>(ctx: &GpuContext, what: &str, len: usize) -> Resul
 
 /// A uniform buffer holding one parameter struct.
 pub fn uniform_from<T: Pod>(ctx: &GpuContext, what: &str, value: &T) -> Result<wgpu::Buffer> {
+    ctx.counters.up(std::mem::size_of::<T>() as u64);
     ctx.scoped(what, || {
         ctx.device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -67,6 +69,8 @@ pub fn submit_and_read<T: Pod>(
         encoder.copy_buffer_to_buffer(source, 0, &staging, 0, bytes);
         ctx.queue.submit([encoder.finish()]);
     })?;
+    ctx.counters.submit();
+    ctx.counters.down(bytes);
     let (sender, receiver) = std::sync::mpsc::channel();
     staging.map_async(wgpu::MapMode::Read, .., move |r| {
         let _ = sender.send(r);

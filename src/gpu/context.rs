@@ -1,6 +1,8 @@
 //! The headless wgpu device: adapter choice, real limits, error capture.
 
 use crate::error::{Error, Result};
+use crate::backend::Traffic;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 /// A wgpu device and queue on a chosen adapter, with that adapter's real limits.
@@ -14,6 +16,49 @@ pub struct GpuContext {
     /// The limits the device was created with (the adapter's own, not wgpu's defaults, so a
     /// 136×256×256 volume and its packed 3-vector field can be bound).
     pub limits: wgpu::Limits,
+    /// Bytes moved and work launched on this device.
+    pub counters: Counters,
+}
+
+/// The device's running [`Traffic`] totals, shared by every kernel call.
+#[derive(Default)]
+pub struct Counters {
+    bytes_up: AtomicU64,
+    bytes_down: AtomicU64,
+    dispatches: AtomicU64,
+    submits: AtomicU64,
+}
+
+impl Counters {
+    /// Counts `bytes` written into device buffers.
+    pub fn up(&self, bytes: u64) {
+        self.bytes_up.fetch_add(bytes, Ordering::Relaxed);
+    }
+
+    /// Counts `bytes` read back.
+    pub fn down(&self, bytes: u64) {
+        self.bytes_down.fetch_add(bytes, Ordering::Relaxed);
+    }
+
+    /// Counts one dispatch.
+    pub fn dispatch(&self) {
+        self.dispatches.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Counts one queue submission.
+    pub fn submit(&self) {
+        self.submits.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// The totals so far.
+    pub fn read(&self) -> Traffic {
+        Traffic {
+            bytes_up: self.bytes_up.load(Ordering::Relaxed),
+            bytes_down: self.bytes_down.load(Ordering::Relaxed),
+            dispatches: self.dispatches.load(Ordering::Relaxed),
+            submits: self.submits.load(Ordering::Relaxed),
+        }
+    }
 }
 
 fn type_rank(t: wgpu::DeviceType) -> u8 {
@@ -75,6 +120,7 @@ impl GpuContext {
             queue,
             info,
             limits,
+            counters: Counters::default(),
         })
     }
 

@@ -100,6 +100,7 @@ impl Kernel {
                 self.name
             )));
         }
+        ctx.counters.dispatch();
         ctx.scoped(&format!("dispatching kernel {}", self.name), || {
             let entries: Vec<wgpu::BindGroupEntry> = buffers
                 .iter()

@@ -21,7 +21,7 @@ use crate::abi::{
     Interpolation, JacobianParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams,
     ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
 };
-use crate::backend::{check_pair, Backend};
+use crate::backend::{check_pair, Backend, Traffic};
 use crate::error::{Error, Result};
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Affine, Field, Grid, Image, Volume};
@@ -188,6 +188,10 @@ impl GpuBackend {
 impl Backend for GpuBackend {
     fn describe(&self) -> String {
         format!("gpu: {}", self.ctx.describe())
+    }
+
+    fn traffic(&self) -> Traffic {
+        self.ctx.counters.read()
     }
 
     fn resample(
