@@ -7,6 +7,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use posereg::abi::Interpolation;
 use posereg::cpu::CpuBackend;
+use posereg::device::Opened;
 use posereg::gpu::GpuBackend;
 use posereg::volume::{Affine, Grid, Image};
 use posereg::Backend;
@@ -52,12 +53,12 @@ fn field(g: &Grid) -> posereg::Field {
     Image::from_data(g.clone(), data).unwrap()
 }
 
-fn backends() -> Vec<(&'static str, Box<dyn Backend>)> {
-    let mut list: Vec<(&'static str, Box<dyn Backend>)> = vec![("cpu", Box::new(CpuBackend))];
+fn backends() -> Vec<(&'static str, Opened)> {
+    let mut list: Vec<(&'static str, Opened)> = vec![("cpu", Opened::Cpu(CpuBackend))];
     match GpuBackend::new() {
         Ok(g) => {
             eprintln!("gpu backend: {}", g.describe());
-            list.push(("gpu", Box::new(g)));
+            list.push(("gpu", Opened::Gpu(g)));
         }
         Err(e) if std::env::var("REQUIRE_GPU").as_deref() == Ok("1") => {
             panic!("REQUIRE_GPU=1 but no GPU backend: {e}")
@@ -75,8 +76,8 @@ fn group<R>(
     title: &str,
     elements: u64,
     label: &str,
-    backends: &[(&'static str, Box<dyn Backend>)],
-    run: impl Fn(&dyn Backend) -> posereg::Result<R>,
+    backends: &[(&'static str, Opened)],
+    run: impl Fn(&Opened) -> posereg::Result<R>,
 ) {
     let mut group = c.benchmark_group(title);
     group
@@ -85,7 +86,7 @@ fn group<R>(
     for (name, b) in backends {
         // Only a device has limits to probe; the CPU twins are not run an extra time.
         let probe = || match *name {
-            "gpu" => run(b.as_ref()).map(|_| ()),
+            "gpu" => run(b).map(|_| ()),
             _ => Ok(()),
         };
         match probe() {
@@ -97,7 +98,7 @@ fn group<R>(
             Ok(()) => {}
         }
         group.bench_with_input(BenchmarkId::new(*name, label), &(), |bench, _| {
-            bench.iter(|| run(b.as_ref()).unwrap())
+            bench.iter(|| run(b).unwrap())
         });
     }
     group.finish();
@@ -111,38 +112,68 @@ fn kernels(c: &mut Criterion) {
         let target = volume(&g, 0.5);
         let u = field(&g);
         let label = format!("{}x{}x{}", dims[0], dims[1], dims[2]);
-        group(c, "resample", g.len() as u64, &label, &backends, |b| {
-            b.resample(&source, &u, 0.0, Interpolation::Linear)
-        });
-        group(c, "jacobian", g.len() as u64, &label, &backends, |b| {
-            b.jacobian(&u)
-        });
+        group(
+            c,
+            "resample",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| posereg::on_backend!(b, b => b.resample(&source, &u, 0.0, Interpolation::Linear)),
+        );
+        group(
+            c,
+            "jacobian",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| posereg::on_backend!(b, b => b.jacobian(&u)),
+        );
         let (coarse, factors) = posereg::pyramid::next_level_grid(&g).unwrap();
-        group(c, "pyramid", g.len() as u64, &label, &backends, |b| {
-            b.pyramid_level(&source, &coarse, factors)
-        });
+        group(
+            c,
+            "pyramid",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| posereg::on_backend!(b, b => b.pyramid_level(&source, &coarse, factors)),
+        );
         // The non-rigid stage's per-iteration work: lattice every 4 voxels.
         let step = 4;
         let ldims: [usize; 3] = std::array::from_fn(|a| (dims[a] - 1).div_ceil(step) + 1);
         let lattice: Vec<f32> = (0..3 * ldims.iter().product::<usize>())
             .map(|k| ((k % 17) as f32 - 8.0) * 0.1)
             .collect();
-        group(c, "rbf_grad", g.len() as u64, &label, &backends, |b| {
-            b.rbf_grad(&lattice, ldims, step, &source, &target)
-        });
+        group(
+            c,
+            "rbf_grad",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| posereg::on_backend!(b, b => b.rbf_grad(&lattice, ldims, step, &source, &target)),
+        );
         let per_voxel: Vec<f32> = bytemuck::cast_slice(&u.data).to_vec();
-        group(c, "lattice_splat", g.len() as u64, &label, &backends, |b| {
-            b.lattice_splat(&per_voxel, &g, ldims, step)
-        });
+        group(
+            c,
+            "lattice_splat",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| posereg::on_backend!(b, b => b.lattice_splat(&per_voxel, &g, ldims, step)),
+        );
         // Articulated initialisation: a whole-volume bone region, a small motion.
         let mask: posereg::Volume = Image::filled(g.clone(), 1.0);
         let motion = posereg::rigid::small_motion(
             &nalgebra::Vector6::new(0.02, -0.01, 0.03, 1.0, -0.5, 0.2),
             &nalgebra::Vector3::zeros(),
         );
-        group(c, "rigid_gn", g.len() as u64, &label, &backends, |b| {
-            b.rigid_sums(&source, &mask, &target, &motion, [0.0; 3])
-        });
+        group(
+            c,
+            "rigid_gn",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| posereg::on_backend!(b, b => b.rigid_sums(&source, &mask, &target, &motion, [0.0; 3])),
+        );
         let candidates: Vec<posereg::Affine> = (0..32)
             .map(|k| {
                 posereg::rigid::small_motion(
@@ -157,7 +188,7 @@ fn kernels(c: &mut Criterion) {
             32 * g.len() as u64,
             &label,
             &backends,
-            |b| b.rigid_scores(&source, &mask, &target, &candidates),
+            |b| posereg::on_backend!(b, b => b.rigid_scores(&source, &mask, &target, &candidates)),
         );
         let bones = 4;
         // Synthetic distances (mm) to each bone, per voxel of a grid of `voxels`.
@@ -171,7 +202,7 @@ fn kernels(c: &mut Criterion) {
             g.len() as u64,
             &label,
             &backends,
-            |b| b.skin_weights(&distances, &g, bones, 2),
+            |b| posereg::on_backend!(b, b => b.skin_weights(&distances, &g, bones, 2)),
         );
         // Weights on the skinning grid (~2.5 mm), as the pipeline keeps them.
         let (weight_grid, _) = posereg::skinning::skinning_grid(&g);
@@ -202,11 +233,16 @@ fn kernels(c: &mut Criterion) {
             g.len() as u64,
             &label,
             &backends,
-            |b| b.skin_blend(&weights, &weight_grid, &soft_tissue, &g, &g, &blend),
+            |b| posereg::on_backend!(b, b => b.skin_blend(&weights, &weight_grid, &soft_tissue, &g, &g, &blend)),
         );
-        group(c, "ssd_cells_16", g.len() as u64, &label, &backends, |b| {
-            b.ssd_cells(&source, &target, [16, 16, 16])
-        });
+        group(
+            c,
+            "ssd_cells_16",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| posereg::on_backend!(b, b => b.ssd_cells(&source, &target, [16, 16, 16])),
+        );
     }
 }
 

@@ -272,9 +272,9 @@ impl Lattice {
 
     /// The rbf_grad kernel's output for the warp `coef` evaluated on this lattice: `moving`
     /// sampled through it and the squared residual's gradient, per voxel of `fixed`.
-    fn rbf_grad(
+    fn rbf_grad<B: Backend>(
         &self,
-        backend: &dyn Backend,
+        backend: &B,
         values: &[f32],
         moving: &Volume,
         fixed: &Volume,
@@ -321,13 +321,13 @@ fn solve(points: &[ControlPoint], smoothing: f64) -> Result<(RbfCoefficients, Ve
 
 /// The warp of the control points as they stand (its coefficients and centres) and `moving`
 /// sampled through it on `fixed`'s grid.
-fn warp_moving(
+fn warp_moving<B: Backend>(
     points: &[ControlPoint],
     lattice: &Lattice,
     options: &AdaptiveOptions,
     moving: &Volume,
     fixed: &Volume,
-    backend: &dyn Backend,
+    backend: &B,
 ) -> Result<(RbfCoefficients, Vec<Vector3<f64>>, Volume)> {
     let (coef, centres) = solve(points, options.smoothing)?;
     let out = lattice.rbf_grad(backend, &lattice.values(&coef, &centres), moving, fixed)?;
@@ -357,8 +357,8 @@ pub struct Moving<'a> {
 /// it at coarse levels). Coverage re-measured through the warp was tried and is worse: the
 /// optimiser then hides mismatches by pulling samples off the grid (10° without
 /// initialisation, 1.34 → 1.59 mm).
-fn covered_levels(
-    backend: &dyn Backend,
+fn covered_levels<B: Backend>(
+    backend: &B,
     coverage: &Volume,
     target_levels: &[Volume],
 ) -> Result<Vec<Vec<f32>>> {
@@ -376,8 +376,8 @@ fn covered_levels(
 
 /// Runs the adaptive stage on `moving`; `pins` are the points held at zero added
 /// displacement.
-pub fn register(
-    backend: &dyn Backend,
+pub fn register<B: Backend>(
+    backend: &B,
     moving: &Moving,
     target: &Volume,
     pins: &[Vector3<f64>],

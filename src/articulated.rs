@@ -200,8 +200,8 @@ fn candidates(axis: &JointAxis, reference: &Affine, options: &InitOptions) -> Ve
 }
 
 /// Bone-region masks (label dilated by `dilation_mm`) on a pyramid's levels.
-fn region_masks(
-    backend: &dyn Backend,
+fn region_masks<B: Backend>(
+    backend: &B,
     labels: &Labels,
     code: u16,
     source_levels: &[Volume],
@@ -247,8 +247,8 @@ fn region_centroid(mask: &Volume) -> Vector3<f64> {
 /// Registers one bone from `start` through the levels coarse to fine, after an optional
 /// search at its coarsest usable level.
 #[allow(clippy::too_many_arguments)]
-fn register_bone(
-    backend: &dyn Backend,
+fn register_bone<B: Backend>(
+    backend: &B,
     code: u16,
     source: &[Volume],
     target: &[Volume],
@@ -320,8 +320,8 @@ fn register_bone(
 }
 
 /// Runs the articulated initialisation. `given` skips the rigid stage with known motions.
-pub fn initialise(
-    backend: &dyn Backend,
+pub fn initialise<B: Backend>(
+    backend: &B,
     source: &Volume,
     labels: &Labels,
     target: &Volume,
@@ -480,8 +480,8 @@ pub const BEND_SHEPARD_POWER: u32 = 2;
 
 /// Bends `source` by `degrees` with volume skeletal deformation: the femur stays, tibia and
 /// fibula turn about the flexion axis (from the labels unless given), the patella by 0.7 of it.
-pub fn bend(
-    backend: &dyn Backend,
+pub fn bend<B: Backend>(
+    backend: &B,
     source: &Volume,
     labels: &Labels,
     degrees: f64,

@@ -43,13 +43,34 @@ impl std::ops::AddAssign for Traffic {
     }
 }
 
+/// Element types a device buffer may hold: f32 for volumes and lattices, f64 where sums of
+/// large terms cancel (the cubic RBF, reductions).
+pub trait Element: bytemuck::Pod + Send + Sync {}
+impl Element for f32 {}
+impl Element for f64 {}
+
 /// A place kernels run.
+///
+/// Data a registration works on lives where the backend computes, as [`Backend::Buffer`]s: a
+/// `Vec` on the CPU (nothing is copied), a device buffer on the GPU. Kernel methods that take
+/// buffers record work and return buffers or small reductions; the GPU backend submits recorded
+/// work only when something is downloaded, so a chain of kernels costs one submission and one
+/// wait.
 pub trait Backend {
+    /// An array of `T` held where this backend computes.
+    type Buffer<T: Element>;
+
     /// One line saying what this backend is (e.g. "gpu: NVIDIA H100 (Vulkan)", "cpu: 2 threads").
     fn describe(&self) -> String;
 
     /// Everything counted since the backend was opened.
     fn traffic(&self) -> Traffic;
+
+    /// Puts `data` where kernels can read it (`what` names it in errors).
+    fn upload<T: Element>(&self, what: &str, data: Vec<T>) -> Result<Self::Buffer<T>>;
+
+    /// Brings `buffers` back to the host, after all work recorded so far, with one wait.
+    fn download<T: Element>(&self, buffers: &[&Self::Buffer<T>]) -> Result<Vec<Vec<T>>>;
 
     /// Resampling of `source` at x + u(x) for every voxel x of `field`'s grid (the target
     /// grid), trilinear or nearest; `background` where that point is outside the source.
@@ -151,7 +172,7 @@ pub fn check_pair(a: &Volume, b: &Volume) -> Result<()> {
 
 /// `volume` sampled on `grid` without any displacement (trilinear, 0 outside): the unregistered
 /// source seen on the target's grid.
-pub fn resample_onto(backend: &dyn Backend, volume: &Volume, grid: &Grid) -> Result<Volume> {
+pub fn resample_onto<B: Backend>(backend: &B, volume: &Volume, grid: &Grid) -> Result<Volume> {
     let zero = crate::volume::Image::filled(grid.clone(), [0.0f32; 3]);
     backend.resample(volume, &zero, 0.0, Interpolation::Linear)
 }

@@ -19,27 +19,55 @@ pub enum DeviceChoice {
     Cpu,
 }
 
+/// An opened backend of either kind; [`on_backend!`](crate::on_backend) runs code generic over
+/// [`Backend`] on it.
+pub enum Opened {
+    /// The CPU backend.
+    Cpu(CpuBackend),
+    /// The GPU backend.
+    Gpu(GpuBackend),
+}
+
+impl Opened {
+    /// What the backend is (see [`Backend::describe`]).
+    pub fn describe(&self) -> String {
+        crate::on_backend!(self, backend => backend.describe())
+    }
+}
+
+/// `on_backend!(opened, backend => expression)`: the expression, with `backend` a reference to
+/// the opened backend (its concrete type, so generic library calls take it).
+#[macro_export]
+macro_rules! on_backend {
+    ($opened:expr, $backend:ident => $body:expr) => {
+        match &$opened {
+            $crate::device::Opened::Cpu($backend) => $body,
+            $crate::device::Opened::Gpu($backend) => $body,
+        }
+    };
+}
+
 /// Opens the chosen backend; also returns one line saying what was chosen and why.
-pub fn open_backend(choice: DeviceChoice) -> Result<(Box<dyn Backend>, String)> {
+pub fn open_backend(choice: DeviceChoice) -> Result<(Opened, String)> {
     match choice {
         DeviceChoice::Cpu => {
             let b = CpuBackend;
             let line = format!("device: {} (--device cpu)", b.describe());
-            Ok((Box::new(b), line))
+            Ok((Opened::Cpu(b), line))
         }
         DeviceChoice::Gpu => {
             let b = GpuBackend::new()?;
             let line = format!("device: {}", b.describe());
-            Ok((Box::new(b), line))
+            Ok((Opened::Gpu(b), line))
         }
         DeviceChoice::Auto => match GpuContext::new() {
             Ok(ctx) if !ctx.is_software() => {
                 let b = GpuBackend::with_context(ctx)?;
                 let line = format!("device: {} (auto)", b.describe());
-                Ok((Box::new(b), line))
+                Ok((Opened::Gpu(b), line))
             }
             Ok(ctx) => Ok((
-                Box::new(CpuBackend),
+                Opened::Cpu(CpuBackend),
                 format!(
                     "device: {} (auto: the only GPU is the software driver {}, slower than the \
                      CPU backend; --device gpu forces it)",
@@ -48,7 +76,7 @@ pub fn open_backend(choice: DeviceChoice) -> Result<(Box<dyn Backend>, String)> 
                 ),
             )),
             Err(e) => Ok((
-                Box::new(CpuBackend),
+                Opened::Cpu(CpuBackend),
                 format!("device: {} (auto: {e})", CpuBackend.describe()),
             )),
         },

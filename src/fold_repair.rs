@@ -43,8 +43,8 @@ pub struct FoldRepair {
 /// folds, the pull-back can stop inside a bone without solving it, and those voxels are
 /// tissue caught in the fold (at 90° on the paper grid, a folded patch mapped into the
 /// patella that nothing else could lift).
-pub fn repair_folds(
-    backend: &dyn Backend,
+pub fn repair_folds<B: Backend>(
+    backend: &B,
     field: &mut Field,
     residual: &Volume,
     labels: &Labels,
@@ -122,8 +122,8 @@ pub fn repair_folds(
 /// pushed into a bone. The adaptive warp is smooth and does not fold (its step control sees
 /// to that), but composed with an initial field that is sharply compressed behind a bent knee it
 /// can carry a few voxels past each other there.
-pub fn unfold_registration(
-    backend: &dyn Backend,
+pub fn unfold_registration<B: Backend>(
+    backend: &B,
     field: &mut Field,
     det: &Volume,
     labels: &Labels,
@@ -169,8 +169,8 @@ const UNFOLD_TARGET: f32 = 0.3;
 /// Voxels marked `rigid` never move, and no step carries a voxel's source point into a bone:
 /// `in_bone(n, u)` says whether voxel n displaced by u lands in one. Returns the voxels still
 /// folded and the steps taken.
-pub fn unfold(
-    backend: &dyn Backend,
+pub fn unfold<B: Backend>(
+    backend: &B,
     field: &mut Field,
     rigid: &[bool],
     in_bone: &(dyn Fn(usize, [f32; 3]) -> bool + Sync),

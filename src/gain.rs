@@ -22,8 +22,8 @@ use rayon::prelude::*;
 const MOST_GAIN: f32 = 2.0;
 
 /// Per voxel of `target`'s grid, the smooth gain g with g·`moving` ≈ `target` at `scale_mm`.
-pub fn gain(
-    backend: &dyn Backend,
+pub fn gain<B: Backend>(
+    backend: &B,
     moving: &Volume,
     target: &Volume,
     scale_mm: f64,

@@ -37,7 +37,7 @@ pub fn next_level_grid(grid: &Grid) -> Option<(Grid, [usize; 3])> {
 }
 
 /// Levels of `volume`, finest first, at most `levels` of them (fewer when the grid runs out).
-pub fn build(backend: &dyn Backend, volume: &Volume, levels: usize) -> Result<Vec<Volume>> {
+pub fn build<B: Backend>(backend: &B, volume: &Volume, levels: usize) -> Result<Vec<Volume>> {
     let mut out = vec![volume.clone()];
     while out.len() < levels {
         let last = out.last().expect("never empty");
@@ -51,7 +51,11 @@ pub fn build(backend: &dyn Backend, volume: &Volume, levels: usize) -> Result<Ve
 
 /// `volume` smoothed and halved until its finest spacing reaches `spacing_mm` (or the grid
 /// runs out): Gaussian smoothing at about that scale, on the coarse grid it needs.
-pub fn down_to_spacing(backend: &dyn Backend, volume: &Volume, spacing_mm: f64) -> Result<Volume> {
+pub fn down_to_spacing<B: Backend>(
+    backend: &B,
+    volume: &Volume,
+    spacing_mm: f64,
+) -> Result<Volume> {
     let finest = |v: &Volume| v.grid.finest_spacing();
     let mut level = volume.clone();
     while finest(&level) < spacing_mm {
@@ -64,7 +68,11 @@ pub fn down_to_spacing(backend: &dyn Backend, volume: &Volume, spacing_mm: f64) 
 }
 
 /// Levels of `volume` on exactly the grids of `like` (same factors, level by level).
-pub fn build_like(backend: &dyn Backend, volume: &Volume, like: &[Volume]) -> Result<Vec<Volume>> {
+pub fn build_like<B: Backend>(
+    backend: &B,
+    volume: &Volume,
+    like: &[Volume],
+) -> Result<Vec<Volume>> {
     let mut out = vec![volume.clone()];
     for level in like.iter().skip(1) {
         let last = out.last().expect("never empty");

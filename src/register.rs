@@ -173,8 +173,8 @@ pub fn coverage(field: &Field, source: &Grid) -> Volume {
 }
 
 /// Registers `source` (with its bone `labels`) to `target`.
-pub fn register(
-    backend: &dyn Backend,
+pub fn register<B: Backend>(
+    backend: &B,
     source: &Volume,
     labels: &Labels,
     target: &Volume,

@@ -79,8 +79,8 @@ pub fn small_motion(delta: &Vector6<f64>, centre: &Vector3<f64>) -> Affine {
 
 /// Mean squared residual of each candidate; candidates that keep fewer than half of the best
 /// covered candidate's voxels inside the target are scored infinite (they win by leaving).
-pub fn score_candidates(
-    backend: &dyn Backend,
+pub fn score_candidates<B: Backend>(
+    backend: &B,
     source: &Volume,
     mask: &Volume,
     target: &Volume,
@@ -135,8 +135,8 @@ impl Default for RefineOptions {
 /// Levenberg-Marquardt refinement of `motion` at one pyramid level. The system is linearised
 /// about the moved centroid of the bone region, so rotation and translation are decoupled and
 /// similarly scaled.
-pub fn refine(
-    backend: &dyn Backend,
+pub fn refine<B: Backend>(
+    backend: &B,
     source: &Volume,
     mask: &Volume,
     target: &Volume,

@@ -162,8 +162,8 @@ pub fn distance_map(grid: &Grid, inside: &[bool]) -> Vec<f32> {
 
 /// Skinning weights of `bones` from the source labels, on the skinning grid, falling off as
 /// d⁻ᵖᵒʷᵉʳ ([`SHEPARD_POWER`] for the initialisation).
-pub fn weights(
-    backend: &dyn Backend,
+pub fn weights<B: Backend>(
+    backend: &B,
     labels: &Labels,
     bones: &[u16],
     power: u32,

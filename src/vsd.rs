@@ -62,8 +62,8 @@ pub struct InitialField {
 
 /// Inverts the blend of `motions` (one per weight bone, source → target) on `target`; the
 /// source `labels` make each bone exactly rigid up to its labelled surface.
-pub fn initial_field(
-    backend: &dyn Backend,
+pub fn initial_field<B: Backend>(
+    backend: &B,
     weights: &SkinningWeights,
     labels: &Labels,
     motions: &[Affine],

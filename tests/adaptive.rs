@@ -38,8 +38,8 @@ fn evaluation_mask(source: &Phantom, target: &Phantom) -> Vec<bool> {
 
 /// Registers the pair of `size` bent `flexion`° with `options` and scores it over the evaluation
 /// mask: the field error against the truth, the correlation with the target, and the result.
-fn register_and_score(
-    backend: &dyn Backend,
+fn register_and_score<B: Backend>(
+    backend: &B,
     size: PhantomSize,
     flexion: f64,
     options: &RegisterOptions,
@@ -90,7 +90,7 @@ struct Scored {
     result: Registration,
 }
 
-fn ten_degrees_without_initialisation(backend: &dyn Backend, size: PhantomSize, name: &str) {
+fn ten_degrees_without_initialisation<B: Backend>(backend: &B, size: PhantomSize, name: &str) {
     let options = RegisterOptions {
         initialise: false,
         ..Default::default()

@@ -57,8 +57,8 @@ fn centroid(labels: &posereg::Labels, code: u16) -> nalgebra::Vector4<f64> {
 /// pulled trilinearly and kept where >= 0.5 (the partial-volume boundary), over the target
 /// voxels the straight scan saw. (2) isolates the initialisation's error from the half-voxel
 /// uncertainty of centre-sampled labels, which alone costs thin bones a few % at 2.5 mm.
-fn bone_overlap(
-    backend: &dyn Backend,
+fn bone_overlap<B: Backend>(
+    backend: &B,
     s: &Phantom,
     b: &Phantom,
     init: &Initialisation,
@@ -112,8 +112,8 @@ fn bone_overlap(
 }
 
 /// Checks everything the issue asks of one initialisation; returns a one-line summary.
-fn check(
-    backend: &dyn Backend,
+fn check<B: Backend>(
+    backend: &B,
     name: &str,
     s: &Phantom,
     b: &Phantom,
@@ -202,7 +202,7 @@ fn check(
     summary
 }
 
-fn run_all(backend: &dyn Backend, name: &str) {
+fn run_all<B: Backend>(backend: &B, name: &str) {
     for degrees in ANGLES {
         let init = initialise(
             backend,

@@ -338,11 +338,13 @@ fn skinning_kernels_parity() {
             blending,
             iterations: 8,
         };
-        let blend = |b: &dyn Backend, w: &[f32]| {
-            b.skin_blend(w, &grid, &bone_of_voxel, &label_grid, &target, &spec)
-                .unwrap()
-        };
-        let (cpu, got) = (blend(&CpuBackend, &cpu), blend(gpu, &got));
+        let (cpu, got) = (
+            CpuBackend
+                .skin_blend(&cpu, &grid, &bone_of_voxel, &label_grid, &target, &spec)
+                .unwrap(),
+            gpu.skin_blend(&got, &grid, &bone_of_voxel, &label_grid, &target, &spec)
+                .unwrap(),
+        );
         // This fixture's labels alternate every 7 voxels, so the blend is discontinuous and
         // does not invert everywhere; where it does not, eight steps of a non-converging
         // iteration amplify ulp differences (sqrt, division) into different iterates. Where

@@ -649,6 +649,7 @@ fn lattice_interpolation_error_of_a_cubic_rbf_warp_is_small() {
         points,
         coefficients: coefficients.clone(),
         stages: Vec::new(),
+        evaluations: Default::default(),
     };
     let field = adaptive.warp_field(&grid, 5.0, 1.0);
     let (mut worst, mut sum) = (0.0f64, 0.0f64);

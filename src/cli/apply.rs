@@ -10,6 +10,7 @@ use clap::Args;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::{check_output_file, NIFTI_NAMES};
+use posereg::Backend;
 use std::path::PathBuf;
 
 /// Arguments of `posereg apply`.
@@ -36,9 +37,9 @@ pub fn run(args: &ApplyArgs, device: DeviceChoice, reporter: &Reporter) -> anyho
     let (field_path, field) = registration_field(&args.transform)?;
     check_on_field_grid(&args.like, &field, &field_path)?;
     let image = load_moving(&args.image, args.nearest, &field)?;
-    let (backend, line) = open_backend(device)?;
+    let (opened, line) = open_backend(device)?;
     reporter.say(&line);
-    let moved = backend.resample(&image, &field, 0.0, interpolation(args.nearest))?;
+    let moved = posereg::on_backend!(opened, backend => backend.resample(&image, &field, 0.0, interpolation(args.nearest)))?;
     let dtype = if args.nearest {
         DataType::I32
     } else {

@@ -3,12 +3,12 @@
 //! GPU/CPU ratio, and peak memory.
 
 use clap::{Args, ValueEnum};
+use posereg::adaptive::Evaluations;
 use posereg::backend::Backend;
 use posereg::cpu::CpuBackend;
 use posereg::gpu::GpuBackend;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
 use posereg::progress::Silent;
-use posereg::adaptive::Evaluations;
 use posereg::register::{register, RegisterOptions, StageTimes, StageTraffic};
 
 /// Which backends to time.
@@ -60,8 +60,8 @@ struct Timed {
     evaluations: Evaluations,
 }
 
-fn time(
-    backend: &dyn Backend,
+fn time<B: Backend>(
+    backend: &B,
     runs: u64,
     pair: &(posereg::phantom::Phantom, posereg::phantom::Phantom),
 ) -> anyhow::Result<Timed> {

@@ -10,6 +10,7 @@ use posereg::io::field::save_field;
 use posereg::io::nifti::{load_labels, load_volume, save_labels, save_volume, DataType};
 use posereg::joint::JointAxis;
 use posereg::vsd::Blending;
+use posereg::Backend;
 use posereg::Error;
 use std::path::PathBuf;
 
@@ -76,24 +77,23 @@ pub fn run(args: &BendArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         Some(a) => Some(given_axis(a, &source.grid)?),
         None => None,
     };
-    let (backend, line) = open_backend(device)?;
+    let (opened, line) = open_backend(device)?;
     reporter.say(&line);
-    let bent = bend(
-        backend.as_ref(),
+    let bent = posereg::on_backend!(opened, backend => bend(
+        backend,
         &source,
         &labels,
         args.degrees,
         axis,
         args.blending,
-    )?;
+    ))?;
     let out = |name: &str| args.output.join(name);
-    let target = backend.resample(&source, &bent.field, 0.0, Interpolation::Linear)?;
+    let target = posereg::on_backend!(opened, backend => backend.resample(&source, &bent.field, 0.0, Interpolation::Linear))?;
     let label_values: posereg::Volume = posereg::Image {
         grid: labels.grid.clone(),
         data: labels.data.iter().map(|&l| l as f32).collect(),
     };
-    let target_labels =
-        backend.resample(&label_values, &bent.field, 0.0, Interpolation::Nearest)?;
+    let target_labels = posereg::on_backend!(opened, backend => backend.resample(&label_values, &bent.field, 0.0, Interpolation::Nearest))?;
     save_volume(&out("target.nii.gz"), &target, DataType::F32)?;
     save_labels(
         &out("target_labels.nii.gz"),

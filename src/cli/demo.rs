@@ -46,7 +46,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     };
     options.initialise &= !args.no_init;
     let _folder = posereg::io::prepare_output_folder(&args.output)?;
-    let (backend, line) = open_backend(device)?;
+    let (opened, line) = open_backend(device)?;
     reporter.say(&line);
     let spec = |flexion_degrees, seed| PhantomSpec {
         size: args.size,
@@ -62,14 +62,14 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     let target = generate(&spec(args.flexion, 2))?;
     println!("registering ...");
     let started = std::time::Instant::now();
-    let result = register(
-        backend.as_ref(),
+    let result = posereg::on_backend!(opened, backend => register(
+        backend,
         &source.image,
         &source.labels,
         &target.image,
         &options,
         reporter,
-    )?;
+    ))?;
     let seconds = started.elapsed().as_secs_f64();
 
     let out = |name: &str| args.output.join(name);
@@ -85,7 +85,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         .axis_point
         .as_dvec3()
         .to_array();
-    let unregistered = resample_onto(backend.as_ref(), &source.image, &target.image.grid)?;
+    let unregistered = posereg::on_backend!(opened, backend => resample_onto(backend, &source.image, &target.image.grid))?;
     posereg::quicklook::save(
         &out("quicklook.png"),
         &target.image,
@@ -95,7 +95,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         knee,
     )?;
 
-    println!("done in {seconds:.1} s on {}", backend.describe());
+    println!("done in {seconds:.1} s on {}", opened.describe());
     let motions = result
         .init
         .as_ref()

@@ -15,6 +15,7 @@ use posereg::io::{prepare_output_folder, OutputFolder};
 use posereg::joint::rotation_degrees;
 use posereg::metric::correlation;
 use posereg::vsd::Blending;
+use posereg::Backend;
 use posereg::Error;
 use std::path::{Path, PathBuf};
 
@@ -127,18 +128,18 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         Some(path) => Some(load_given(path, &labels, &options)?),
         None => None,
     };
-    let (backend, line) = open_backend(device)?;
+    let (opened, line) = open_backend(device)?;
     reporter.say(&line);
     let started = std::time::Instant::now();
-    let init = initialise(
-        backend.as_ref(),
+    let init = posereg::on_backend!(opened, backend => initialise(
+        backend,
         &source,
         &labels,
         &target,
         &options,
         given.as_ref(),
         reporter,
-    )?;
+    ))?;
     let seconds = started.elapsed().as_secs_f64();
     let mut transforms = init.transforms();
     transforms.extra.insert(
@@ -177,7 +178,8 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         .map(|m| m.1);
     let body = |n: usize| target.data[n] > 0.0;
     let corr_identity = correlation(
-        &resample_onto(backend.as_ref(), &source, &target.grid)?.data,
+        &posereg::on_backend!(opened, backend => resample_onto(backend, &source, &target.grid))?
+            .data,
         &target.data,
         body,
     );
@@ -211,12 +213,12 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     );
     println!("  correlation with target: identity {corr_identity:.4}");
     if let Some(reference) = reference {
-        let femur_only = backend.resample(
+        let femur_only = posereg::on_backend!(opened, backend => backend.resample(
             &source,
             &rigid_field(&reference, &target.grid)?,
             0.0,
             Interpolation::Linear,
-        )?;
+        ))?;
         println!(
             "                             reference bone only {:.4}",
             correlation(&femur_only.data, &target.data, body)

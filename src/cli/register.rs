@@ -16,6 +16,7 @@ use posereg::metric::correlation;
 use posereg::register::{register, RegisterOptions};
 use posereg::result_checks::{result_checks, Check, Correlations};
 use posereg::vsd::Blending;
+use posereg::Backend;
 use posereg::Error;
 use std::path::PathBuf;
 
@@ -104,26 +105,27 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
         target,
         warnings,
     } = pair;
-    let (backend, line) = open_backend(device)?;
+    let (opened, line) = open_backend(device)?;
     reporter.say(&line);
     let started = std::time::Instant::now();
-    let result = register(
-        backend.as_ref(),
+    let result = posereg::on_backend!(opened, backend => register(
+        backend,
         &source,
         &labels,
         &target,
         &options,
         reporter,
-    )?;
+    ))?;
     let seconds = started.elapsed().as_secs_f64();
     let out = |name: &str| args.pair.output.join(name);
     save_volume(&out("warped.nii.gz"), &result.warped, DataType::F32)?;
     save_field(&out("field.nii.gz"), &result.field)?;
-    let det = backend.jacobian(&result.field)?;
+    let det = posereg::on_backend!(opened, backend => backend.jacobian(&result.field))?;
     save_volume(&out("jacobian.nii.gz"), &det, DataType::F32)?;
     let transform = result.transforms(&options);
     transform.save(&out("transform.json"))?;
-    let before = resample_onto(backend.as_ref(), &source, &target.grid)?;
+    let before =
+        posereg::on_backend!(opened, backend => resample_onto(backend, &source, &target.grid))?;
     let body = |n: usize| target.data[n] > 0.0;
     let correlations = Correlations {
         before: correlation(&before.data, &target.data, body),
@@ -132,7 +134,7 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
     let checks = result_checks(&result, correlations, &options);
     let report = serde_json::json!({
         "posereg": env!("CARGO_PKG_VERSION"),
-        "device": backend.describe(),
+        "device": opened.describe(),
         "seconds": seconds,
         "inputs": { "source": args.pair.source, "source_labels": args.pair.source_labels, "target": args.pair.target },
         "options": options,

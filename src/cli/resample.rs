@@ -7,6 +7,7 @@ use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::load_field;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::{check_output_file, NIFTI_NAMES};
+use posereg::Backend;
 use std::path::PathBuf;
 
 /// Arguments of `posereg resample`.
@@ -47,14 +48,14 @@ pub fn run(args: &ResampleArgs, device: DeviceChoice, reporter: &Reporter) -> an
     let field = load_field(&args.field)?;
     check_on_field_grid(&args.like, &field, &args.field)?;
     let source = load_moving(&args.source, args.nearest, &field)?;
-    let (backend, line) = open_backend(device)?;
+    let (opened, line) = open_backend(device)?;
     reporter.say(&line);
-    let warped = backend.resample(
+    let warped = posereg::on_backend!(opened, backend => backend.resample(
         &source,
         &field,
         args.background,
         interpolation(args.nearest),
-    )?;
+    ))?;
     if let Some((lo, hi)) = args.dtype.integer_range() {
         let clipped = warped
             .data

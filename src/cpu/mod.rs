@@ -19,7 +19,7 @@ use crate::abi::{
     Interpolation, JacobianParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams,
     ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
 };
-use crate::backend::{check_pair, Backend, Traffic};
+use crate::backend::{check_pair, Backend, Element, Traffic};
 use crate::error::Result;
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Affine, Field, Grid, Image, Volume};
@@ -30,6 +30,16 @@ use crate::vsd::BoneBlend;
 pub struct CpuBackend;
 
 impl Backend for CpuBackend {
+    type Buffer<T: Element> = Vec<T>;
+
+    fn upload<T: Element>(&self, _what: &str, data: Vec<T>) -> Result<Vec<T>> {
+        Ok(data)
+    }
+
+    fn download<T: Element>(&self, buffers: &[&Vec<T>]) -> Result<Vec<Vec<T>>> {
+        Ok(buffers.iter().map(|b| b.to_vec()).collect())
+    }
+
     fn describe(&self) -> String {
         format!("cpu: {} threads", rayon::current_num_threads())
     }

@@ -16,7 +16,7 @@ pub fn storage_from<T: Pod>(ctx: &GpuContext, what: &str, data: &[T]) -> Result<
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(what),
                 contents: bytes,
-                usage: wgpu::BufferUsages::STORAGE,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             })
     })
 }
@@ -71,6 +71,12 @@ pub fn submit_and_read<T: Pod>(
     })?;
     ctx.counters.submit();
     ctx.counters.down(bytes);
+    let out = bytemuck::pod_collect_to_vec::<u8, T>(&map_and_read(ctx, &staging)?);
+    Ok(out)
+}
+
+/// Waits for the device, maps `staging` (MAP_READ) and returns its bytes.
+pub fn map_and_read(ctx: &GpuContext, staging: &wgpu::Buffer) -> Result<Vec<u8>> {
     let (sender, receiver) = std::sync::mpsc::channel();
     staging.map_async(wgpu::MapMode::Read, .., move |r| {
         let _ = sender.send(r);
@@ -85,7 +91,7 @@ pub fn submit_and_read<T: Pod>(
     let view = staging
         .get_mapped_range(..)
         .map_err(|e| Error::Gpu(format!("reading the read-back buffer: {e}")))?;
-    let out = bytemuck::pod_collect_to_vec::<u8, T>(&view);
+    let out = view.to_vec();
     drop(view);
     staging.unmap();
     Ok(out)

@@ -1,7 +1,7 @@
 //! The headless wgpu device: adapter choice, real limits, error capture.
 
-use crate::error::{Error, Result};
 use crate::backend::Traffic;
+use crate::error::{Error, Result};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 

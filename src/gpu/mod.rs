@@ -12,6 +12,7 @@ pub mod kernel;
 pub mod pyramid;
 pub mod rbf;
 pub mod resample;
+pub mod resident;
 pub mod rigid;
 pub mod run;
 pub mod skinning;
@@ -21,13 +22,14 @@ use crate::abi::{
     Interpolation, JacobianParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams,
     ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
 };
-use crate::backend::{check_pair, Backend, Traffic};
+use crate::backend::{check_pair, Backend, Element, Traffic};
 use crate::error::{Error, Result};
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Affine, Field, Grid, Image, Volume};
 use crate::vsd::BoneBlend;
 use context::GpuContext;
 use kernel::Kernel;
+use resident::GpuBuffer;
 
 /// A run of whole slices z0 .. z0 + depth processed in one dispatch.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -92,6 +94,8 @@ pub struct GpuBackend {
     pub kernels: Kernels,
     max_slab_voxels: Option<usize>,
     peak_dispatch_bytes: std::sync::atomic::AtomicU64,
+    /// Work recorded and not yet submitted (see resident.rs).
+    pending: std::sync::Mutex<Option<wgpu::CommandEncoder>>,
 }
 
 impl GpuBackend {
@@ -118,6 +122,7 @@ impl GpuBackend {
             ctx,
             max_slab_voxels: None,
             peak_dispatch_bytes: Default::default(),
+            pending: Default::default(),
         })
     }
 
@@ -186,6 +191,16 @@ impl GpuBackend {
 }
 
 impl Backend for GpuBackend {
+    type Buffer<T: Element> = GpuBuffer<T>;
+
+    fn upload<T: Element>(&self, what: &str, data: Vec<T>) -> Result<GpuBuffer<T>> {
+        self.upload_buffer(what, &data)
+    }
+
+    fn download<T: Element>(&self, buffers: &[&GpuBuffer<T>]) -> Result<Vec<Vec<T>>> {
+        self.download_buffers(buffers)
+    }
+
     fn describe(&self) -> String {
         format!("gpu: {}", self.ctx.describe())
     }

@@ -1,0 +1,129 @@
+//! Data that stays on the device: typed buffers, kernels recorded into one pending command
+//! encoder, and downloads that submit everything recorded so far and wait once.
+//!
+//! Uploads go into new buffers created with their contents (never `queue.write_buffer` into a
+//! buffer that recorded work may still read: such writes land at the next submit, before the
+//! work recorded earlier).
+
+use super::buffer::{storage_from, storage_output, uniform_from};
+use super::kernel::Kernel;
+use super::GpuBackend;
+use crate::backend::Element;
+use crate::error::{Error, Result};
+use std::marker::PhantomData;
+
+/// `len` elements of `T` in a device storage buffer.
+pub struct GpuBuffer<T> {
+    buffer: wgpu::Buffer,
+    len: usize,
+    _element: PhantomData<T>,
+}
+
+impl<T: Element> GpuBuffer<T> {
+    /// Elements held.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when it holds nothing.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The wgpu buffer, to bind.
+    pub fn raw(&self) -> &wgpu::Buffer {
+        &self.buffer
+    }
+
+    fn bytes(&self) -> u64 {
+        (self.len * std::mem::size_of::<T>()) as u64
+    }
+}
+
+impl GpuBackend {
+    /// A new device buffer holding `data`.
+    pub fn upload_buffer<T: Element>(&self, what: &str, data: &[T]) -> Result<GpuBuffer<T>> {
+        // wgpu refuses empty bindings: an empty array is stored as one zero element.
+        let zero = [T::zeroed()];
+        let contents = if data.is_empty() { &zero[..] } else { data };
+        Ok(GpuBuffer {
+            buffer: storage_from(self.context(), what, contents)?,
+            len: data.len(),
+            _element: PhantomData,
+        })
+    }
+
+    /// A new device buffer of `len` elements for a kernel to write.
+    pub fn output_buffer<T: Element>(&self, what: &str, len: usize) -> Result<GpuBuffer<T>> {
+        Ok(GpuBuffer {
+            buffer: storage_output::<T>(self.context(), what, len.max(1))?,
+            len,
+            _element: PhantomData,
+        })
+    }
+
+    /// Records one dispatch of `kernel` with `params` at binding 0 and `buffers` after it; it
+    /// runs at the next download.
+    pub fn record<P: bytemuck::Pod>(
+        &self,
+        kernel: &Kernel,
+        params: &P,
+        buffers: &[&wgpu::Buffer],
+        workgroups: [u32; 3],
+    ) -> Result<()> {
+        let ctx = self.context();
+        let uniform = uniform_from(ctx, "kernel parameters", params)?;
+        let mut bound = vec![&uniform];
+        bound.extend_from_slice(buffers);
+        self.note_dispatch_bytes(bound.iter().map(|b| b.size()).sum());
+        let mut pending = self
+            .pending
+            .lock()
+            .expect("no kernel panicked while recording");
+        let encoder =
+            pending.get_or_insert_with(|| ctx.device.create_command_encoder(&Default::default()));
+        kernel.dispatch(ctx, encoder, &bound, workgroups)
+    }
+
+    /// Submits the recorded work with copies of `buffers` into one staging buffer, waits once,
+    /// and returns their contents.
+    pub fn download_buffers<T: Element>(&self, buffers: &[&GpuBuffer<T>]) -> Result<Vec<Vec<T>>> {
+        let ctx = self.context();
+        let total: u64 = buffers.iter().map(|b| b.bytes()).sum();
+        let mut encoder = self
+            .pending
+            .lock()
+            .expect("no kernel panicked while recording")
+            .take()
+            .unwrap_or_else(|| ctx.device.create_command_encoder(&Default::default()));
+        let staging = ctx.scoped("staging buffer", || {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("staging"),
+                size: total.max(4),
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        })?;
+        let mut offset = 0;
+        for b in buffers {
+            if b.bytes() > 0 {
+                encoder.copy_buffer_to_buffer(&b.buffer, 0, &staging, offset, b.bytes());
+            }
+            offset += b.bytes();
+        }
+        ctx.scoped("submit", || ctx.queue.submit([encoder.finish()]))?;
+        ctx.counters.submit();
+        ctx.counters.down(total);
+        let bytes = super::buffer::map_and_read(ctx, &staging)?;
+        let mut all: Vec<T> = bytemuck::pod_collect_to_vec(&bytes);
+        let mut out = Vec::with_capacity(buffers.len());
+        for b in buffers.iter().rev() {
+            out.push(all.split_off(all.len() - b.len));
+        }
+        out.reverse();
+        if !all.is_empty() {
+            return Err(Error::Gpu("read-back sizes do not add up".into()));
+        }
+        Ok(out)
+    }
+}
