@@ -14,15 +14,6 @@
 //   4 storage  out: array<f32>      4 floats per voxel of this slab (read_write)
 // Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(depth/4)).
 
-// Keep in sync with abi::RbfGradParams.
-struct RbfGradParams {
-    dims: vec4<u32>,          // nx, ny, nz, z0
-    slab: vec4<u32>,          // depth, lattice step (voxels), unused x2
-    lattice_dims: vec4<u32>,  // lx, ly, lz, unused
-    mm_to_index: array<vec4<f32>, 3>,
-    gradient_to_world: array<vec4<f32>, 3>,
-}
-
 @group(0) @binding(0) var<uniform> params: RbfGradParams;
 @group(0) @binding(1) var<storage, read> lattice: array<f32>;
 @group(0) @binding(2) var<storage, read> moving: array<f32>;
@@ -31,28 +22,6 @@ struct RbfGradParams {
 
 fn sampled_value(index: u32) -> f32 {
     return moving[index];
-}
-
-fn node(i: u32, j: u32, k: u32) -> vec3<f32> {
-    let n = 3u * voxel_index(i, j, k, params.lattice_dims.xyz);
-    return vec3<f32>(lattice[n], lattice[n + 1u], lattice[n + 2u]);
-}
-
-// Trilinear interpolation of the lattice at voxel (i, j, k).
-fn warp_at(i: u32, j: u32, k: u32) -> vec3<f32> {
-    let s = params.slab.y;
-    let top = params.lattice_dims.xyz - vec3<u32>(1u);
-    let c = vec3<u32>(i, j, k);
-    let i0 = min(c / s, top);
-    let i1 = min(i0 + vec3<u32>(1u), top);
-    let t = vec3<f32>(c - i0 * s) / f32(s);
-    let c00 = (1.0 - t.x) * node(i0.x, i0.y, i0.z) + t.x * node(i1.x, i0.y, i0.z);
-    let c10 = (1.0 - t.x) * node(i0.x, i1.y, i0.z) + t.x * node(i1.x, i1.y, i0.z);
-    let c01 = (1.0 - t.x) * node(i0.x, i0.y, i1.z) + t.x * node(i1.x, i0.y, i1.z);
-    let c11 = (1.0 - t.x) * node(i0.x, i1.y, i1.z) + t.x * node(i1.x, i1.y, i1.z);
-    let c0 = (1.0 - t.y) * c00 + t.y * c10;
-    let c1 = (1.0 - t.y) * c01 + t.y * c11;
-    return (1.0 - t.z) * c0 + t.z * c1;
 }
 
 @compute @workgroup_size(4, 4, 4)

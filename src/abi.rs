@@ -482,3 +482,197 @@ impl SplatParams {
         }
     }
 }
+
+/// Keep in sync with `RbfLatticeParams` in shaders/rbf_nodes.wgsl (rbf_lattice, rbf_adjoint).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct RbfLatticeParams {
+    /// Lattice nodes along x, y, z, and the number of control points.
+    pub lattice: [u32; 4],
+    /// Lattice step (voxels); nodes per chunk and chunks of rbf_adjoint; unused.
+    pub step: [u32; 4],
+}
+
+/// Lattice nodes one rbf_adjoint invocation sums (well below lavapipe's 65 535 loop
+/// iterations; 64 chunks at 2^18 nodes).
+pub const ADJOINT_CHUNK: usize = 4096;
+
+impl RbfLatticeParams {
+    /// A lattice of `lattice_dims` nodes every `step` voxels, for a warp of `points` control
+    /// points.
+    pub fn new(lattice_dims: [usize; 3], step: usize, points: usize) -> Self {
+        let nodes: usize = lattice_dims.iter().product();
+        RbfLatticeParams {
+            lattice: [
+                lattice_dims[0] as u32,
+                lattice_dims[1] as u32,
+                lattice_dims[2] as u32,
+                points as u32,
+            ],
+            step: [
+                step as u32,
+                ADJOINT_CHUNK as u32,
+                nodes.div_ceil(ADJOINT_CHUNK) as u32,
+                0,
+            ],
+        }
+    }
+
+    /// Chunks of nodes rbf_adjoint sums separately.
+    pub fn chunks(&self) -> usize {
+        self.step[2] as usize
+    }
+
+    /// rbf_adjoint's output rows: the control points, then 4 affine rows.
+    pub fn rows(&self) -> usize {
+        self.points() + 4
+    }
+
+    /// Nodes in the lattice.
+    pub fn nodes(&self) -> usize {
+        self.lattice[..3].iter().map(|&n| n as usize).product()
+    }
+
+    /// Control points.
+    pub fn points(&self) -> usize {
+        self.lattice[3] as usize
+    }
+}
+
+/// The rows of `grid`'s voxel → world affine as the RBF kernels read them (`geometry`, 12 f64).
+pub fn lattice_geometry(grid: &Grid) -> Vec<f64> {
+    (0..3)
+        .flat_map(|r| (0..4).map(move |c| grid.affine[(r, c)]))
+        .collect()
+}
+
+/// The cubic RBF as the RBF kernels read it (`spline`): the affine part a[k][c] at 3k + c, then
+/// per control point its position and λ.
+pub fn spline_buffer(
+    affine: &[[f64; 3]; 4],
+    centres: &[[f64; 3]],
+    lambda: &[[f64; 3]],
+) -> Vec<f64> {
+    let mut out: Vec<f64> = affine.iter().flatten().copied().collect();
+    for (c, l) in centres.iter().zip(lambda) {
+        out.extend_from_slice(c);
+        out.extend_from_slice(l);
+    }
+    out
+}
+
+/// Values per chunk of sum_chunks.
+pub const SUM_CHUNK: usize = 1024;
+
+/// Keep in sync with `SumParams` in shaders/sum_chunks.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SumParams {
+    /// Values, values per chunk, chunks, unused.
+    pub counts: [u32; 4],
+}
+
+impl SumParams {
+    /// Sums of `values` values in chunks of [`SUM_CHUNK`].
+    pub fn new(values: usize) -> Self {
+        SumParams {
+            counts: [
+                values as u32,
+                SUM_CHUNK as u32,
+                values.div_ceil(SUM_CHUNK) as u32,
+                0,
+            ],
+        }
+    }
+
+    /// Chunks, hence sums.
+    pub fn chunks(&self) -> usize {
+        self.counts[2] as usize
+    }
+}
+
+/// Most operators of a lattice energy (3 membrane + 6 bending).
+pub const MAX_OPERATORS: usize = 9;
+/// Most taps of one operator.
+pub const MAX_TAPS: usize = 4;
+
+/// One quadratic operator of a lattice energy: taps (node offset, coefficient) and a weight.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Operator {
+    /// Node offsets and coefficients.
+    pub taps: Vec<([i32; 3], f32)>,
+    /// Weight of the squared result.
+    pub weight: f32,
+}
+
+/// Keep in sync with `EnergyParams` in shaders/lattice_energy.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct EnergyParams {
+    /// Lattice nodes along x, y, z, and the number of operators.
+    pub dims: [u32; 4],
+    /// Factor on the splatted image gradient (1 / voxels), unused ×3.
+    pub scale: [f32; 4],
+    /// Operator o's tap t at 4 o + t: node offset, unused.
+    pub taps: [[i32; 4]; MAX_OPERATORS * MAX_TAPS],
+    /// Operator o's tap coefficients.
+    pub coefficients: [[f32; 4]; MAX_OPERATORS],
+    /// Operator o's weight, unused ×3.
+    pub weights: [[f32; 4]; MAX_OPERATORS],
+    /// Operator o's number of taps at [o / 4][o % 4].
+    pub tap_counts: [[u32; 4]; 3],
+}
+
+impl EnergyParams {
+    /// For a lattice of `dims` nodes, splatted gradients scaled by `scale`, and `operators`
+    /// (at most [`MAX_OPERATORS`], each with at most [`MAX_TAPS`] taps).
+    pub fn new(dims: [usize; 3], scale: f32, operators: &[Operator]) -> Self {
+        assert!(
+            operators.len() <= MAX_OPERATORS,
+            "too many energy operators"
+        );
+        let mut p = EnergyParams::zeroed();
+        p.dims = [
+            dims[0] as u32,
+            dims[1] as u32,
+            dims[2] as u32,
+            operators.len() as u32,
+        ];
+        p.scale[0] = scale;
+        for (o, op) in operators.iter().enumerate() {
+            assert!(
+                op.taps.len() <= MAX_TAPS,
+                "too many taps in an energy operator"
+            );
+            for (t, (offset, c)) in op.taps.iter().enumerate() {
+                p.taps[MAX_TAPS * o + t] = [offset[0], offset[1], offset[2], 0];
+                p.coefficients[o][t] = *c;
+            }
+            p.weights[o][0] = op.weight;
+            p.tap_counts[o / 4][o % 4] = op.taps.len() as u32;
+        }
+        p
+    }
+
+    /// Lattice nodes.
+    pub fn nodes(&self) -> usize {
+        self.dims[..3].iter().map(|&n| n as usize).product()
+    }
+}
+
+/// Keep in sync with `PartialsParams` in shaders/sum_partials.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct PartialsParams {
+    /// Values per chunk, chunks, unused ×2.
+    pub counts: [u32; 4],
+}
+
+impl PartialsParams {
+    /// `chunks` partial results of `values` values each.
+    pub fn new(values: usize, chunks: usize) -> Self {
+        PartialsParams {
+            counts: [values as u32, chunks as u32, 0, 0],
+        }
+    }
+}

@@ -10,8 +10,10 @@
 //! moving image is the initialised source I0 on the target grid; the final field is composed
 //! with the initial field, u = R + u0 ∘ (id + R), and the source resampled once through it.
 
-use crate::abi::RbfGradParams;
-use crate::backend::{Backend, Traffic};
+use crate::abi::{
+    lattice_geometry, spline_buffer, EnergyParams, RbfGradParams, RbfLatticeParams, SplatParams,
+};
+use crate::backend::{Backend, CostImages, Traffic};
 use crate::check::finite_non_negative;
 use crate::cpu::rbf_grad::warp_at;
 use crate::cpu::sample::trilinear;
@@ -21,14 +23,11 @@ use crate::levels::PerLevel;
 use crate::optim::lbfgs;
 use crate::progress::Progress;
 use crate::pyramid;
-use crate::rbf::{coefficient_gradients, RbfCoefficients, RbfSystem};
-use crate::regularise::{bending, membrane};
+use crate::rbf::{RbfCoefficients, RbfSystem};
+use crate::regularise::energy_params;
 use crate::volume::{Field, Grid, Image, Volume};
 use nalgebra::Vector3;
 use rayon::prelude::*;
-
-/// A smoothness energy of the lattice warp and its gradient (crate::regularise).
-type Energy = fn(&[Vector3<f64>], [usize; 3], [f64; 3]) -> (f64, Vec<Vector3<f64>>);
 
 /// Default weight of the membrane energy (AdaptiveOptions::membrane).
 const MEMBRANE_DEFAULT: f64 = 3.0;
@@ -290,6 +289,98 @@ impl Lattice {
     }
 }
 
+/// One pyramid level's images and lattice on the device, for the optimiser's evaluations: each
+/// uploads the RBF's coefficients, runs the cost's kernels, and reads back only the gradient
+/// with respect to the coefficients and a few partial sums.
+struct Evaluator<'a, B: Backend> {
+    backend: &'a B,
+    geometry: B::Buffer<f64>,
+    moving: B::Buffer<f32>,
+    fixed: B::Buffer<f32>,
+    covered: B::Buffer<f32>,
+    lattice_dims: [usize; 3],
+    step: usize,
+    warp: RbfGradParams,
+    splat: SplatParams,
+    energy: EnergyParams,
+    voxels: f64,
+}
+
+impl<'a, B: Backend> Evaluator<'a, B> {
+    /// Uploads `moving`, `fixed` and `covered` (1 or 0 per voxel); `weights` are the membrane's
+    /// and the bending energy's at this level.
+    fn new(
+        backend: &'a B,
+        lattice: &Lattice,
+        moving: &Volume,
+        fixed: &Volume,
+        covered: &[f32],
+        weights: [f64; 2],
+    ) -> Result<Self> {
+        let grid = &fixed.grid;
+        let voxels = grid.len() as f64;
+        Ok(Evaluator {
+            backend,
+            geometry: backend.upload("lattice geometry", lattice_geometry(grid))?,
+            moving: backend.upload("moving image", moving.data.clone())?,
+            fixed: backend.upload("target image", fixed.data.clone())?,
+            covered: backend.upload("coverage", covered.to_vec())?,
+            lattice_dims: lattice.dims,
+            step: lattice.step,
+            warp: RbfGradParams::new(grid, lattice.dims, lattice.step),
+            splat: SplatParams::new(lattice.dims, lattice.step, grid.dims),
+            energy: energy_params(
+                lattice.dims,
+                lattice.spacing_mm,
+                weights[0],
+                weights[1],
+                (1.0 / voxels) as f32,
+            ),
+            voxels,
+        })
+    }
+
+    /// The cost of the warp `coef` (centres `centres`): the mean masked squared residual plus
+    /// the lattice energies; and its gradient with respect to the coefficients, per control
+    /// point and per affine row.
+    fn evaluate(
+        &self,
+        coef: &RbfCoefficients,
+        centres: &[Vector3<f64>],
+    ) -> Result<(f64, Vec<Vector3<f64>>, [Vector3<f64>; 4])> {
+        let b = self.backend;
+        let positions: Vec<[f64; 3]> = centres.iter().map(|c| [c.x, c.y, c.z]).collect();
+        let spline = b.upload(
+            "RBF coefficients",
+            spline_buffer(&coef.affine, &positions, &coef.lambda),
+        )?;
+        let shape = RbfLatticeParams::new(self.lattice_dims, self.step, centres.len());
+        let warp = b.rbf_lattice(&shape, &self.geometry, &spline)?;
+        let images = CostImages {
+            moving: &self.moving,
+            fixed: &self.fixed,
+            covered: &self.covered,
+        };
+        let (per_voxel, rows) = b.warp_cost(&self.warp, &warp, &images)?;
+        let splat = b.lattice_splat(&self.splat, &per_voxel)?;
+        let (node_gradient, energy) = b.lattice_energy(&self.energy, &warp, &splat)?;
+        let partials = b.rbf_adjoint(&shape, &self.geometry, &spline, &node_gradient)?;
+        let adjoint = b.sum_partials(&partials, 3 * shape.rows())?;
+        let (rows, energy) = (b.sum_chunks(&rows)?, b.sum_chunks(&energy)?);
+        let [adjoint, rows, energy]: [Vec<f64>; 3] = b
+            .download(&[&adjoint, &rows, &energy])?
+            .try_into()
+            .expect("three buffers asked for");
+        let cost = rows.iter().sum::<f64>() / self.voxels + energy.iter().sum::<f64>();
+        let rows: Vec<Vector3<f64>> = adjoint
+            .chunks_exact(3)
+            .map(|v| Vector3::new(v[0], v[1], v[2]))
+            .collect();
+        let q = std::array::from_fn(|k| rows[centres.len() + k]);
+        Ok((cost, rows[..centres.len()].to_vec(), q))
+    }
+}
+
 /// Population variance of an image's intensities.
 fn variance(data: &[f32]) -> f64 {
     let n = data.len().max(1) as f64;
@@ -450,6 +541,14 @@ pub fn register<B: Backend>(
         } else {
             &moving_levels[level]
         };
+        let evaluator = Evaluator::new(
+            backend,
+            &lattice,
+            moving,
+            fixed,
+            covered,
+            [membrane_weight, bending_weight],
+        )?;
         for &wanted in &options.cell_levels {
             let cells: [usize; 3] = std::array::from_fn(|a| {
                 wanted
@@ -515,48 +614,7 @@ pub fn register<B: Backend>(
                     values[i] = Vector3::new(x[3 * k], x[3 * k + 1], x[3 * k + 2]);
                 }
                 let coef = system.coefficients(&values)?;
-                let node_values = lattice.values(&coef, &centres);
-                let out = lattice.rbf_grad(backend, &node_values, moving, fixed)?;
-                let node_warp: Vec<Vector3<f64>> = node_values
-                    .chunks_exact(3)
-                    .map(|v| Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64))
-                    .collect();
-                let mut energy = 0.0;
-                let mut energy_gradient = vec![Vector3::zeros(); node_warp.len()];
-                for (weight, term) in [
-                    (membrane_weight, membrane as Energy),
-                    (bending_weight, bending),
-                ] {
-                    if weight > 0.0 {
-                        let (e, g) = term(&node_warp, lattice.dims, lattice.spacing_mm);
-                        energy += weight * e;
-                        energy_gradient
-                            .iter_mut()
-                            .zip(g)
-                            .for_each(|(a, b)| *a += weight * b);
-                    }
-                }
-                let image_cost: f64 = out
-                    .chunks_exact(4)
-                    .zip(&fixed.data)
-                    .zip(covered)
-                    .map(|((o, t), c)| *c as f64 * ((o[0] - t) as f64).powi(2))
-                    .sum::<f64>()
-                    / voxels;
-                let cost = image_cost + energy;
-                let per_voxel: Vec<f32> = out
-                    .chunks_exact(4)
-                    .zip(covered)
-                    .flat_map(|(o, c)| [c * o[1], c * o[2], c * o[3]])
-                    .collect();
-                let splat =
-                    backend.lattice_splat(&per_voxel, &fixed.grid, lattice.dims, lattice.step)?;
-                let g_nodes: Vec<Vector3<f64>> = splat
-                    .chunks_exact(3)
-                    .zip(&energy_gradient)
-                    .map(|(g, e)| Vector3::new(g[0] as f64, g[1] as f64, g[2] as f64) / voxels + e)
-                    .collect();
-                let (g, q) = coefficient_gradients(&centres, &lattice.nodes, &g_nodes);
+                let (cost, g, q) = evaluator.evaluate(&coef, &centres)?;
                 let df = system.value_gradient(&g, &q)?;
                 let mut counted = evaluations.get();
                 counted.add(backend.traffic() - before);

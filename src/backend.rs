@@ -2,7 +2,7 @@
 //! shaders) and its CPU twin (rayon). Host code (registration loops, commands) is written
 //! against this trait only, so every stage runs on either and the two can be compared.
 
-use crate::abi::Interpolation;
+use crate::abi::{EnergyParams, Interpolation, RbfGradParams, RbfLatticeParams, SplatParams};
 use crate::error::Result;
 use crate::metric::CellSsd;
 use crate::volume::{Affine, Field, Grid, Volume};
@@ -48,6 +48,16 @@ impl std::ops::AddAssign for Traffic {
 pub trait Element: bytemuck::Pod + Send + Sync {}
 impl Element for f32 {}
 impl Element for f64 {}
+
+/// The images one evaluation of the non-rigid cost compares, on the target grid.
+pub struct CostImages<'a, T: ?Sized> {
+    /// I0, sampled through the warp.
+    pub moving: &'a T,
+    /// The target T.
+    pub fixed: &'a T,
+    /// c: 1 where I0 holds data from the source scan, else 0.
+    pub covered: &'a T,
+}
 
 /// A place kernels run.
 ///
@@ -147,15 +157,62 @@ pub trait Backend {
         fixed: &Volume,
     ) -> Result<Vec<f32>>;
 
+    /// The warp R at every lattice node (3 f32 per node), the cubic RBF `spline` (f64, layout
+    /// of abi::spline_buffer) evaluated in f64 at nodes placed by `geometry`
+    /// (abi::lattice_geometry).
+    fn rbf_lattice(
+        &self,
+        params: &RbfLatticeParams,
+        geometry: &Self::Buffer<f64>,
+        spline: &Self::Buffer<f64>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// The image part of a non-rigid cost evaluation through the warp `lattice`: the masked
+    /// gradient (3 floats per voxel) and Σ c (W − T)² per row of x (ny · nz floats).
+    fn warp_cost(
+        &self,
+        params: &RbfGradParams,
+        lattice: &Self::Buffer<f32>,
+        images: &CostImages<Self::Buffer<f32>>,
+    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
+
     /// The adjoint of the lattice interpolation: 3 floats per lattice node, Σ_x w_n(x) v(x),
-    /// from 3 floats per voxel of `grid`.
+    /// from 3 floats per voxel.
     fn lattice_splat(
         &self,
-        values: &[f32],
-        grid: &Grid,
-        lattice_dims: [usize; 3],
-        step: usize,
-    ) -> Result<Vec<f32>>;
+        params: &SplatParams,
+        values: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// The lattice energy's terms (1 float per node) and the whole cost's gradient at each
+    /// node (3 floats): `splat` scaled, plus the energy's gradient.
+    fn lattice_energy(
+        &self,
+        params: &EnergyParams,
+        lattice: &Self::Buffer<f32>,
+        splat: &Self::Buffer<f32>,
+    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
+
+    /// The gradient with respect to the RBF's coefficients from the gradient at the nodes, as
+    /// partial sums per chunk of nodes (f64: per chunk, 3 per control point, then 3 per affine
+    /// row; [`Backend::sum_partials`] adds them).
+    fn rbf_adjoint(
+        &self,
+        params: &RbfLatticeParams,
+        geometry: &Self::Buffer<f64>,
+        spline: &Self::Buffer<f64>,
+        node_gradient: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f64>>;
+
+    /// Per-chunk partial results of `values` values each, added in chunk order.
+    fn sum_partials(
+        &self,
+        partials: &Self::Buffer<f64>,
+        values: usize,
+    ) -> Result<Self::Buffer<f64>>;
+
+    /// Sums of `values` in chunks of abi::SUM_CHUNK, in f64.
+    fn sum_chunks(&self, values: &Self::Buffer<f32>) -> Result<Self::Buffer<f64>>;
 }
 
 /// Checks two volumes compared voxel by voxel share a grid.

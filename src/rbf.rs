@@ -245,49 +245,6 @@ impl Coordinates {
     }
 }
 
-/// Centres per chunk in [`coefficient_gradients`].
-const CENTRE_CHUNK: usize = 8;
-
-/// ∂E/∂λ_i = Σ_nodes φ(|node − c_i|) ĝ(node) and ∂E/∂a = Σ_nodes ĝ(node) [1, x, y, z]: the
-/// reductions that carry a per-node gradient ĝ back to the coefficients.
-pub fn coefficient_gradients(
-    centres: &[Vector3<f64>],
-    nodes: &[Vector3<f64>],
-    g: &[Vector3<f64>],
-) -> (Vec<Vector3<f64>>, [Vector3<f64>; 4]) {
-    // Chunks of centres, each summing over the nodes in order: the same sums as one centre at
-    // a time, vectorised across the chunk.
-    let per_centre = centres
-        .par_chunks(CENTRE_CHUNK)
-        .flat_map_iter(|chunk| {
-            let at = Coordinates::of(chunk);
-            let mut sum: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; chunk.len()]);
-            let [sx, sy, sz] = &mut sum;
-            for (x, gx) in nodes.iter().zip(g) {
-                at.for_each_distance(
-                    x,
-                    sx.iter_mut().zip(sy.iter_mut()).zip(sz.iter_mut()),
-                    |((a, b), c), d| {
-                        let f = phi(d);
-                        *a += gx.x * f;
-                        *b += gx.y * f;
-                        *c += gx.z * f;
-                    },
-                );
-            }
-            (0..chunk.len()).map(move |i| Vector3::new(sum[0][i], sum[1][i], sum[2][i]))
-        })
-        .collect();
-    let mut q = [Vector3::zeros(); 4];
-    for (x, gx) in nodes.iter().zip(g) {
-        q[0] += gx;
-        q[1] += gx * x.x;
-        q[2] += gx * x.y;
-        q[3] += gx * x.z;
-    }
-    (per_centre, q)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -326,8 +283,8 @@ mod tests {
 
     #[test]
     fn the_vectorised_loops_give_the_scalar_bits() {
-        // eval_many and coefficient_gradients reorder their loops for speed; results must stay
-        // bit for bit those of one point (or one centre) at a time, across chunk boundaries.
+        // eval_many reorders its loops for speed; results must stay bit for bit those of one
+        // point at a time, across chunk boundaries.
         let centres: Vec<Vector3<f64>> = (0..19)
             .map(|i| {
                 Vector3::new(
@@ -362,16 +319,6 @@ mod tests {
         let many = coef.eval_many(&centres, &points);
         for (x, v) in points.iter().zip(&many) {
             assert_eq!(coef.eval(&centres, x), *v);
-        }
-        let g: Vec<Vector3<f64>> = points.iter().map(|p| p * 0.01 - Vector3::x()).collect();
-        let (per_centre, _) = coefficient_gradients(&centres, &points, &g);
-        for (c, sum) in centres.iter().zip(&per_centre) {
-            let one_at_a_time: Vector3<f64> = points
-                .iter()
-                .zip(&g)
-                .map(|(x, gx)| gx * phi((x - c).norm()))
-                .sum();
-            assert_eq!(one_at_a_time, *sum);
         }
     }
 

@@ -3,6 +3,11 @@
 
 const COMMON: (&str, &str) = ("common.wgsl", include_str!("../shaders/common.wgsl"));
 const SAMPLE: (&str, &str) = ("sample.wgsl", include_str!("../shaders/sample.wgsl"));
+const LATTICE_WARP: (&str, &str) = (
+    "lattice_warp.wgsl",
+    include_str!("../shaders/lattice_warp.wgsl"),
+);
+const RBF_NODES: (&str, &str) = ("rbf_nodes.wgsl", include_str!("../shaders/rbf_nodes.wgsl"));
 
 /// Every kernel: its name and the files it is assembled from, in order.
 pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
@@ -43,7 +48,69 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             SAMPLE,
+            LATTICE_WARP,
             ("rbf_grad.wgsl", include_str!("../shaders/rbf_grad.wgsl")),
+        ],
+    ),
+    (
+        "warp_cost",
+        &[
+            COMMON,
+            SAMPLE,
+            LATTICE_WARP,
+            ("warp_cost.wgsl", include_str!("../shaders/warp_cost.wgsl")),
+        ],
+    ),
+    (
+        "rbf_lattice",
+        &[
+            COMMON,
+            RBF_NODES,
+            (
+                "rbf_lattice.wgsl",
+                include_str!("../shaders/rbf_lattice.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "rbf_adjoint",
+        &[
+            COMMON,
+            RBF_NODES,
+            (
+                "rbf_adjoint.wgsl",
+                include_str!("../shaders/rbf_adjoint.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "lattice_energy",
+        &[
+            COMMON,
+            (
+                "lattice_energy.wgsl",
+                include_str!("../shaders/lattice_energy.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "sum_chunks",
+        &[
+            COMMON,
+            (
+                "sum_chunks.wgsl",
+                include_str!("../shaders/sum_chunks.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "sum_partials",
+        &[
+            COMMON,
+            (
+                "sum_partials.wgsl",
+                include_str!("../shaders/sum_partials.wgsl"),
+            ),
         ],
     ),
     (

@@ -394,13 +394,162 @@ fn rbf_kernels_parity() {
     // Gradients are 2 r ∇I0 with r up to ~100 and |∇| up to ~10: relative 1e-4 plus an
     // absolute allowance for ulp-level changes of the sample point.
     close("rbf_grad", &got, &cpu, 2e-2, 1e-4);
-    let values: Vec<f32> = cpu
-        .chunks_exact(4)
-        .flat_map(|o| [o[1], o[2], o[3]])
+}
+
+/// Every output of one non-rigid cost evaluation, downloaded.
+struct Evaluation {
+    warp: Vec<f32>,
+    gradient: Vec<f32>,
+    rows: Vec<f32>,
+    splat: Vec<f32>,
+    node_gradient: Vec<f32>,
+    energy: Vec<f32>,
+    adjoint: Vec<f64>,
+    sums: Vec<f64>,
+}
+
+/// A warp of `points` control points with smooth values over `grid`, as the RBF kernels read it.
+fn spline_over(grid: &Grid, points: usize) -> Vec<f64> {
+    use nalgebra::Vector3;
+    let centres: Vec<Vector3<f64>> = (0..points)
+        .map(|p| {
+            let f = |k: usize| ((p * 7919 + k * 104729) % 997) as f64 / 997.0;
+            let ijk: [f64; 3] = std::array::from_fn(|a| f(a) * (grid.dims[a] - 1) as f64);
+            Vector3::from(grid.voxel_to_world(ijk))
+        })
         .collect();
-    let a = CpuBackend
-        .lattice_splat(&values, &grid, ldims, step)
+    let values: Vec<Vector3<f64>> = centres
+        .iter()
+        .map(|c| Vector3::new((0.1 * c.x).sin(), (0.07 * c.y).cos(), 0.02 * c.z))
+        .collect();
+    let coef = posereg::rbf::RbfSystem::new(centres.clone(), 0.0)
+        .unwrap()
+        .coefficients(&values)
         .unwrap();
-    let b = gpu.lattice_splat(&values, &grid, ldims, step).unwrap();
-    close("lattice_splat", &b, &a, 1e-1, 1e-4);
+    let positions: Vec<[f64; 3]> = centres.iter().map(|c| [c.x, c.y, c.z]).collect();
+    posereg::abi::spline_buffer(&coef.affine, &positions, &coef.lambda)
+}
+
+/// Runs the kernels of one evaluation on `b`, as the adaptive stage chains them.
+fn evaluate<B: Backend>(
+    b: &B,
+    grid: &Grid,
+    images: [&Volume; 3],
+    step: usize,
+    spline: &[f64],
+) -> Evaluation {
+    use posereg::abi::{lattice_geometry, RbfGradParams, RbfLatticeParams, SplatParams};
+    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
+    let points = (spline.len() - 12) / 6;
+    let shape = RbfLatticeParams::new(ldims, step, points);
+    let up = |what, v: &Volume| b.upload(what, v.data.clone()).unwrap();
+    let (moving, fixed, covered) = (
+        up("moving", images[0]),
+        up("fixed", images[1]),
+        up("covered", images[2]),
+    );
+    let geometry = b.upload("geometry", lattice_geometry(grid)).unwrap();
+    let spline = b.upload("spline", spline.to_vec()).unwrap();
+    let warp = b.rbf_lattice(&shape, &geometry, &spline).unwrap();
+    let images = posereg::backend::CostImages {
+        moving: &moving,
+        fixed: &fixed,
+        covered: &covered,
+    };
+    let (gradient, rows) = b
+        .warp_cost(&RbfGradParams::new(grid, ldims, step), &warp, &images)
+        .unwrap();
+    let splat = b
+        .lattice_splat(&SplatParams::new(ldims, step, grid.dims), &gradient)
+        .unwrap();
+    let spacing = grid.spacing().map(|h| h * step as f64);
+    let energy_params = posereg::regularise::energy_params(ldims, spacing, 3.0, 0.5, 1e-3);
+    let (node_gradient, energy) = b.lattice_energy(&energy_params, &warp, &splat).unwrap();
+    let partials = b
+        .rbf_adjoint(&shape, &geometry, &spline, &node_gradient)
+        .unwrap();
+    let adjoint = b.sum_partials(&partials, 3 * shape.rows()).unwrap();
+    let sums = b.sum_chunks(&rows).unwrap();
+    let [warp, gradient, rows, splat, node_gradient, energy]: [Vec<f32>; 6] = b
+        .download(&[&warp, &gradient, &rows, &splat, &node_gradient, &energy])
+        .unwrap()
+        .try_into()
+        .unwrap();
+    let [adjoint, sums]: [Vec<f64>; 2] =
+        b.download(&[&adjoint, &sums]).unwrap().try_into().unwrap();
+    Evaluation {
+        warp,
+        gradient,
+        rows,
+        splat,
+        node_gradient,
+        energy,
+        adjoint,
+        sums,
+    }
+}
+
+fn close_f64(name: &str, got: &[f64], want: &[f64], rel: f64) {
+    assert_eq!(got.len(), want.len(), "{name}: lengths");
+    let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-30);
+    let worst = got
+        .iter()
+        .zip(want)
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    eprintln!("{name}: max |gpu - cpu| = {worst:e} (largest value {scale:e})");
+    assert!(worst <= rel * scale, "{name}: {worst} > {rel} × {scale}");
+}
+
+#[test]
+fn nonrigid_evaluation_kernels_parity() {
+    let Some(gpu) = gpu() else { return };
+    // A coarse lattice of odd size; and every voxel a node (as at coarse pyramid levels), over
+    // more than 65 535 nodes (llvmpipe ends longer loops: shaders/rbf_adjoint.wgsl).
+    for (dims, step, points) in [([27, 22, 17], 4, 40), ([41, 64, 27], 1, 23)] {
+        let grid = oblique_grid(dims);
+        let moving = smooth_volume(&grid, 61);
+        let fixed = smooth_volume(&grid, 62);
+        // Coverage: a slab of slices without source data.
+        let slice = dims[0] * dims[1];
+        let covered = posereg::Image::from_data(
+            grid.clone(),
+            (0..grid.len())
+                .map(|n| (n / slice > 2) as u8 as f32)
+                .collect(),
+        )
+        .unwrap();
+        let spline = spline_over(&grid, points);
+        let images = [&moving, &fixed, &covered];
+        let want = evaluate(&CpuBackend, &grid, images, step, &spline);
+        let got = evaluate(gpu, &grid, images, step, &spline);
+        let name = |k: &str| format!("step {step}: {k}");
+        // The warp is summed in f64 and rounded once to f32: equal up to the last bit.
+        close(&name("rbf_lattice"), &got.warp, &want.warp, 1e-5, 1e-6);
+        // As rbf_grad: 2 r ∇I0 with r up to ~100, |∇| up to ~10.
+        close(
+            &name("warp_cost gradient"),
+            &got.gradient,
+            &want.gradient,
+            2e-2,
+            1e-4,
+        );
+        close(&name("warp_cost rows"), &got.rows, &want.rows, 1e-1, 1e-4);
+        close(&name("lattice_splat"), &got.splat, &want.splat, 1e-1, 1e-4);
+        close(
+            &name("lattice_energy gradient"),
+            &got.node_gradient,
+            &want.node_gradient,
+            1e-3,
+            1e-4,
+        );
+        close(
+            &name("lattice_energy terms"),
+            &got.energy,
+            &want.energy,
+            1e-6,
+            1e-4,
+        );
+        close_f64(&name("rbf_adjoint"), &got.adjoint, &want.adjoint, 1e-4);
+        close_f64(&name("sum_chunks"), &got.sums, &want.sums, 1e-5);
+    }
 }

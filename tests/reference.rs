@@ -507,7 +507,9 @@ fn lattice_splat_is_the_adjoint_of_the_lattice_interpolation() {
             lhs += r[c] as f64 * v[3 * n + c] as f64;
         }
     }
-    let splat = CpuBackend.lattice_splat(&v, &grid, ldims, step).unwrap();
+    let splat = CpuBackend
+        .lattice_splat(&posereg::abi::SplatParams::new(ldims, step, grid.dims), &v)
+        .unwrap();
     let rhs: f64 = splat
         .iter()
         .zip(&lattice)
@@ -521,13 +523,27 @@ fn lattice_splat_is_the_adjoint_of_the_lattice_interpolation() {
 
 #[test]
 fn rbf_cost_gradient_matches_finite_differences() {
-    // E(f) = mean (I0(x + R_f(x)) − T(x))² through the lattice; the analytic gradient (kernel,
-    // splat, coefficient reductions, system) against central differences in one value.
+    // E(f) = mean c (I0(x + R_f(x)) − T(x))² through the lattice, plus the membrane and bending
+    // energies of the lattice warp; the analytic gradient (the evaluation kernels: warp_cost,
+    // lattice_splat, lattice_energy, rbf_adjoint, sum_partials; then the system) against
+    // central differences in one control value at a time.
     use nalgebra::Vector3;
-    use posereg::rbf::{coefficient_gradients, RbfSystem};
+    use posereg::abi::{
+        lattice_geometry, spline_buffer, RbfGradParams, RbfLatticeParams, SplatParams,
+    };
+    use posereg::backend::CostImages;
+    use posereg::rbf::RbfSystem;
+    let b = CpuBackend;
     let grid = Grid::new([24, 20, 18], Affine::identity()).unwrap();
-    let moving = smooth_volume(&grid, 41);
-    let fixed = smooth_volume(&grid, 42);
+    let moving = smooth_volume(&grid, 41).data;
+    let fixed = smooth_volume(&grid, 42).data;
+    // A band without source data: its residuals are left out of the cost.
+    let covered: Vec<f32> = (0..grid.len()).map(|n| (n % 24 > 3) as u8 as f32).collect();
+    let images = CostImages {
+        moving: &moving,
+        fixed: &fixed,
+        covered: &covered,
+    };
     let centres = vec![
         Vector3::new(6.0, 5.0, 4.0),
         Vector3::new(16.0, 6.0, 9.0),
@@ -535,41 +551,40 @@ fn rbf_cost_gradient_matches_finite_differences() {
         Vector3::new(18.0, 15.0, 5.0),
         Vector3::new(12.0, 9.0, 14.0),
     ];
+    let positions: Vec<[f64; 3]> = centres.iter().map(|c| [c.x, c.y, c.z]).collect();
     let system = RbfSystem::new(centres.clone(), 0.0).unwrap();
     let step = 3;
     let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
-    let nodes: Vec<Vector3<f64>> = (0..ldims.iter().product::<usize>())
-        .map(|n| {
-            let ijk = [
-                n % ldims[0],
-                (n / ldims[0]) % ldims[1],
-                n / (ldims[0] * ldims[1]),
-            ];
-            Vector3::new(
-                (ijk[0] * step) as f64,
-                (ijk[1] * step) as f64,
-                (ijk[2] * step) as f64,
-            )
-        })
-        .collect();
+    let shape = RbfLatticeParams::new(ldims, step, centres.len());
+    let geometry = lattice_geometry(&grid);
     let voxels = grid.len() as f64;
+    let spacing = [step as f64; 3];
+    let energy =
+        posereg::regularise::energy_params(ldims, spacing, 40.0, 200.0, (1.0 / voxels) as f32);
     let evaluate = |values: &[Vector3<f64>]| {
         let coef = system.coefficients(values).unwrap();
-        let lattice: Vec<f32> = coef
-            .eval_many(&centres, &nodes)
-            .iter()
-            .flat_map(|v| [v.x as f32, v.y as f32, v.z as f32])
-            .collect();
-        let out = CpuBackend
-            .rbf_grad(&lattice, ldims, step, &moving, &fixed)
+        let spline = spline_buffer(&coef.affine, &positions, &coef.lambda);
+        let warp = b.rbf_lattice(&shape, &geometry, &spline).unwrap();
+        let (per_voxel, rows) = b
+            .warp_cost(&RbfGradParams::new(&grid, ldims, step), &warp, &images)
             .unwrap();
-        let cost: f64 = out
-            .chunks_exact(4)
-            .zip(&fixed.data)
-            .map(|(o, t)| ((o[0] - t) as f64).powi(2))
-            .sum::<f64>()
-            / voxels;
-        (cost, out)
+        let splat = b
+            .lattice_splat(&SplatParams::new(ldims, step, grid.dims), &per_voxel)
+            .unwrap();
+        let (node_gradient, terms) = b.lattice_energy(&energy, &warp, &splat).unwrap();
+        let partials = b
+            .rbf_adjoint(&shape, &geometry, &spline, &node_gradient)
+            .unwrap();
+        let adjoint = b.sum_partials(&partials, 3 * shape.rows()).unwrap();
+        let cost = b.sum_chunks(&rows).unwrap().iter().sum::<f64>() / voxels
+            + b.sum_chunks(&terms).unwrap().iter().sum::<f64>();
+        let rows: Vec<Vector3<f64>> = adjoint
+            .chunks_exact(3)
+            .map(|v| Vector3::new(v[0], v[1], v[2]))
+            .collect();
+        let q = std::array::from_fn(|k| rows[centres.len() + k]);
+        let gradient = system.value_gradient(&rows[..centres.len()], &q).unwrap();
+        (cost, gradient)
     };
     // Small displacements: no voxel's sample point crosses the moving image's edge, where the
     // cost jumps (outside samples read as background) and a finite difference would measure
@@ -577,21 +592,8 @@ fn rbf_cost_gradient_matches_finite_differences() {
     let values: Vec<Vector3<f64>> = (0..5)
         .map(|i| Vector3::new(0.03 * i as f64, -0.02, 0.01 * i as f64))
         .collect();
-    let (_, out) = evaluate(&values);
-    let per_voxel: Vec<f32> = out
-        .chunks_exact(4)
-        .flat_map(|o| [o[1], o[2], o[3]])
-        .collect();
-    let splat = CpuBackend
-        .lattice_splat(&per_voxel, &grid, ldims, step)
-        .unwrap();
-    let g_nodes: Vec<Vector3<f64>> = splat
-        .chunks_exact(3)
-        .map(|g| Vector3::new(g[0] as f64, g[1] as f64, g[2] as f64) / voxels)
-        .collect();
-    let (g, q) = coefficient_gradients(&centres, &nodes, &g_nodes);
-    let analytic = system.value_gradient(&g, &q).unwrap();
-    for (i, c) in [(1usize, 0usize), (2, 1), (4, 2)] {
+    let (_, analytic) = evaluate(&values);
+    for (i, c) in [(1usize, 0usize), (2, 1), (4, 2), (0, 1)] {
         let eps = 1e-3;
         let mut plus = values.clone();
         plus[i][c] += eps;
@@ -667,4 +669,180 @@ fn lattice_interpolation_error_of_a_cubic_rbf_warp_is_small() {
     let mean = sum / grid.len() as f64;
     eprintln!("lattice interpolation error: mean {mean:.4} mm, worst {worst:.4} mm");
     assert!(mean < 0.05 && worst < 0.5, "mean {mean} worst {worst}");
+}
+
+/// The lattice_energy kernel's energy and gradient (CPU twin) for one energy alone: `values`
+/// (3 per node) on a lattice of `dims` nodes `spacing` mm apart; `membrane` picks the
+/// membrane, else bending.
+fn lattice_energy(
+    values: &[f32],
+    dims: [usize; 3],
+    spacing: [f64; 3],
+    membrane: bool,
+) -> (f64, Vec<f32>) {
+    let (m, b) = if membrane { (1.0, 0.0) } else { (0.0, 1.0) };
+    let params = posereg::regularise::energy_params(dims, spacing, m, b, 0.0);
+    let zero = vec![0.0f32; values.len()];
+    let (gradient, terms) = CpuBackend
+        .lattice_energy(&params, &values.to_vec(), &zero)
+        .unwrap();
+    (terms.iter().map(|&e| e as f64).sum(), gradient)
+}
+
+const ENERGY_DIMS: [usize; 3] = [4, 5, 3];
+const ENERGY_SPACING: [f64; 3] = [2.0, 3.0, 5.0];
+
+fn energy_lattice(f: impl Fn([f64; 3]) -> [f64; 3]) -> Vec<f32> {
+    let d = ENERGY_DIMS;
+    (0..d.iter().product::<usize>())
+        .flat_map(|n| {
+            let ijk = [n % d[0], (n / d[0]) % d[1], n / (d[0] * d[1])];
+            f(std::array::from_fn(|a| ijk[a] as f64 * ENERGY_SPACING[a])).map(|v| v as f32)
+        })
+        .collect()
+}
+
+#[test]
+fn membrane_costs_nothing_for_a_translation_and_a_uniform_stretch_its_square() {
+    let (d, h) = (ENERGY_DIMS, ENERGY_SPACING);
+    let shift = energy_lattice(|_| [3.0, -1.0, 7.0]);
+    assert_eq!(lattice_energy(&shift, d, h, true).0, 0.0);
+    // R = (0.1 x, 0, 0): only the x edges differ, each by 0.1 per mm.
+    let stretch = energy_lattice(|p| [0.1 * p[0], 0.0, 0.0]);
+    let x_edges = (d[0] - 1) * d[1] * d[2];
+    let all_edges = x_edges + d[0] * (d[1] - 1) * d[2] + d[0] * d[1] * (d[2] - 1);
+    let expected = 0.01 * x_edges as f64 / all_edges as f64;
+    let got = lattice_energy(&stretch, d, h, true).0;
+    assert!(
+        (got - expected).abs() < 1e-6 * expected,
+        "{got} vs {expected}"
+    );
+}
+
+#[test]
+fn bending_costs_nothing_for_an_affine_warp_and_a_quadratic_its_second_derivative() {
+    let (d, h) = (ENERGY_DIMS, ENERGY_SPACING);
+    let affine = energy_lattice(|p| {
+        [
+            0.3 * p[0] - 0.2 * p[1] + 4.0,
+            0.1 * p[2],
+            p[0] + p[1] + p[2],
+        ]
+    });
+    assert!(lattice_energy(&affine, d, h, false).0.abs() < 1e-9);
+    // Placements: the second difference along a needs 3 nodes on axis a; the mixed one along
+    // a and b needs 3 on each.
+    let placements = |axes: &[usize]| -> usize {
+        (0..3)
+            .map(|a| if axes.contains(&a) { d[a] - 2 } else { d[a] })
+            .product()
+    };
+    let total: usize = [&[0][..], &[1], &[2], &[0, 1], &[0, 2], &[1, 2]]
+        .iter()
+        .map(|axes| placements(axes))
+        .sum();
+    // R = (0.05 x², 0, 0): ∂²R/∂x² = 0.1 wherever the x operator lands, nothing else.
+    let along_x = energy_lattice(|p| [0.05 * p[0] * p[0], 0.0, 0.0]);
+    let expected = 0.01 * placements(&[0]) as f64 / total as f64;
+    let got = lattice_energy(&along_x, d, h, false).0;
+    assert!(
+        (got - expected).abs() < 1e-5 * expected,
+        "{got} vs {expected}"
+    );
+    // R = (0, 0.2 x z, 0): ∂²R/∂x∂z = 0.2, counted twice.
+    let twisted = energy_lattice(|p| [0.0, 0.2 * p[0] * p[2], 0.0]);
+    let expected = 2.0 * 0.04 * placements(&[0, 2]) as f64 / total as f64;
+    let got = lattice_energy(&twisted, d, h, false).0;
+    assert!(
+        (got - expected).abs() < 1e-5 * expected,
+        "{got} vs {expected}"
+    );
+}
+
+#[test]
+fn lattice_energy_gradient_matches_finite_differences() {
+    let (d, h) = (ENERGY_DIMS, ENERGY_SPACING);
+    let values = energy_lattice(|p| {
+        [
+            (0.3 * p[0]).sin() + 0.1 * p[2],
+            (0.2 * p[1] * p[2]).cos(),
+            0.05 * p[0] * p[1],
+        ]
+    });
+    for membrane in [true, false] {
+        let (_, gradient) = lattice_energy(&values, d, h, membrane);
+        // The energy is quadratic, so a central difference is exact up to f32 rounding.
+        let step = 1e-2f32;
+        for n in [0, 7, 23, 31, values.len() / 3 - 1] {
+            for c in 0..3 {
+                let (mut plus, mut minus) = (values.clone(), values.clone());
+                plus[3 * n + c] += step;
+                minus[3 * n + c] -= step;
+                let numeric = (lattice_energy(&plus, d, h, membrane).0
+                    - lattice_energy(&minus, d, h, membrane).0)
+                    / (2.0 * step as f64);
+                let analytic = gradient[3 * n + c] as f64;
+                assert!(
+                    (numeric - analytic).abs() < 1e-3 * analytic.abs().max(1e-2),
+                    "membrane {membrane}, node {n} component {c}: {numeric} vs {analytic}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn rbf_lattice_is_the_host_evaluation_rounded_once() {
+    // The kernel sums the cubic RBF in f64 in the host's order and rounds once to f32.
+    use nalgebra::Vector3;
+    use posereg::abi::{lattice_geometry, spline_buffer, RbfLatticeParams};
+    let grid = oblique_grid([23, 19, 14]);
+    let centres: Vec<Vector3<f64>> = (0..17)
+        .map(|i| {
+            Vector3::from(grid.voxel_to_world([
+                (i * 7 % 23) as f64,
+                (i * 5 % 19) as f64,
+                (i % 14) as f64,
+            ]))
+        })
+        .collect();
+    let values: Vec<Vector3<f64>> = centres
+        .iter()
+        .map(|c| Vector3::new((0.1 * c.x).sin(), 0.3, -(0.05 * c.z).cos()))
+        .collect();
+    let coef = posereg::rbf::RbfSystem::new(centres.clone(), 0.0)
+        .unwrap()
+        .coefficients(&values)
+        .unwrap();
+    let step = 3;
+    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
+    let positions: Vec<[f64; 3]> = centres.iter().map(|c| [c.x, c.y, c.z]).collect();
+    let got = CpuBackend
+        .rbf_lattice(
+            &RbfLatticeParams::new(ldims, step, centres.len()),
+            &lattice_geometry(&grid),
+            &spline_buffer(&coef.affine, &positions, &coef.lambda),
+        )
+        .unwrap();
+    let nodes: Vec<Vector3<f64>> = (0..ldims.iter().product::<usize>())
+        .map(|n| {
+            let ijk = [
+                n % ldims[0],
+                (n / ldims[0]) % ldims[1],
+                n / (ldims[0] * ldims[1]),
+            ];
+            Vector3::from(grid.voxel_to_world(ijk.map(|v| (v * step) as f64)))
+        })
+        .collect();
+    for (n, x) in nodes.iter().enumerate() {
+        let want = coef.eval(&centres, x);
+        for c in 0..3 {
+            let g = got[3 * n + c] as f64;
+            assert!(
+                (g - want[c]).abs() <= 1e-6 * want[c].abs().max(1.0),
+                "node {n}: {g} vs {}",
+                want[c]
+            );
+        }
+    }
 }

@@ -2,8 +2,9 @@
 //! has the same size in Rust and WGSL.
 
 use posereg::abi::{
-    JacobianParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams, ScoreParams,
-    SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
+    EnergyParams, JacobianParams, PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams,
+    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
+    SsdParams, SumParams,
 };
 use posereg::shaders::{locate, source, KERNELS};
 use std::mem::size_of;
@@ -30,7 +31,9 @@ fn every_shader_parses_and_validates() {
         let module = parse(kernel);
         let mut validator = naga::valid::Validator::new(
             naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::empty(),
+            // The RBF kernels need f64 (shaders/rbf_lattice.wgsl says why); the GPU backend
+            // asks the adapter for SHADER_F64.
+            naga::valid::Capabilities::FLOAT64,
         );
         if let Err(e) = validator.validate(&module) {
             let src = source(kernel);
@@ -64,8 +67,26 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
-    let pairs: [(&str, &str, usize); 10] = [
+    let pairs: [(&str, &str, usize); 16] = [
         ("rbf_grad", "RbfGradParams", size_of::<RbfGradParams>()),
+        ("warp_cost", "RbfGradParams", size_of::<RbfGradParams>()),
+        (
+            "rbf_lattice",
+            "RbfLatticeParams",
+            size_of::<RbfLatticeParams>(),
+        ),
+        (
+            "rbf_adjoint",
+            "RbfLatticeParams",
+            size_of::<RbfLatticeParams>(),
+        ),
+        ("lattice_energy", "EnergyParams", size_of::<EnergyParams>()),
+        ("sum_chunks", "SumParams", size_of::<SumParams>()),
+        (
+            "sum_partials",
+            "PartialsParams",
+            size_of::<PartialsParams>(),
+        ),
         ("lattice_splat", "SplatParams", size_of::<SplatParams>()),
         ("resample", "ResampleParams", size_of::<ResampleParams>()),
         ("jacobian", "JacobianParams", size_of::<JacobianParams>()),

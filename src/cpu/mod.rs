@@ -4,9 +4,12 @@
 
 pub mod common;
 pub mod jacobian;
+pub mod lattice_energy;
 pub mod lattice_splat;
 pub mod pyramid;
+pub mod rbf_adjoint;
 pub mod rbf_grad;
+pub mod rbf_lattice;
 pub mod resample;
 pub mod rigid_gn;
 pub mod rigid_score;
@@ -14,12 +17,16 @@ pub mod sample;
 pub mod skin_blend;
 pub mod skin_weights;
 pub mod ssd_cells;
+pub mod sum_chunks;
+pub mod sum_partials;
+pub mod warp_cost;
 
 use crate::abi::{
-    Interpolation, JacobianParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams,
-    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
+    EnergyParams, Interpolation, JacobianParams, PartialsParams, PyramidParams, RbfGradParams,
+    RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
+    SplatParams, SsdParams, SumParams,
 };
-use crate::backend::{check_pair, Backend, Element, Traffic};
+use crate::backend::{check_pair, Backend, CostImages, Element, Traffic};
 use crate::error::Result;
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Affine, Field, Grid, Image, Volume};
@@ -185,16 +192,77 @@ impl Backend for CpuBackend {
         Ok(out)
     }
 
-    fn lattice_splat(
+    fn rbf_lattice(
         &self,
-        values: &[f32],
-        grid: &Grid,
-        lattice_dims: [usize; 3],
-        step: usize,
+        params: &RbfLatticeParams,
+        geometry: &Vec<f64>,
+        spline: &Vec<f64>,
     ) -> Result<Vec<f32>> {
-        let params = SplatParams::new(lattice_dims, step, grid.dims);
-        let mut out = vec![0.0f32; 3 * lattice_dims.iter().product::<usize>()];
-        lattice_splat::lattice_splat(&params, values, &mut out);
+        let mut values = vec![0.0f32; 3 * params.nodes()];
+        rbf_lattice::rbf_lattice(params, geometry, spline, &mut values);
+        Ok(values)
+    }
+
+    fn warp_cost(
+        &self,
+        params: &RbfGradParams,
+        lattice: &Vec<f32>,
+        images: &CostImages<Vec<f32>>,
+    ) -> Result<(Vec<f32>, Vec<f32>)> {
+        let [nx, ny, nz, _] = params.dims.map(|n| n as usize);
+        let mut gradient = vec![0.0f32; 3 * nx * ny * nz];
+        let mut rows = vec![0.0f32; ny * nz];
+        let images = CostImages {
+            moving: images.moving.as_slice(),
+            fixed: images.fixed.as_slice(),
+            covered: images.covered.as_slice(),
+        };
+        warp_cost::warp_cost(params, lattice, &images, &mut gradient, &mut rows);
+        Ok((gradient, rows))
+    }
+
+    fn lattice_splat(&self, params: &SplatParams, values: &Vec<f32>) -> Result<Vec<f32>> {
+        let nodes: usize = params.dims[..3].iter().map(|&n| n as usize).product();
+        let mut out = vec![0.0f32; 3 * nodes];
+        lattice_splat::lattice_splat(params, values, &mut out);
         Ok(out)
+    }
+
+    fn lattice_energy(
+        &self,
+        params: &EnergyParams,
+        lattice: &Vec<f32>,
+        splat: &Vec<f32>,
+    ) -> Result<(Vec<f32>, Vec<f32>)> {
+        let mut gradient = vec![0.0f32; 3 * params.nodes()];
+        let mut energy = vec![0.0f32; params.nodes()];
+        lattice_energy::lattice_energy(params, lattice, splat, &mut gradient, &mut energy);
+        Ok((gradient, energy))
+    }
+
+    fn rbf_adjoint(
+        &self,
+        params: &RbfLatticeParams,
+        geometry: &Vec<f64>,
+        spline: &Vec<f64>,
+        node_gradient: &Vec<f32>,
+    ) -> Result<Vec<f64>> {
+        let mut partials = vec![0.0f64; 3 * params.rows() * params.chunks()];
+        rbf_adjoint::rbf_adjoint(params, geometry, spline, node_gradient, &mut partials);
+        Ok(partials)
+    }
+
+    fn sum_partials(&self, partials: &Vec<f64>, values: usize) -> Result<Vec<f64>> {
+        let params = PartialsParams::new(values, partials.len() / values.max(1));
+        let mut out = vec![0.0f64; values];
+        sum_partials::sum_partials(&params, partials, &mut out);
+        Ok(out)
+    }
+
+    fn sum_chunks(&self, values: &Vec<f32>) -> Result<Vec<f64>> {
+        let params = SumParams::new(values.len());
+        let mut sums = vec![0.0f64; params.chunks()];
+        sum_chunks::sum_chunks(&params, values, &mut sums);
+        Ok(sums)
     }
 }

@@ -101,9 +101,18 @@ impl GpuContext {
         let adapter = adapters.remove(0);
         let info = adapter.get_info();
         let limits = adapter.limits();
+        // The cubic RBF's terms cancel to a millionth of their size (shaders/rbf_lattice.wgsl):
+        // its kernels run in f64, which Vulkan drivers on NVIDIA, AMD, Intel and lavapipe offer.
+        if !adapter.features().contains(wgpu::Features::SHADER_F64) {
+            return Err(Error::NoAdapter(format!(
+                "{}: the GPU offers no 64-bit floats (SHADER_F64), which the RBF kernels need; \
+                 use --device cpu",
+                info.name
+            )));
+        }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("posereg"),
-            required_features: wgpu::Features::empty(),
+            required_features: wgpu::Features::SHADER_F64,
             required_limits: limits.clone(),
             experimental_features: wgpu::ExperimentalFeatures::default(),
             memory_hints: wgpu::MemoryHints::Performance,

@@ -9,6 +9,7 @@ pub mod buffer;
 pub mod context;
 pub mod jacobian;
 pub mod kernel;
+pub mod nonrigid;
 pub mod pyramid;
 pub mod rbf;
 pub mod resample;
@@ -19,10 +20,10 @@ pub mod skinning;
 pub mod ssd_cells;
 
 use crate::abi::{
-    Interpolation, JacobianParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams,
-    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
+    EnergyParams, Interpolation, JacobianParams, PyramidParams, RbfGradParams, RbfLatticeParams,
+    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
 };
-use crate::backend::{check_pair, Backend, Element, Traffic};
+use crate::backend::{check_pair, Backend, CostImages, Element, Traffic};
 use crate::error::{Error, Result};
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Affine, Field, Grid, Image, Volume};
@@ -43,15 +44,21 @@ pub struct Slab {
 /// The bind group layout of every kernel, by name (the names of crate::shaders::KERNELS).
 pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
     ("jacobian", jacobian::BINDINGS),
-    ("lattice_splat", rbf::SPLAT_BINDINGS),
+    ("lattice_energy", nonrigid::ENERGY_BINDINGS),
+    ("lattice_splat", nonrigid::SPLAT_BINDINGS),
     ("pyramid", pyramid::BINDINGS),
+    ("rbf_adjoint", nonrigid::ADJOINT_BINDINGS),
     ("rbf_grad", rbf::GRAD_BINDINGS),
+    ("rbf_lattice", nonrigid::LATTICE_BINDINGS),
     ("resample", resample::BINDINGS),
     ("rigid_gn", rigid::GN_BINDINGS),
     ("rigid_score", rigid::SCORE_BINDINGS),
     ("skin_blend", skinning::BLEND_BINDINGS),
     ("skin_weights", skinning::WEIGHTS_BINDINGS),
     ("ssd_cells", ssd_cells::BINDINGS),
+    ("sum_chunks", nonrigid::SUM_BINDINGS),
+    ("sum_partials", nonrigid::PARTIALS_BINDINGS),
+    ("warp_cost", nonrigid::COST_BINDINGS),
 ];
 
 fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
@@ -85,6 +92,18 @@ pub struct Kernels {
     pub rbf_grad: Kernel,
     /// shaders/lattice_splat.wgsl
     pub lattice_splat: Kernel,
+    /// shaders/rbf_lattice.wgsl
+    pub rbf_lattice: Kernel,
+    /// shaders/warp_cost.wgsl
+    pub warp_cost: Kernel,
+    /// shaders/lattice_energy.wgsl
+    pub lattice_energy: Kernel,
+    /// shaders/rbf_adjoint.wgsl
+    pub rbf_adjoint: Kernel,
+    /// shaders/sum_chunks.wgsl
+    pub sum_chunks: Kernel,
+    /// shaders/sum_partials.wgsl
+    pub sum_partials: Kernel,
 }
 
 /// The GPU backend with its compiled kernels.
@@ -118,6 +137,12 @@ impl GpuBackend {
                 skin_blend: compile(&ctx, "skin_blend")?,
                 rbf_grad: compile(&ctx, "rbf_grad")?,
                 lattice_splat: compile(&ctx, "lattice_splat")?,
+                rbf_lattice: compile(&ctx, "rbf_lattice")?,
+                warp_cost: compile(&ctx, "warp_cost")?,
+                lattice_energy: compile(&ctx, "lattice_energy")?,
+                rbf_adjoint: compile(&ctx, "rbf_adjoint")?,
+                sum_chunks: compile(&ctx, "sum_chunks")?,
+                sum_partials: compile(&ctx, "sum_partials")?,
             },
             ctx,
             max_slab_voxels: None,
@@ -318,17 +343,56 @@ impl Backend for GpuBackend {
         rbf::rbf_grad(self, &params, lattice, &moving.data, &fixed.data)
     }
 
+    fn rbf_lattice(
+        &self,
+        params: &RbfLatticeParams,
+        geometry: &GpuBuffer<f64>,
+        spline: &GpuBuffer<f64>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_rbf_lattice(params, geometry, spline)
+    }
+
+    fn warp_cost(
+        &self,
+        params: &RbfGradParams,
+        lattice: &GpuBuffer<f32>,
+        images: &CostImages<GpuBuffer<f32>>,
+    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
+        self.record_warp_cost(params, lattice, images)
+    }
+
     fn lattice_splat(
         &self,
-        values: &[f32],
-        grid: &Grid,
-        lattice_dims: [usize; 3],
-        step: usize,
-    ) -> Result<Vec<f32>> {
-        rbf::lattice_splat(
-            self,
-            &SplatParams::new(lattice_dims, step, grid.dims),
-            values,
-        )
+        params: &SplatParams,
+        values: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_lattice_splat(params, values)
+    }
+
+    fn lattice_energy(
+        &self,
+        params: &EnergyParams,
+        lattice: &GpuBuffer<f32>,
+        splat: &GpuBuffer<f32>,
+    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
+        self.record_lattice_energy(params, lattice, splat)
+    }
+
+    fn rbf_adjoint(
+        &self,
+        params: &RbfLatticeParams,
+        geometry: &GpuBuffer<f64>,
+        spline: &GpuBuffer<f64>,
+        node_gradient: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f64>> {
+        self.record_rbf_adjoint(params, geometry, spline, node_gradient)
+    }
+
+    fn sum_partials(&self, partials: &GpuBuffer<f64>, values: usize) -> Result<GpuBuffer<f64>> {
+        self.record_sum_partials(partials, values)
+    }
+
+    fn sum_chunks(&self, values: &GpuBuffer<f32>) -> Result<GpuBuffer<f64>> {
+        self.record_sum_chunks(values)
     }
 }

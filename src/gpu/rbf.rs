@@ -1,9 +1,9 @@
-//! Host side of shaders/rbf_grad.wgsl and shaders/lattice_splat.wgsl.
+//! Host side of shaders/rbf_grad.wgsl.
 
 use super::kernel::{groups, Binding};
 use super::run::{run_slabs, Input};
 use super::GpuBackend;
-use crate::abi::{RbfGradParams, SplatParams};
+use crate::abi::RbfGradParams;
 use crate::error::Result;
 
 /// rbf_grad bindings in the order the shader declares them.
@@ -14,8 +14,6 @@ pub const GRAD_BINDINGS: &[Binding] = &[
     Binding::Read,
     Binding::ReadWrite,
 ];
-/// lattice_splat bindings in the order the shader declares them.
-pub const SPLAT_BINDINGS: &[Binding] = &[Binding::Uniform, Binding::Read, Binding::ReadWrite];
 
 /// Per-voxel cost terms and gradients.
 pub fn rbf_grad(
@@ -42,20 +40,6 @@ pub fn rbf_grad(
         ],
         dims,
         dims[0] * dims[1] * 4,
-        |depth| [groups(dims[0], 4), groups(dims[1], 4), groups(depth, 4)],
-    )
-}
-
-/// Adjoint of the lattice interpolation.
-pub fn lattice_splat(gpu: &GpuBackend, params: &SplatParams, values: &[f32]) -> Result<Vec<f32>> {
-    let dims = [0, 1, 2].map(|a| params.dims[a] as usize);
-    run_slabs(
-        gpu,
-        &gpu.kernels.lattice_splat,
-        params,
-        &[Input::Whole("per-voxel gradient", values)],
-        dims,
-        dims[0] * dims[1] * 3,
         |depth| [groups(dims[0], 4), groups(dims[1], 4), groups(depth, 4)],
     )
 }

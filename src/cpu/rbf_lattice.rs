@@ -1,0 +1,72 @@
+//! CPU twin of shaders/rbf_lattice.wgsl and of the helpers in shaders/rbf_nodes.wgsl.
+//!
+//! Each node's sum runs in the shader's order (the affine part, then the points in order); the
+//! twin only walks a row of nodes at a time through each point, so the loop over nodes
+//! vectorises.
+
+use crate::abi::RbfLatticeParams;
+use rayon::prelude::*;
+
+/// World position (mm) of lattice node `a`, which sits on voxel a · step.
+pub fn node_position(geometry: &[f64], a: [u32; 3], step: u32) -> [f64; 3] {
+    let v = a.map(|c| (c * step) as f64);
+    std::array::from_fn(|r| {
+        let g = &geometry[4 * r..4 * r + 4];
+        g[0] * v[0] + g[1] * v[1] + g[2] * v[2] + g[3]
+    })
+}
+
+/// φ(|x − c|) = |x − c|³, the cubic radial basis.
+pub fn cube_of_distance(x: [f64; 3], c: [f64; 3]) -> f64 {
+    let dx = x[0] - c[0];
+    let dy = x[1] - c[1];
+    let dz = x[2] - c[2];
+    let d = (dx * dx + dy * dy + dz * dz).sqrt();
+    d * d * d
+}
+
+/// Fills `values` (3 floats per node) with the warp R at every lattice node.
+pub fn rbf_lattice(
+    params: &RbfLatticeParams,
+    geometry: &[f64],
+    spline: &[f64],
+    values: &mut [f32],
+) {
+    let [lx, ly, _, points] = params.lattice;
+    let s = spline;
+    values
+        .par_chunks_mut(3 * lx as usize)
+        .enumerate()
+        .for_each(|(row, out)| {
+            let (b, c) = (row as u32 % ly, row as u32 / ly);
+            // Coordinates and sums by axis, so the loop over the row's nodes vectorises.
+            let x: Vec<[f64; 3]> = (0..lx)
+                .map(|a| node_position(geometry, [a, b, c], params.step[0]))
+                .collect();
+            let [xs, ys, zs] = [0, 1, 2].map(|a| x.iter().map(|p| p[a]).collect::<Vec<f64>>());
+            let mut r: [Vec<f64>; 3] = std::array::from_fn(|k| {
+                x.iter()
+                    .map(|x| s[k] + s[3 + k] * x[0] + s[6 + k] * x[1] + s[9 + k] * x[2])
+                    .collect()
+            });
+            for p in 0..points as usize {
+                let o = 12 + 6 * p;
+                let (cx, cy, cz) = (s[o], s[o + 1], s[o + 2]);
+                let [rx, ry, rz] = &mut r;
+                for n in 0..xs.len() {
+                    // cube_of_distance(x[n], centre), written out by lane.
+                    let (dx, dy, dz) = (xs[n] - cx, ys[n] - cy, zs[n] - cz);
+                    let d = (dx * dx + dy * dy + dz * dz).sqrt();
+                    let f = d * d * d;
+                    rx[n] += s[o + 3] * f;
+                    ry[n] += s[o + 4] * f;
+                    rz[n] += s[o + 5] * f;
+                }
+            }
+            for (n, out) in out.chunks_exact_mut(3).enumerate() {
+                for k in 0..3 {
+                    out[k] = r[k][n] as f32;
+                }
+            }
+        });
+}

@@ -1,0 +1,173 @@
+//! Host side of the non-rigid stage's resident kernels: each records one dispatch on device
+//! buffers and returns its outputs as device buffers (see resident.rs). Whole grids are bound
+//! at once: a volume whose per-voxel gradient (12 bytes a voxel) exceeds the device's binding
+//! limit gets a `DeviceLimit` error naming it.
+
+use super::kernel::{groups, Binding};
+use super::resident::GpuBuffer;
+use super::GpuBackend;
+use crate::abi::{
+    EnergyParams, PartialsParams, RbfGradParams, RbfLatticeParams, SplatParams, SumParams,
+};
+use crate::backend::CostImages;
+use crate::error::Result;
+
+use Binding::{Read, ReadWrite, Uniform};
+
+/// rbf_lattice bindings in the order the shader declares them.
+pub const LATTICE_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
+/// warp_cost bindings.
+pub const COST_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, Read, ReadWrite, ReadWrite];
+/// lattice_splat bindings.
+pub const SPLAT_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
+/// lattice_energy bindings.
+pub const ENERGY_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite, ReadWrite];
+/// rbf_adjoint bindings.
+pub const ADJOINT_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, ReadWrite];
+/// sum_partials bindings.
+pub const PARTIALS_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
+/// sum_chunks bindings.
+pub const SUM_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
+
+fn cover(dims: [u32; 3], size: u32) -> [u32; 3] {
+    dims.map(|n| groups(n as usize, size))
+}
+
+impl GpuBackend {
+    /// shaders/rbf_lattice.wgsl
+    pub fn record_rbf_lattice(
+        &self,
+        params: &RbfLatticeParams,
+        geometry: &GpuBuffer<f64>,
+        spline: &GpuBuffer<f64>,
+    ) -> Result<GpuBuffer<f32>> {
+        let values = self.output_buffer("warp at the lattice nodes", 3 * params.nodes())?;
+        let l = [params.lattice[0], params.lattice[1], params.lattice[2]];
+        self.record(
+            &self.kernels.rbf_lattice,
+            params,
+            &[geometry.raw(), spline.raw(), values.raw()],
+            cover(l, 4),
+        )?;
+        Ok(values)
+    }
+
+    /// shaders/warp_cost.wgsl
+    pub fn record_warp_cost(
+        &self,
+        params: &RbfGradParams,
+        lattice: &GpuBuffer<f32>,
+        images: &CostImages<GpuBuffer<f32>>,
+    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
+        let [nx, ny, nz, _] = params.dims.map(|n| n as usize);
+        let gradient = self.output_buffer("per-voxel cost gradient", 3 * nx * ny * nz)?;
+        let rows = self.output_buffer("per-row cost", ny * nz)?;
+        self.record(
+            &self.kernels.warp_cost,
+            params,
+            &[
+                lattice.raw(),
+                images.moving.raw(),
+                images.fixed.raw(),
+                images.covered.raw(),
+                gradient.raw(),
+                rows.raw(),
+            ],
+            [groups(ny, 8), groups(nz, 8), 1],
+        )?;
+        Ok((gradient, rows))
+    }
+
+    /// shaders/lattice_splat.wgsl
+    pub fn record_lattice_splat(
+        &self,
+        params: &SplatParams,
+        values: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let l = [params.dims[0], params.dims[1], params.dims[2]];
+        let nodes = l.iter().map(|&n| n as usize).product::<usize>();
+        let out = self.output_buffer("gradient at the lattice nodes", 3 * nodes)?;
+        self.record(
+            &self.kernels.lattice_splat,
+            params,
+            &[values.raw(), out.raw()],
+            cover(l, 4),
+        )?;
+        Ok(out)
+    }
+
+    /// shaders/lattice_energy.wgsl
+    pub fn record_lattice_energy(
+        &self,
+        params: &EnergyParams,
+        lattice: &GpuBuffer<f32>,
+        splat: &GpuBuffer<f32>,
+    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
+        let gradient = self.output_buffer("cost gradient at the nodes", 3 * params.nodes())?;
+        let energy = self.output_buffer("lattice energy terms", params.nodes())?;
+        self.record(
+            &self.kernels.lattice_energy,
+            params,
+            &[lattice.raw(), splat.raw(), gradient.raw(), energy.raw()],
+            cover([params.dims[0], params.dims[1], params.dims[2]], 4),
+        )?;
+        Ok((gradient, energy))
+    }
+
+    /// shaders/rbf_adjoint.wgsl
+    pub fn record_rbf_adjoint(
+        &self,
+        params: &RbfLatticeParams,
+        geometry: &GpuBuffer<f64>,
+        spline: &GpuBuffer<f64>,
+        node_gradient: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f64>> {
+        let rows = params.rows();
+        let partials = self.output_buffer(
+            "partial gradients of the RBF coefficients",
+            3 * rows * params.chunks(),
+        )?;
+        self.record(
+            &self.kernels.rbf_adjoint,
+            params,
+            &[
+                geometry.raw(),
+                spline.raw(),
+                node_gradient.raw(),
+                partials.raw(),
+            ],
+            [groups(rows, 64), params.chunks() as u32, 1],
+        )?;
+        Ok(partials)
+    }
+
+    /// shaders/sum_partials.wgsl
+    pub fn record_sum_partials(
+        &self,
+        partials: &GpuBuffer<f64>,
+        values: usize,
+    ) -> Result<GpuBuffer<f64>> {
+        let params = PartialsParams::new(values, partials.len() / values.max(1));
+        let out = self.output_buffer("summed partials", values)?;
+        self.record(
+            &self.kernels.sum_partials,
+            &params,
+            &[partials.raw(), out.raw()],
+            [groups(values, 64), 1, 1],
+        )?;
+        Ok(out)
+    }
+
+    /// shaders/sum_chunks.wgsl
+    pub fn record_sum_chunks(&self, values: &GpuBuffer<f32>) -> Result<GpuBuffer<f64>> {
+        let params = SumParams::new(values.len());
+        let sums = self.output_buffer("partial sums", params.chunks())?;
+        self.record(
+            &self.kernels.sum_chunks,
+            &params,
+            &[values.raw(), sums.raw()],
+            [groups(params.chunks(), 64), 1, 1],
+        )?;
+        Ok(sums)
+    }
+}
