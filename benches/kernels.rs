@@ -1,5 +1,7 @@
 //! Kernel benchmarks: each kernel × backend (CPU twin, GPU) × size, throughput in voxels/s.
-//! GPU timings include upload, submit, wait and read-back (what a caller pays today).
+//! GPU timings of the slice kernels include upload, submit, wait and read-back; the non-rigid
+//! evaluation's kernels run on resident buffers and include only the submit, the wait and a
+//! small read-back.
 //!
 //! Sizes: POSEREG_BENCH_SIZES=tiny (CI smoke: 16³), =small (64³, 128³), default all three of
 //! 64³, 128³ and the paper's 136×256×256.
@@ -58,7 +60,7 @@ fn backends() -> Vec<(&'static str, Opened)> {
     match GpuBackend::new() {
         Ok(g) => {
             eprintln!("gpu backend: {}", g.describe());
-            list.push(("gpu", Opened::Gpu(g)));
+            list.push(("gpu", Opened::Gpu(Box::new(g))));
         }
         Err(e) if std::env::var("REQUIRE_GPU").as_deref() == Ok("1") => {
             panic!("REQUIRE_GPU=1 but no GPU backend: {e}")
@@ -101,6 +103,89 @@ fn group<R>(
             bench.iter(|| run(b).unwrap())
         });
     }
+    group.finish();
+}
+
+/// The non-rigid evaluation's kernels on resident buffers (lattice every 4 voxels, 100 control
+/// points), each timed with the download of a small output that depends on it, and the whole
+/// chain as one evaluation (what the optimiser pays per step).
+fn nonrigid_rows<B: Backend>(c: &mut Criterion, name: &str, b: &B, g: &Grid, label: &str) {
+    use posereg::abi::{
+        lattice_geometry, spline_buffer, RbfGradParams, RbfLatticeParams, SplatParams,
+    };
+    let step = 4;
+    let ldims: [usize; 3] = std::array::from_fn(|a| (g.dims[a] - 1).div_ceil(step) + 1);
+    let points = 100;
+    let centres: Vec<[f64; 3]> = (0..points)
+        .map(|p| {
+            let f = |k: usize, n: usize| ((p * 7919 + k * 104729) % n) as f64;
+            g.voxel_to_world([f(0, g.dims[0]), f(1, g.dims[1]), f(2, g.dims[2])])
+        })
+        .collect();
+    let lambda: Vec<[f64; 3]> = (0..points)
+        .map(|p| [1e-6 * (p % 7) as f64, -1e-6, 2e-6 * (p % 3) as f64])
+        .collect();
+    let shape = RbfLatticeParams::new(ldims, step, points);
+    let up = |what, v: Vec<f32>| b.upload(what, v).unwrap();
+    let moving = up("moving", volume(g, 0.0).data);
+    let fixed = up("fixed", volume(g, 0.5).data);
+    let covered = up("covered", vec![1.0; g.len()]);
+    let images = posereg::backend::CostImages {
+        moving: &moving,
+        fixed: &fixed,
+        covered: &covered,
+    };
+    let geometry = b.upload("geometry", lattice_geometry(g)).unwrap();
+    let spline = b
+        .upload("spline", spline_buffer(&[[0.1; 3]; 4], &centres, &lambda))
+        .unwrap();
+    let warp_params = RbfGradParams::new(g, ldims, step);
+    let splat_params = SplatParams::new(ldims, step, g.dims);
+    let spacing = g.spacing().map(|h| h * step as f64);
+    let energy = posereg::regularise::energy_params(ldims, spacing, 3.0, 0.0, 1e-6);
+    let warp = b.rbf_lattice(&shape, &geometry, &spline).unwrap();
+    let (per_voxel, rows) = b.warp_cost(&warp_params, &warp, &images).unwrap();
+    let splat = b.lattice_splat(&splat_params, &per_voxel).unwrap();
+    let (node_gradient, _) = b.lattice_energy(&energy, &warp, &splat).unwrap();
+    let voxels = Throughput::Elements(g.len() as u64);
+    let mut group = c.benchmark_group("nonrigid evaluation");
+    group.sample_size(10).throughput(voxels);
+    let id = |kernel: &str| BenchmarkId::new(format!("{kernel}/{name}"), label);
+    group.bench_function(id("rbf_lattice"), |t| {
+        t.iter(|| b.download(&[&b.rbf_lattice(&shape, &geometry, &spline).unwrap()]))
+    });
+    group.bench_function(id("warp_cost"), |t| {
+        t.iter(|| b.download(&[&b.warp_cost(&warp_params, &warp, &images).unwrap().1]))
+    });
+    group.bench_function(id("lattice_splat"), |t| {
+        t.iter(|| b.download(&[&b.lattice_splat(&splat_params, &per_voxel).unwrap()]))
+    });
+    group.bench_function(id("lattice_energy"), |t| {
+        t.iter(|| b.download(&[&b.lattice_energy(&energy, &warp, &splat).unwrap().1]))
+    });
+    group.bench_function(id("rbf_adjoint"), |t| {
+        t.iter(|| {
+            let partials = b
+                .rbf_adjoint(&shape, &geometry, &spline, &node_gradient)
+                .unwrap();
+            b.download(&[&b.sum_partials(&partials, 3 * shape.rows()).unwrap()])
+        })
+    });
+    group.bench_function(id("whole evaluation"), |t| {
+        t.iter(|| {
+            let warp = b.rbf_lattice(&shape, &geometry, &spline).unwrap();
+            let (per_voxel, rows) = b.warp_cost(&warp_params, &warp, &images).unwrap();
+            let splat = b.lattice_splat(&splat_params, &per_voxel).unwrap();
+            let (node_gradient, terms) = b.lattice_energy(&energy, &warp, &splat).unwrap();
+            let partials = b
+                .rbf_adjoint(&shape, &geometry, &spline, &node_gradient)
+                .unwrap();
+            let adjoint = b.sum_partials(&partials, 3 * shape.rows()).unwrap();
+            let sums = [b.sum_chunks(&rows).unwrap(), b.sum_chunks(&terms).unwrap()];
+            b.download(&[&adjoint, &sums[0], &sums[1]])
+        })
+    });
+    drop(rows);
     group.finish();
 }
 
@@ -151,14 +236,27 @@ fn kernels(c: &mut Criterion) {
             &backends,
             |b| posereg::on_backend!(b, b => b.rbf_grad(&lattice, ldims, step, &source, &target)),
         );
-        let per_voxel: Vec<f32> = bytemuck::cast_slice(&u.data).to_vec();
+        for (name, b) in &backends {
+            posereg::on_backend!(b, b => nonrigid_rows(c, name, b, &g, &label));
+        }
+        let node_values: Vec<f32> = (0..3 * ldims.iter().product::<usize>())
+            .map(|k| (k % 17) as f32 * 0.1)
+            .collect();
         group(
             c,
-            "lattice_splat",
+            "warp_field",
             g.len() as u64,
             &label,
             &backends,
-            |b| posereg::on_backend!(b, b => b.lattice_splat(&per_voxel, &g, ldims, step)),
+            |b| posereg::on_backend!(b, b => b.warp_field(&node_values, ldims, step, &g)),
+        );
+        group(
+            c,
+            "compose",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| posereg::on_backend!(b, b => b.compose(&u, &u)),
         );
         // Articulated initialisation: a whole-volume bone region, a small motion.
         let mask: posereg::Volume = Image::filled(g.clone(), 1.0);
@@ -215,7 +313,7 @@ fn kernels(c: &mut Criterion) {
             )
             .unwrap();
         let soft_tissue = vec![0.0f32; g.len()];
-        let blend = posereg::vsd::BoneBlend {
+        let blend = posereg::abi::BoneBlend {
             motions: (0..bones)
                 .map(|k| {
                     posereg::rigid::small_motion(
@@ -224,7 +322,7 @@ fn kernels(c: &mut Criterion) {
                     )
                 })
                 .collect(),
-            blending: posereg::vsd::Blending::Linear,
+            blending: posereg::abi::Blending::Linear,
             iterations: 8,
         };
         group(

@@ -5,10 +5,69 @@
 //! the same name in its shader; `tests/shaders.rs` checks the sizes through naga reflection.
 //! The constructors do the f64 host-side geometry once, so both backends receive identical f32s.
 
-use crate::gpu::run::SlabParams;
+use crate::error::{Error, Result};
 use crate::volume::{Affine, Grid};
-use crate::vsd::{Blending, BoneBlend};
 use bytemuck::{Pod, Zeroable};
+
+/// Parameter structs of kernels that can run on a slab of slices.
+pub trait SlabParams: Pod {
+    /// The same parameters for output slices z0 .. z0 + depth, with per-voxel inputs bound
+    /// from slice `first` (the slab minus its halo).
+    fn for_slab(&self, z0: u32, depth: u32, first: u32) -> Self;
+}
+
+/// How the bones' rigid motions are blended across soft tissue.
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum Blending {
+    /// Σ_j w_j M_j (the paper's linear blend skinning).
+    #[default]
+    Linear,
+    /// The normalised blend of the motions' unit dual quaternions.
+    DualQuaternion,
+}
+
+/// Bone motions (source → target world) and how to blend and invert them.
+#[derive(Clone, Debug)]
+pub struct BoneBlend {
+    /// One rigid motion per weight bone.
+    pub motions: Vec<Affine>,
+    /// Linear or dual-quaternion.
+    pub blending: Blending,
+    /// Newton-like inversion steps per voxel.
+    pub iterations: u32,
+}
+
+/// Refuses bone counts the skinning kernels cannot take.
+pub fn check_bone_count(bones: usize) -> Result<()> {
+    if bones == 0 || bones > MAX_SKIN_BONES {
+        return Err(Error::InvalidInput(format!(
+            "skinning takes 1 to {MAX_SKIN_BONES} bones, got {bones}"
+        )));
+    }
+    Ok(())
+}
+
+/// Sums per column of rigid_gn: JᵀJ upper triangle (21), Jᵀr (6), Σr² (1), count (1).
+pub const RIGID_SUMS: usize = 29;
+
+/// 12 floats per candidate: rows 0..3 of each matrix (the rigid_score kernel's layout).
+pub fn pack_candidates(candidates: &[Affine]) -> Vec<f32> {
+    candidates
+        .iter()
+        .flat_map(|m| (0..3).flat_map(move |r| (0..4).map(move |c| m[(r, c)] as f32)))
+        .collect()
+}
 
 /// How a resample reads the source between voxel centres.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -191,6 +250,7 @@ macro_rules! slab_by_dims_and_slab {
     )*};
 }
 slab_by_dims_and_slab!(
+    ComposeParams,
     PyramidParams,
     RigidParams,
     ScoreParams,
@@ -673,6 +733,37 @@ impl PartialsParams {
     pub fn new(values: usize, chunks: usize) -> Self {
         PartialsParams {
             counts: [values as u32, chunks as u32, 0, 0],
+        }
+    }
+}
+
+/// Keep in sync with `ComposeParams` in shaders/compose.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ComposeParams {
+    /// nx, ny, nz of the fields' grid, and the first slice of this slab.
+    pub dims: [u32; 4],
+    /// Slices in this slab, unused ×3.
+    pub slab: [u32; 4],
+    /// Rows of the inverse of the grid's linear part: a displacement in mm → index delta.
+    pub mm_to_index: [[f32; 4]; 3],
+}
+
+impl ComposeParams {
+    /// For fields on `grid` (whole volume as one slab).
+    pub fn new(grid: &Grid) -> Self {
+        let inv = snap_to_integers(&grid.world_to_voxel_affine());
+        ComposeParams {
+            dims: dims4(grid, 0),
+            slab: [grid.dims[2] as u32, 0, 0, 0],
+            mm_to_index: std::array::from_fn(|r| {
+                [
+                    inv[(r, 0)] as f32,
+                    inv[(r, 1)] as f32,
+                    inv[(r, 2)] as f32,
+                    0.0,
+                ]
+            }),
         }
     }
 }

@@ -15,8 +15,6 @@ use crate::abi::{
 };
 use crate::backend::{Backend, CostImages, Traffic};
 use crate::check::finite_non_negative;
-use crate::cpu::rbf_grad::warp_at;
-use crate::cpu::sample::trilinear;
 use crate::error::{Error, Result};
 use crate::gain::gain;
 use crate::levels::PerLevel;
@@ -27,7 +25,6 @@ use crate::rbf::{RbfCoefficients, RbfSystem};
 use crate::regularise::energy_params;
 use crate::volume::{Field, Grid, Image, Volume};
 use nalgebra::Vector3;
-use rayon::prelude::*;
 
 /// Default weight of the membrane energy (AdaptiveOptions::membrane).
 const MEMBRANE_DEFAULT: f64 = 3.0;
@@ -343,11 +340,7 @@ impl<'a, B: Backend> Evaluator<'a, B> {
     /// The cost of the warp `coef` (centres `centres`): the mean masked squared residual plus
     /// the lattice energies; and its gradient with respect to the coefficients, per control
     /// point and per affine row.
-    fn evaluate(
-        &self,
-        coef: &RbfCoefficients,
-        centres: &[Vector3<f64>],
-    ) -> Result<(f64, Vec<Vector3<f64>>, [Vector3<f64>; 4])> {
+    fn evaluate(&self, coef: &RbfCoefficients, centres: &[Vector3<f64>]) -> Result<Evaluated> {
         let b = self.backend;
         let positions: Vec<[f64; 3]> = centres.iter().map(|c| [c.x, c.y, c.z]).collect();
         let spline = b.upload(
@@ -376,9 +369,21 @@ impl<'a, B: Backend> Evaluator<'a, B> {
             .chunks_exact(3)
             .map(|v| Vector3::new(v[0], v[1], v[2]))
             .collect();
-        let q = std::array::from_fn(|k| rows[centres.len() + k]);
-        Ok((cost, rows[..centres.len()].to_vec(), q))
+        Ok(Evaluated {
+            cost,
+            affine: std::array::from_fn(|k| rows[centres.len() + k]),
+            points: rows[..centres.len()].to_vec(),
+        })
     }
+}
+
+/// One evaluation's cost and its gradient with respect to the RBF's coefficients.
+struct Evaluated {
+    cost: f64,
+    /// Per control point (its λ).
+    points: Vec<Vector3<f64>>,
+    /// Per affine row (1, x, y, z).
+    affine: [Vector3<f64>; 4],
 }
 
 /// Population variance of an image's intensities.
@@ -614,13 +619,13 @@ pub fn register<B: Backend>(
                     values[i] = Vector3::new(x[3 * k], x[3 * k + 1], x[3 * k + 2]);
                 }
                 let coef = system.coefficients(&values)?;
-                let (cost, g, q) = evaluator.evaluate(&coef, &centres)?;
-                let df = system.value_gradient(&g, &q)?;
+                let e = evaluator.evaluate(&coef, &centres)?;
+                let df = system.value_gradient(&e.points, &e.affine)?;
                 let mut counted = evaluations.get();
                 counted.add(backend.traffic() - before);
                 evaluations.set(counted);
                 Ok((
-                    cost,
+                    e.cost,
                     free.iter()
                         .flat_map(|&i| [df[i].x, df[i].y, df[i].z])
                         .collect(),
@@ -663,8 +668,15 @@ pub fn register<B: Backend>(
 }
 
 impl Adaptive {
-    /// R on every voxel of `grid`, through the same lattice interpolation the optimiser used.
-    pub fn warp_field(&self, grid: &Grid, lattice_mm: f64, scale: f64) -> Field {
+    /// R on every voxel of `grid`, scaled by `scale`, through the same lattice interpolation
+    /// the optimiser used.
+    pub fn warp_field<B: Backend>(
+        &self,
+        backend: &B,
+        grid: &Grid,
+        lattice_mm: f64,
+        scale: f64,
+    ) -> Result<Field> {
         let lattice = Lattice::new(grid, lattice_mm);
         let centres: Vec<Vector3<f64>> = self
             .points
@@ -676,56 +688,6 @@ impl Adaptive {
             .iter()
             .map(|v| v * scale as f32)
             .collect();
-        let params = RbfGradParams::new(grid, lattice.dims, lattice.step);
-        let d = grid.dims;
-        let data = (0..grid.len())
-            .into_par_iter()
-            .map(|n| {
-                let r = warp_at(
-                    &params,
-                    &values,
-                    (n % d[0]) as u32,
-                    ((n / d[0]) % d[1]) as u32,
-                    (n / (d[0] * d[1])) as u32,
-                );
-                r.to_array()
-            })
-            .collect();
-        Image {
-            grid: grid.clone(),
-            data,
-        }
+        backend.warp_field(&values, lattice.dims, lattice.step, grid)
     }
-}
-
-/// The total field u = R + u0 ∘ (id + R): the source point of target point x is reached by the
-/// warp first, then the initial field where the warp lands (u0 trilinear, clamped to its grid).
-pub fn compose(warp: &Field, initial: &Field) -> Result<Field> {
-    if !warp.grid.same_as(&initial.grid, 1e-3) {
-        return Err(Error::InvalidInput(
-            "warp and initial field are on different grids".into(),
-        ));
-    }
-    let grid = &warp.grid;
-    let to_index = grid.world_to_voxel_affine();
-    let dims = grid.dims.map(|d| d as u32);
-    let components: Vec<Vec<f32>> = (0..3)
-        .map(|c| initial.data.iter().map(|v| v[c]).collect())
-        .collect();
-    let data = (0..grid.len())
-        .into_par_iter()
-        .map(|n| {
-            let x = grid.world_of(n);
-            let r = warp.data[n];
-            let y = x + Vector3::new(r[0] as f64, r[1] as f64, r[2] as f64);
-            let q = to_index * y.push(1.0);
-            let qc: [f32; 3] =
-                std::array::from_fn(|a| (q[a] as f32).clamp(0.0, dims[a] as f32 - 1.0));
-            std::array::from_fn(|c| r[c] + trilinear(&components[c], qc, dims, 0.0))
-        })
-        .collect();
-    Ok(Image {
-        grid: grid.clone(),
-        data,
-    })
 }

@@ -1,6 +1,7 @@
 //! Articulated initialisation (paper §2): per-bone rigid registration coarse to fine, skinning
 //! weights, and the inverted volume skeletal deformation, giving the initial field u0.
 
+use crate::abi::Blending;
 use crate::abi::Interpolation;
 use crate::adaptive::MAX_LEVELS;
 use crate::backend::Backend;
@@ -8,24 +9,21 @@ use crate::check::within;
 use crate::error::{Error, Result};
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::joint::{flexion_axis, rotation_about, rotation_degrees, JointAxis};
-use crate::phantom::anatomy::label;
+use crate::labels as label;
 use crate::progress::Progress;
 use crate::pyramid;
 use crate::rigid::{refine, score_candidates, LevelReport, RefineOptions};
 use crate::skinning::{self, distance_map, SkinningWeights};
 use crate::volume::{Affine, Field, Image, Labels, Volume};
-use crate::vsd::{initial_field, Blending, InitialField};
+use crate::vsd::{initial_field, InitialField};
 use nalgebra::{Rotation3, Unit, Vector3};
 
 /// Name of a bone label code.
 pub fn bone_name(code: u16) -> String {
-    match code {
-        label::FEMUR => "femur".into(),
-        label::TIBIA => "tibia".into(),
-        label::PATELLA => "patella".into(),
-        label::FIBULA => "fibula".into(),
-        other => format!("bone{other}"),
-    }
+    label::BONES
+        .iter()
+        .find(|(c, _)| *c == code)
+        .map_or_else(|| format!("bone{code}"), |(_, name)| name.to_string())
 }
 
 /// Settings of the initialisation.
@@ -348,7 +346,7 @@ pub fn initialise<B: Backend>(
             "the label map has no bone labels (2 femur, 3 tibia, 4 patella, 5 fibula)".into(),
         ));
     }
-    skinning::check_bone_count(bones.len())?;
+    crate::abi::check_bone_count(bones.len())?;
     let axis = flexion_axis(labels)?;
     let rigid_steps = if given.is_some() { 0 } else { bones.len() };
     progress.begin("initialisation", rigid_steps + 1);

@@ -2,11 +2,12 @@
 //! shaders) and its CPU twin (rayon). Host code (registration loops, commands) is written
 //! against this trait only, so every stage runs on either and the two can be compared.
 
-use crate::abi::{EnergyParams, Interpolation, RbfGradParams, RbfLatticeParams, SplatParams};
+use crate::abi::{
+    BoneBlend, EnergyParams, Interpolation, RbfGradParams, RbfLatticeParams, SplatParams,
+};
 use crate::error::Result;
 use crate::metric::CellSsd;
 use crate::volume::{Affine, Field, Grid, Volume};
-use crate::vsd::BoneBlend;
 
 /// What a backend has moved between the host and the device, and how much work it launched,
 /// since it was opened. The CPU backend moves nothing and counts nothing.
@@ -157,6 +158,19 @@ pub trait Backend {
         fixed: &Volume,
     ) -> Result<Vec<f32>>;
 
+    /// The warp R at every voxel of `grid`, interpolated from `lattice` (3 floats per node of a
+    /// lattice of `lattice_dims` nodes every `step` voxels) as the non-rigid cost does.
+    fn warp_field(
+        &self,
+        lattice: &[f32],
+        lattice_dims: [usize; 3],
+        step: usize,
+        grid: &Grid,
+    ) -> Result<Field>;
+
+    /// The total field u = R + u0 ∘ (id + R) of a warp R and an initial field u0 on one grid.
+    fn compose(&self, warp: &Field, initial: &Field) -> Result<Field>;
+
     /// The warp R at every lattice node (3 f32 per node), the cubic RBF `spline` (f64, layout
     /// of abi::spline_buffer) evaluated in f64 at nodes placed by `geometry`
     /// (abi::lattice_geometry).
@@ -213,6 +227,17 @@ pub trait Backend {
 
     /// Sums of `values` in chunks of abi::SUM_CHUNK, in f64.
     fn sum_chunks(&self, values: &Self::Buffer<f32>) -> Result<Self::Buffer<f64>>;
+}
+
+/// Checks two fields combined voxel by voxel share a grid.
+pub fn check_fields(a: &Field, b: &Field) -> Result<()> {
+    if a.grid.same_as(&b.grid, 1e-3) {
+        Ok(())
+    } else {
+        Err(crate::error::Error::InvalidInput(
+            "the warp and the initial field are on different grids".into(),
+        ))
+    }
 }
 
 /// Checks two volumes compared voxel by voxel share a grid.

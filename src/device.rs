@@ -24,8 +24,8 @@ pub enum DeviceChoice {
 pub enum Opened {
     /// The CPU backend.
     Cpu(CpuBackend),
-    /// The GPU backend.
-    Gpu(GpuBackend),
+    /// The GPU backend (boxed: it is much larger than the CPU backend).
+    Gpu(Box<GpuBackend>),
 }
 
 impl Opened {
@@ -42,7 +42,10 @@ macro_rules! on_backend {
     ($opened:expr, $backend:ident => $body:expr) => {
         match &$opened {
             $crate::device::Opened::Cpu($backend) => $body,
-            $crate::device::Opened::Gpu($backend) => $body,
+            $crate::device::Opened::Gpu(boxed) => {
+                let $backend: &$crate::gpu::GpuBackend = boxed;
+                $body
+            }
         }
     };
 }
@@ -58,13 +61,13 @@ pub fn open_backend(choice: DeviceChoice) -> Result<(Opened, String)> {
         DeviceChoice::Gpu => {
             let b = GpuBackend::new()?;
             let line = format!("device: {}", b.describe());
-            Ok((Opened::Gpu(b), line))
+            Ok((Opened::Gpu(Box::new(b)), line))
         }
         DeviceChoice::Auto => match GpuContext::new() {
             Ok(ctx) if !ctx.is_software() => {
                 let b = GpuBackend::with_context(ctx)?;
                 let line = format!("device: {} (auto)", b.describe());
-                Ok((Opened::Gpu(b), line))
+                Ok((Opened::Gpu(Box::new(b)), line))
             }
             Ok(ctx) => Ok((
                 Opened::Cpu(CpuBackend),

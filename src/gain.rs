@@ -12,9 +12,9 @@
 //! only meaningful once M is roughly aligned with T; adaptive.rs says when.
 
 use crate::backend::{check_pair, Backend};
-use crate::cpu::sample::trilinear;
 use crate::error::Result;
 use crate::pyramid;
+use crate::sample::trilinear;
 use crate::volume::{Image, Volume};
 use rayon::prelude::*;
 

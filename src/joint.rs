@@ -3,7 +3,7 @@
 //! posteriorly — the direction a knee bends.
 
 use crate::error::{Error, Result};
-use crate::phantom::anatomy::label;
+use crate::labels as label;
 use crate::volume::Labels;
 use nalgebra::{Matrix3, Vector3};
 

@@ -2,8 +2,8 @@
 //! (sagittal with anterior left, coronal and axial in radiological convention: the subject's
 //! right on the image's left), whatever the voxel order on disk.
 
-use crate::cpu::sample::trilinear;
 use crate::error::{Error, Result};
+use crate::sample::trilinear;
 use crate::volume::Volume;
 use image::{Rgb, RgbImage};
 use nalgebra::Vector4;

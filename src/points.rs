@@ -4,7 +4,7 @@
 //! source point is x, found from the nearest target voxel whose source point lies closest to x,
 //! then fixed-point steps p ← x − u(p) with u trilinear; the residual |p + u(p) − x| is reported.
 
-use crate::cpu::sample::trilinear;
+use crate::sample::trilinear;
 use crate::volume::Field;
 use nalgebra::Vector3;
 use rayon::prelude::*;

@@ -2,7 +2,7 @@
 //! adaptive cubic-RBF stage, the composed field, a fold check, and the source resampled once.
 
 use crate::abi::Interpolation;
-use crate::adaptive::{self, compose, Adaptive, AdaptiveOptions, Moving};
+use crate::adaptive::{self, Adaptive, AdaptiveOptions, Moving};
 use crate::articulated::{initialise, InitOptions, Initialisation};
 use crate::backend::{resample_onto, Backend, Traffic};
 use crate::error::Result;
@@ -35,6 +35,12 @@ impl Default for RegisterOptions {
             adaptive: AdaptiveOptions::default(),
             pins_per_bone: 8,
         }
+    }
+}
+
+impl crate::io::config::Settings for RegisterOptions {
+    fn check(&self) -> Result<()> {
+        RegisterOptions::check(self)
     }
 }
 
@@ -240,13 +246,14 @@ pub fn register<B: Backend>(
     let folds = |det: &Volume| det.data.iter().filter(|&&v| v <= 0.0).count();
     let mut scale = 1.0;
     let warp = loop {
-        let warp = adaptive.warp_field(&target.grid, options.adaptive.lattice_mm, scale);
+        let warp =
+            adaptive.warp_field(backend, &target.grid, options.adaptive.lattice_mm, scale)?;
         if folds(&backend.jacobian(&warp)?) == 0 || scale < 0.1 {
             break warp;
         }
         scale *= 0.5;
     };
-    let mut field = compose(&warp, &initial)?;
+    let mut field = backend.compose(&warp, &initial)?;
     let mut det = backend.jacobian(&field)?;
     // Only a field that folds is unfolded: the others keep their bits.
     let mut unfolding = FoldRepair::default();

@@ -3,8 +3,8 @@
 //! kernel and folded here in f64, coarse to fine; large poses start from a one-pass score of
 //! hundreds of rotations about the joint (rigid_score kernel).
 
+use crate::abi::RIGID_SUMS as SUMS;
 use crate::backend::Backend;
-use crate::cpu::rigid_gn::SUMS;
 use crate::error::{Error, Result};
 use crate::volume::{Affine, Volume};
 use nalgebra::{Matrix6, Rotation3, Vector3, Vector6};
@@ -45,14 +45,6 @@ pub fn fold_normal_equations(partial: &[f32]) -> NormalEquations {
         ssd: sums[27],
         count: sums[28],
     }
-}
-
-/// 12 floats per candidate: rows 0..3 of each matrix (the rigid_score kernel's layout).
-pub fn pack_candidates(candidates: &[Affine]) -> Vec<f32> {
-    candidates
-        .iter()
-        .flat_map(|m| (0..3).flat_map(move |r| (0..4).map(move |c| m[(r, c)] as f32)))
-        .collect()
 }
 
 /// Folds per-column candidate partials into (Σ r², count) per candidate, in f64.

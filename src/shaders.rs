@@ -62,6 +62,25 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         ],
     ),
     (
+        "warp_field",
+        &[
+            COMMON,
+            LATTICE_WARP,
+            (
+                "warp_field.wgsl",
+                include_str!("../shaders/warp_field.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "compose",
+        &[
+            COMMON,
+            SAMPLE,
+            ("compose.wgsl", include_str!("../shaders/compose.wgsl")),
+        ],
+    ),
+    (
         "rbf_lattice",
         &[
             COMMON,

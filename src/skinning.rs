@@ -43,17 +43,6 @@ pub fn reach_scale(volume: f64, largest: f64) -> f32 {
     (largest / volume.max(1.0)).cbrt().clamp(1.0, 3.0) as f32
 }
 
-/// Refuses bone counts the skinning kernels cannot take.
-pub fn check_bone_count(bones: usize) -> Result<()> {
-    if bones == 0 || bones > crate::abi::MAX_SKIN_BONES {
-        return Err(Error::InvalidInput(format!(
-            "skinning takes 1 to {} bones, got {bones}",
-            crate::abi::MAX_SKIN_BONES
-        )));
-    }
-    Ok(())
-}
-
 /// A grid sampling every k-th voxel of `grid` per axis, k chosen for about 2.5 mm spacing.
 pub fn skinning_grid(grid: &Grid) -> (Grid, [usize; 3]) {
     let spacing = grid.spacing();
@@ -168,7 +157,7 @@ pub fn weights<B: Backend>(
     bones: &[u16],
     power: u32,
 ) -> Result<SkinningWeights> {
-    check_bone_count(bones.len())?;
+    crate::abi::check_bone_count(bones.len())?;
     let (grid, stride) = skinning_grid(&labels.grid);
     let src = &labels.grid;
     let sampled: Vec<u16> = (0..grid.len())

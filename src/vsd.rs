@@ -9,43 +9,12 @@
 //! rigid motions, so tissue between the bones turns by a blended angle about a blended axis
 //! and keeps its distance to the joint).
 
+use crate::abi::{Blending, BoneBlend};
 use crate::backend::Backend;
 use crate::error::Result;
 use crate::fold_repair::{repair_folds, FoldRepair};
 use crate::skinning::SkinningWeights;
 use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
-
-/// How the bones' rigid motions are blended across soft tissue.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Default,
-    serde::Serialize,
-    serde::Deserialize,
-    clap::ValueEnum,
-)]
-#[serde(rename_all = "kebab-case")]
-pub enum Blending {
-    /// Σ_j w_j M_j (the paper's linear blend skinning).
-    #[default]
-    Linear,
-    /// The normalised blend of the motions' unit dual quaternions.
-    DualQuaternion,
-}
-
-/// Bone motions (source → target world) and how to blend and invert them.
-#[derive(Clone, Debug)]
-pub struct BoneBlend {
-    /// One rigid motion per weight bone.
-    pub motions: Vec<Affine>,
-    /// Linear or dual-quaternion.
-    pub blending: Blending,
-    /// Newton-like inversion steps per voxel.
-    pub iterations: u32,
-}
 
 /// Newton-like inversion steps per voxel.
 pub const INVERSION_ITERATIONS: u32 = 30;

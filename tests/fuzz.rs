@@ -217,7 +217,7 @@ fn readers(seeds: &Seeds) -> Vec<(&'static str, Reader<'_>)> {
             Box::new(move |rng| {
                 let (path, seed) = &settings[rng.random_range(0..settings.len())];
                 let text = mutate_text(rng, seed);
-                let result = parse_options(path, &text).map(|_| ());
+                let result = parse_options::<RegisterOptions>(path, &text).map(|_| ());
                 (
                     path.display().to_string(),
                     result.map_err(|e| e.to_string()),

@@ -4,9 +4,9 @@ mod common;
 
 use common::*;
 use posereg::abi::Interpolation;
+use posereg::abi::{Blending, BoneBlend};
 use posereg::cpu::CpuBackend;
 use posereg::volume::{Affine, Grid, Image};
-use posereg::vsd::{Blending, BoneBlend};
 use posereg::Backend;
 
 /// A linear ramp with dyadic coefficients: every value and every trilinear weight used below
@@ -653,7 +653,7 @@ fn lattice_interpolation_error_of_a_cubic_rbf_warp_is_small() {
         stages: Vec::new(),
         evaluations: Default::default(),
     };
-    let field = adaptive.warp_field(&grid, 5.0, 1.0);
+    let field = adaptive.warp_field(&CpuBackend, &grid, 5.0, 1.0).unwrap();
     let (mut worst, mut sum) = (0.0f64, 0.0f64);
     for n in 0..grid.len() {
         let w = grid.world_of(n);

@@ -2,9 +2,9 @@
 //! has the same size in Rust and WGSL.
 
 use posereg::abi::{
-    EnergyParams, JacobianParams, PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams,
-    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
-    SsdParams, SumParams,
+    ComposeParams, EnergyParams, JacobianParams, PartialsParams, PyramidParams, RbfGradParams,
+    RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
+    SplatParams, SsdParams, SumParams,
 };
 use posereg::shaders::{locate, source, KERNELS};
 use std::mem::size_of;
@@ -67,7 +67,7 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
-    let pairs: [(&str, &str, usize); 16] = [
+    let pairs: [(&str, &str, usize); 18] = [
         ("rbf_grad", "RbfGradParams", size_of::<RbfGradParams>()),
         ("warp_cost", "RbfGradParams", size_of::<RbfGradParams>()),
         (
@@ -82,6 +82,8 @@ fn abi_structs_match_their_wgsl_twins() {
         ),
         ("lattice_energy", "EnergyParams", size_of::<EnergyParams>()),
         ("sum_chunks", "SumParams", size_of::<SumParams>()),
+        ("warp_field", "RbfGradParams", size_of::<RbfGradParams>()),
+        ("compose", "ComposeParams", size_of::<ComposeParams>()),
         (
             "sum_partials",
             "PartialsParams",

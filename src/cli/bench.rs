@@ -140,7 +140,10 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         seed,
         ..Default::default()
     };
-    let pair = (generate(&spec(0.0, 1))?, generate(&spec(args.flexion, 2))?);
+    let pair = (
+        generate(&posereg::cpu::CpuBackend, &spec(0.0, 1))?,
+        generate(&posereg::cpu::CpuBackend, &spec(args.flexion, 2))?,
+    );
     println!(
         "{:?} phantom {:?}, {}° flexion, median of {} runs",
         args.size,

@@ -3,13 +3,13 @@
 
 use super::progress::Reporter;
 use clap::Args;
+use posereg::abi::Blending;
 use posereg::abi::Interpolation;
 use posereg::articulated::bend;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::save_field;
 use posereg::io::nifti::{load_labels, load_volume, save_labels, save_volume, DataType};
 use posereg::joint::JointAxis;
-use posereg::vsd::Blending;
 use posereg::Backend;
 use posereg::Error;
 use std::path::PathBuf;

@@ -58,8 +58,8 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         "making a {:?} knee phantom straight and bent {}° ...",
         args.size, args.flexion
     );
-    let source = generate(&spec(0.0, 1))?;
-    let target = generate(&spec(args.flexion, 2))?;
+    let source = generate(&posereg::cpu::CpuBackend, &spec(0.0, 1))?;
+    let target = generate(&posereg::cpu::CpuBackend, &spec(args.flexion, 2))?;
     println!("registering ...");
     let started = std::time::Instant::now();
     let result = posereg::on_backend!(opened, backend => register(

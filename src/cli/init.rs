@@ -3,6 +3,7 @@
 
 use super::progress::Reporter;
 use clap::Args;
+use posereg::abi::Blending;
 use posereg::abi::Interpolation;
 use posereg::articulated::{bone_name, initialise, present_bones, rigid_field, InitOptions};
 use posereg::backend::resample_onto;
@@ -14,7 +15,6 @@ use posereg::io::transform::BoneTransforms;
 use posereg::io::{prepare_output_folder, OutputFolder};
 use posereg::joint::rotation_degrees;
 use posereg::metric::correlation;
-use posereg::vsd::Blending;
 use posereg::Backend;
 use posereg::Error;
 use std::path::{Path, PathBuf};

@@ -5,6 +5,7 @@
 use super::init::PairArgs;
 use super::progress::Reporter;
 use clap::Args;
+use posereg::abi::Blending;
 use posereg::backend::resample_onto;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::inputs::{check_settings, Pair};
@@ -15,7 +16,6 @@ use posereg::levels::PerLevel;
 use posereg::metric::correlation;
 use posereg::register::{register, RegisterOptions};
 use posereg::result_checks::{result_checks, Check, Correlations};
-use posereg::vsd::Blending;
 use posereg::Backend;
 use posereg::Error;
 use std::path::PathBuf;

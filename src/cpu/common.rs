@@ -1,9 +1,6 @@
 //! CPU twin of shaders/common.wgsl: same names, same order of operations.
 
-/// Flat index of voxel (i, j, k) in an x-fastest volume of size dims.
-pub fn voxel_index(i: u32, j: u32, k: u32, dims: [u32; 3]) -> u32 {
-    i + dims[0] * (j + dims[1] * k)
-}
+pub use crate::sample::voxel_index;
 
 /// One row of a 3x4 affine applied to a point, summed left to right.
 pub fn affine_row(row: [f32; 4], p: [f32; 3]) -> f32 {

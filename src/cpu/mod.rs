@@ -3,6 +3,7 @@
 //! path is tested against.
 
 pub mod common;
+pub mod compose;
 pub mod jacobian;
 pub mod lattice_energy;
 pub mod lattice_splat;
@@ -13,24 +14,23 @@ pub mod rbf_lattice;
 pub mod resample;
 pub mod rigid_gn;
 pub mod rigid_score;
-pub mod sample;
 pub mod skin_blend;
 pub mod skin_weights;
 pub mod ssd_cells;
 pub mod sum_chunks;
 pub mod sum_partials;
 pub mod warp_cost;
+pub mod warp_field;
 
 use crate::abi::{
-    EnergyParams, Interpolation, JacobianParams, PartialsParams, PyramidParams, RbfGradParams,
-    RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
-    SplatParams, SsdParams, SumParams,
+    BoneBlend, ComposeParams, EnergyParams, Interpolation, JacobianParams, PartialsParams,
+    PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams,
+    SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
 };
-use crate::backend::{check_pair, Backend, CostImages, Element, Traffic};
+use crate::backend::{check_fields, check_pair, Backend, CostImages, Element, Traffic};
 use crate::error::Result;
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Affine, Field, Grid, Image, Volume};
-use crate::vsd::BoneBlend;
 
 /// Runs every kernel on the host's cores.
 #[derive(Clone, Copy, Debug, Default)]
@@ -114,7 +114,7 @@ impl Backend for CpuBackend {
         check_pair(source, mask)?;
         let params = RigidParams::new(&source.grid, &target.grid, motion, centre);
         let [nx, _, nz] = source.grid.dims;
-        let mut partial = vec![0.0f32; nx * nz * rigid_gn::SUMS];
+        let mut partial = vec![0.0f32; nx * nz * crate::abi::RIGID_SUMS];
         rigid_gn::rigid_gn(
             &params,
             &source.data,
@@ -134,7 +134,7 @@ impl Backend for CpuBackend {
     ) -> Result<Vec<f32>> {
         check_pair(source, mask)?;
         let params = ScoreParams::new(&source.grid, &target.grid, candidates.len());
-        let packed = crate::rigid::pack_candidates(candidates);
+        let packed = crate::abi::pack_candidates(candidates);
         let [nx, _, nz] = source.grid.dims;
         let mut partial = vec![0.0f32; nx * nz * candidates.len() * 2];
         rigid_score::rigid_score(
@@ -170,7 +170,7 @@ impl Backend for CpuBackend {
         target: &Grid,
         blend: &BoneBlend,
     ) -> Result<Vec<f32>> {
-        crate::skinning::check_bone_count(blend.motions.len())?;
+        crate::abi::check_bone_count(blend.motions.len())?;
         let params = SkinBlendParams::new(target, weight_grid, labels, blend);
         let mut out = vec![0.0f32; 4 * target.len()];
         skin_blend::skin_blend(&params, weights, bone_of_voxel, &mut out);
@@ -190,6 +190,32 @@ impl Backend for CpuBackend {
         let mut out = vec![0.0f32; 4 * fixed.grid.len()];
         rbf_grad::rbf_grad(&params, lattice, &moving.data, &fixed.data, &mut out);
         Ok(out)
+    }
+
+    fn warp_field(
+        &self,
+        lattice: &[f32],
+        lattice_dims: [usize; 3],
+        step: usize,
+        grid: &Grid,
+    ) -> Result<Field> {
+        let params = RbfGradParams::new(grid, lattice_dims, step);
+        let mut out = vec![0.0f32; 3 * grid.len()];
+        warp_field::warp_field(&params, lattice, &mut out);
+        Image::from_data(grid.clone(), bytemuck::cast_slice(&out).to_vec())
+    }
+
+    fn compose(&self, warp: &Field, initial: &Field) -> Result<Field> {
+        check_fields(warp, initial)?;
+        let params = ComposeParams::new(&warp.grid);
+        let mut out = vec![0.0f32; 3 * warp.grid.len()];
+        compose::compose(
+            &params,
+            bytemuck::cast_slice(&warp.data),
+            bytemuck::cast_slice(&initial.data),
+            &mut out,
+        );
+        Image::from_data(warp.grid.clone(), bytemuck::cast_slice(&out).to_vec())
     }
 
     fn rbf_lattice(

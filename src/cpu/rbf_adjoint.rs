@@ -96,10 +96,16 @@ fn sum_block(
                 sz[r] += g[2] * w;
             }
         }
-        for r in (points.max(first) - first)..rows_here {
+        let affine_rows = (points.max(first) - first)..rows_here;
+        for (r, sum) in affine_sums
+            .iter_mut()
+            .enumerate()
+            .take(affine_rows.end)
+            .skip(affine_rows.start)
+        {
             let w = affine_term(first + r - points, x);
             for a in 0..3 {
-                affine_sums[r][a] += g[a] * w;
+                sum[a] += g[a] * w;
             }
         }
     }

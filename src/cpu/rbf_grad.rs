@@ -1,8 +1,8 @@
 //! CPU twin of shaders/rbf_grad.wgsl.
 
 use super::common::{linear_row, voxel_index};
-use super::sample::{inside_source, trilinear_with_gradient};
 use crate::abi::RbfGradParams;
+use crate::sample::{inside_source, trilinear_with_gradient};
 use glam::Vec3;
 use rayon::prelude::*;
 

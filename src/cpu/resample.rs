@@ -1,8 +1,8 @@
 //! CPU twin of shaders/resample.wgsl: one target slice per rayon task.
 
 use super::common::{affine_row, linear_row, voxel_index};
-use super::sample::{nearest, trilinear};
 use crate::abi::ResampleParams;
+use crate::sample::{nearest, trilinear};
 use rayon::prelude::*;
 
 /// Fills `warped` (one value per voxel of the slab `params` describes) from `source` and the

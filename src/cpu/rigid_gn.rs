@@ -1,13 +1,10 @@
 //! CPU twin of shaders/rigid_gn.wgsl: the same per-column sums, one slice per rayon task.
 
 use super::common::{affine_row, linear_row, voxel_index};
-use super::sample::{inside_source, trilinear_with_gradient};
-use crate::abi::RigidParams;
+use crate::abi::{RigidParams, RIGID_SUMS as SUMS};
+use crate::sample::{inside_source, trilinear_with_gradient};
 use glam::Vec3;
 use rayon::prelude::*;
-
-/// Sums per column: JᵀJ upper triangle (21), Jᵀr (6), Σr² (1), count (1).
-pub const SUMS: usize = 29;
 
 /// Fills `partial` (29 per column of the slab) from the slab's source and mask and the whole
 /// target.

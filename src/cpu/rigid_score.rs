@@ -1,8 +1,8 @@
 //! CPU twin of shaders/rigid_score.wgsl.
 
 use super::common::{affine_row, voxel_index};
-use super::sample::{inside_source, trilinear};
 use crate::abi::ScoreParams;
+use crate::sample::{inside_source, trilinear};
 use rayon::prelude::*;
 
 /// Fills `partial` with (Σ r², count) per column and candidate, layout

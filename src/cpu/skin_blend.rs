@@ -1,8 +1,8 @@
 //! CPU twin of shaders/skin_blend.wgsl.
 
 use super::common::{affine_row, det3, solve3, voxel_index};
-use super::sample::inside_source;
 use crate::abi::SkinBlendParams;
+use crate::sample::inside_source;
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 

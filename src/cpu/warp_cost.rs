@@ -2,9 +2,9 @@
 
 use super::common::{linear_row, voxel_index};
 use super::rbf_grad::warp_at;
-use super::sample::{inside_source, trilinear_with_gradient};
 use crate::abi::RbfGradParams;
 use crate::backend::CostImages;
+use crate::sample::{inside_source, trilinear_with_gradient};
 use rayon::prelude::*;
 
 /// Fills `gradient` (3 floats per voxel: c · 2 (W − T) ∇I0, world mm) and `rows` (Σ c (W − T)²

@@ -7,6 +7,7 @@
 
 pub mod buffer;
 pub mod context;
+pub mod field;
 pub mod jacobian;
 pub mod kernel;
 pub mod nonrigid;
@@ -20,14 +21,14 @@ pub mod skinning;
 pub mod ssd_cells;
 
 use crate::abi::{
-    EnergyParams, Interpolation, JacobianParams, PyramidParams, RbfGradParams, RbfLatticeParams,
-    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
+    BoneBlend, ComposeParams, EnergyParams, Interpolation, JacobianParams, PyramidParams,
+    RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams,
+    SkinWeightsParams, SplatParams,
 };
-use crate::backend::{check_pair, Backend, CostImages, Element, Traffic};
+use crate::backend::{check_fields, check_pair, Backend, CostImages, Element, Traffic};
 use crate::error::{Error, Result};
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Affine, Field, Grid, Image, Volume};
-use crate::vsd::BoneBlend;
 use context::GpuContext;
 use kernel::Kernel;
 use resident::GpuBuffer;
@@ -43,6 +44,7 @@ pub struct Slab {
 
 /// The bind group layout of every kernel, by name (the names of crate::shaders::KERNELS).
 pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
+    ("compose", field::COMPOSE_BINDINGS),
     ("jacobian", jacobian::BINDINGS),
     ("lattice_energy", nonrigid::ENERGY_BINDINGS),
     ("lattice_splat", nonrigid::SPLAT_BINDINGS),
@@ -59,6 +61,7 @@ pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
     ("sum_chunks", nonrigid::SUM_BINDINGS),
     ("sum_partials", nonrigid::PARTIALS_BINDINGS),
     ("warp_cost", nonrigid::COST_BINDINGS),
+    ("warp_field", field::WARP_BINDINGS),
 ];
 
 fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
@@ -104,6 +107,10 @@ pub struct Kernels {
     pub sum_chunks: Kernel,
     /// shaders/sum_partials.wgsl
     pub sum_partials: Kernel,
+    /// shaders/warp_field.wgsl
+    pub warp_field: Kernel,
+    /// shaders/compose.wgsl
+    pub compose: Kernel,
 }
 
 /// The GPU backend with its compiled kernels.
@@ -143,6 +150,8 @@ impl GpuBackend {
                 rbf_adjoint: compile(&ctx, "rbf_adjoint")?,
                 sum_chunks: compile(&ctx, "sum_chunks")?,
                 sum_partials: compile(&ctx, "sum_partials")?,
+                warp_field: compile(&ctx, "warp_field")?,
+                compose: compile(&ctx, "compose")?,
             },
             ctx,
             max_slab_voxels: None,
@@ -295,7 +304,7 @@ impl Backend for GpuBackend {
     ) -> Result<Vec<f32>> {
         check_pair(source, mask)?;
         let params = ScoreParams::new(&source.grid, &target.grid, candidates.len());
-        let packed = crate::rigid::pack_candidates(candidates);
+        let packed = crate::abi::pack_candidates(candidates);
         rigid::rigid_scores(
             self,
             &params,
@@ -325,7 +334,7 @@ impl Backend for GpuBackend {
         target: &Grid,
         blend: &BoneBlend,
     ) -> Result<Vec<f32>> {
-        crate::skinning::check_bone_count(blend.motions.len())?;
+        crate::abi::check_bone_count(blend.motions.len())?;
         let params = SkinBlendParams::new(target, weight_grid, labels, blend);
         skinning::skin_blend(self, &params, weights, bone_of_voxel)
     }
@@ -341,6 +350,30 @@ impl Backend for GpuBackend {
         check_pair(moving, fixed)?;
         let params = RbfGradParams::new(&fixed.grid, lattice_dims, step);
         rbf::rbf_grad(self, &params, lattice, &moving.data, &fixed.data)
+    }
+
+    fn warp_field(
+        &self,
+        lattice: &[f32],
+        lattice_dims: [usize; 3],
+        step: usize,
+        grid: &Grid,
+    ) -> Result<Field> {
+        let params = RbfGradParams::new(grid, lattice_dims, step);
+        let out = field::warp_field(self, &params, lattice)?;
+        Image::from_data(grid.clone(), bytemuck::cast_slice(&out).to_vec())
+    }
+
+    fn compose(&self, warp: &Field, initial: &Field) -> Result<Field> {
+        check_fields(warp, initial)?;
+        let params = ComposeParams::new(&warp.grid);
+        let out = field::compose(
+            self,
+            &params,
+            bytemuck::cast_slice(&warp.data),
+            bytemuck::cast_slice(&initial.data),
+        )?;
+        Image::from_data(warp.grid.clone(), bytemuck::cast_slice(&out).to_vec())
     }
 
     fn rbf_lattice(

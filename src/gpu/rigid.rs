@@ -3,8 +3,8 @@
 use super::kernel::{groups, Binding};
 use super::run::{run_slabs, Input};
 use super::GpuBackend;
+use crate::abi::RIGID_SUMS as SUMS;
 use crate::abi::{RigidParams, ScoreParams};
-use crate::cpu::rigid_gn::SUMS;
 use crate::error::Result;
 
 /// rigid_gn bindings in the order the shader declares them.

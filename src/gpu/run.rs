@@ -5,15 +5,8 @@
 use super::buffer::{storage_from, storage_output, submit_and_read, uniform_from};
 use super::kernel::Kernel;
 use super::GpuBackend;
+use crate::abi::SlabParams;
 use crate::error::Result;
-use bytemuck::Pod;
-
-/// Parameter structs of kernels that can run on a slab of slices.
-pub trait SlabParams: Pod {
-    /// The same parameters for output slices z0 .. z0 + depth, with per-voxel inputs bound
-    /// from slice `first` (the slab minus its halo).
-    fn for_slab(&self, z0: u32, depth: u32, first: u32) -> Self;
-}
 
 /// A storage input of a kernel.
 pub enum Input<'a> {

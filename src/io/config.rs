@@ -1,18 +1,25 @@
-//! Registration settings files: TOML or JSON (chosen by the extension), holding any subset of
-//! [`RegisterOptions`]; what a file leaves out keeps its default, and an unknown key is an
-//! error (a misspelt setting must not be silently ignored).
+//! Settings files: TOML or JSON (chosen by the extension), holding any subset of a settings
+//! struct (the registration's is `register::RegisterOptions`); what a file leaves out keeps
+//! its default, and an unknown key is an error (a misspelt setting must not be silently
+//! ignored).
 
 use crate::error::{Error, Result};
-use crate::register::RegisterOptions;
 use std::path::Path;
 
+/// Settings a file can hold: every field defaulted, unknown keys refused, and a check of the
+/// values that says what is wrong.
+pub trait Settings: serde::Serialize + serde::de::DeserializeOwned {
+    /// Rejects values the settings' user cannot run with, naming the setting.
+    fn check(&self) -> Result<()>;
+}
+
 /// Reads a settings file over the defaults.
-pub fn load_options(path: &Path) -> Result<RegisterOptions> {
+pub fn load_options<T: Settings>(path: &Path) -> Result<T> {
     parse_options(path, &super::read_text(path)?)
 }
 
 /// Settings from the text of the file `path` (whose extension says TOML or JSON), checked.
-pub fn parse_options(path: &Path, text: &str) -> Result<RegisterOptions> {
+pub fn parse_options<T: Settings>(path: &Path, text: &str) -> Result<T> {
     let extension = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase());
@@ -21,7 +28,7 @@ pub fn parse_options(path: &Path, text: &str) -> Result<RegisterOptions> {
         Some("json") => serde_json::from_str(text).map_err(|e| e.to_string()),
         _ => Err("a settings file must end in .toml or .json".to_string()),
     };
-    let options: RegisterOptions = parsed.map_err(|problem| Error::bad_file(path, problem))?;
+    let options: T = parsed.map_err(|problem| Error::bad_file(path, problem))?;
     options
         .check()
         .map_err(|problem| Error::bad_file(path, problem.to_string()))?;
@@ -29,13 +36,14 @@ pub fn parse_options(path: &Path, text: &str) -> Result<RegisterOptions> {
 }
 
 /// The settings as TOML, in the form [`load_options`] reads back.
-pub fn options_toml(options: &RegisterOptions) -> String {
+pub fn options_toml<T: Settings>(options: &T) -> String {
     toml::to_string_pretty(options).unwrap_or_else(|e| format!("# cannot show settings: {e}\n"))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::register::RegisterOptions;
 
     #[test]
     fn defaults_written_as_toml_read_back_unchanged() {
@@ -43,7 +51,7 @@ mod tests {
         let path = dir.path().join("settings.toml");
         let defaults = RegisterOptions::default();
         std::fs::write(&path, options_toml(&defaults)).unwrap();
-        let back = load_options(&path).unwrap();
+        let back: RegisterOptions = load_options(&path).unwrap();
         assert_eq!(options_toml(&back), options_toml(&defaults));
     }
 
@@ -52,7 +60,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("settings.json");
         std::fs::write(&path, r#"{"adaptive": {"iterations": "40x30x20"}}"#).unwrap();
-        let got = load_options(&path).unwrap();
+        let got: RegisterOptions = load_options(&path).unwrap();
         assert_eq!(got.adaptive.iterations.to_string(), "40x30x20");
         assert_eq!(
             got.adaptive.threshold,
@@ -70,10 +78,12 @@ mod tests {
             "[adaptive]\niterations = \"3xx\"\n",
         ] {
             std::fs::write(&path, text).unwrap();
-            let err = load_options(&path).unwrap_err().to_string();
+            let err = load_options::<RegisterOptions>(&path)
+                .unwrap_err()
+                .to_string();
             assert!(err.contains("typo.toml"), "{err}");
         }
-        let err = load_options(&dir.path().join("settings.yaml"))
+        let err = load_options::<RegisterOptions>(&dir.path().join("settings.yaml"))
             .unwrap_err()
             .to_string();
         assert!(err.contains("settings.yaml"), "{err}");

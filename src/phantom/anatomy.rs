@@ -8,29 +8,7 @@
 use super::shapes::{capsule, coverage, ellipse, ellipsoid, ray_xy, smooth_union};
 use glam::{Vec2, Vec3};
 
-/// Label codes shared by the phantom and the data (ARCHITECTURE.md).
-pub mod label {
-    /// Outside the body.
-    pub const OUTSIDE: u16 = 0;
-    /// Soft tissue (skin, fat, muscle, cartilage, tendon, fluid).
-    pub const SOFT_TISSUE: u16 = 1;
-    /// Femur.
-    pub const FEMUR: u16 = 2;
-    /// Tibia.
-    pub const TIBIA: u16 = 3;
-    /// Patella.
-    pub const PATELLA: u16 = 4;
-    /// Fibula.
-    pub const FIBULA: u16 = 5;
-}
-
-/// The bones, in label order.
-pub const BONES: [(u16, &str); 4] = [
-    (label::FEMUR, "femur"),
-    (label::TIBIA, "tibia"),
-    (label::PATELLA, "patella"),
-    (label::FIBULA, "fibula"),
-];
+pub use crate::labels::{self as label, BONES};
 
 const AIR: f32 = 0.0;
 const SKIN: f32 = 450.0;

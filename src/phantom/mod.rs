@@ -11,7 +11,7 @@ pub mod anatomy;
 pub mod flexion;
 pub mod shapes;
 
-use crate::cpu::CpuBackend;
+use crate::backend::Backend;
 use crate::error::{Error, Result};
 use crate::fold_repair::unfold;
 use crate::io::transform::{BoneTransform, BoneTransforms};
@@ -107,8 +107,9 @@ pub struct Phantom {
 /// Brightest tissue intensity; the noise level is relative to it.
 const INTENSITY_SCALE: f32 = 1000.0;
 
-/// Builds a phantom.
-pub fn generate(spec: &PhantomSpec) -> Result<Phantom> {
+/// Builds a phantom; `backend` computes the Jacobians of its truth field's unfolding (callers pass
+/// the CPU backend, so the truth does not depend on the device).
+pub fn generate<B: Backend>(backend: &B, spec: &PhantomSpec) -> Result<Phantom> {
     if !(0.0..=120.0).contains(&spec.flexion_degrees) {
         return Err(Error::InvalidInput(format!(
             "flexion {}° is outside 0..120",
@@ -133,7 +134,7 @@ pub fn generate(spec: &PhantomSpec) -> Result<Phantom> {
             .map(|n| world_of(&grid, n))
             .collect()
     } else {
-        unfolded(&grid, flexion.straight_points(&grid))?
+        unfolded(backend, &grid, flexion.straight_points(&grid))?
     };
     // Anti-alias over about one voxel.
     let edge = grid.spacing().iter().cloned().fold(0.0, f64::max) as f32;
@@ -196,7 +197,7 @@ pub fn generate(spec: &PhantomSpec) -> Result<Phantom> {
 /// ([`unfold`]), voxels inside a bone fixed and none pushed into one, so the field the bent
 /// image is sampled through has det J > 0.05 at every voxel. The truth stays exact: it is that
 /// field. Voxels the push leaves alone keep their points bit for bit.
-fn unfolded(grid: &Grid, straight: Vec<Vec3>) -> Result<Vec<Vec3>> {
+fn unfolded<B: Backend>(backend: &B, grid: &Grid, straight: Vec<Vec3>) -> Result<Vec<Vec3>> {
     let in_bone = |p: Vec3| BONES.iter().any(|(code, _)| anatomy::bone(*code, p) <= 0.0);
     let rigid: Vec<bool> = straight.par_iter().map(|&q| in_bone(q)).collect();
     let displacement = |n: usize, q: Vec3| (q - world_of(grid, n)).to_array();
@@ -206,7 +207,7 @@ fn unfolded(grid: &Grid, straight: Vec<Vec3>) -> Result<Vec<Vec3>> {
         .map(|(n, q)| displacement(n, *q))
         .collect();
     let mut field = Image::from_data(grid.clone(), sampled)?;
-    unfold(&CpuBackend, &mut field, &rigid, &|n, u| {
+    unfold(backend, &mut field, &rigid, &|n, u| {
         in_bone(world_of(grid, n) + Vec3::from_array(u))
     })?;
     Ok(straight

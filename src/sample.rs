@@ -1,6 +1,12 @@
-//! CPU twin of shaders/sample.wgsl (trilinear interpolation by hand).
+//! Trilinear and nearest sampling of a volume at a continuous voxel index, by hand: the CPU
+//! twin of shaders/sample.wgsl, which the CPU kernels use, and the one sampling the host's
+//! own per-point work (pictures, points) shares with them.
 
-use super::common::voxel_index;
+/// Flat index of voxel (i, j, k) in an x-fastest volume of size dims (common.wgsl's
+/// voxel_index).
+pub fn voxel_index(i: u32, j: u32, k: u32, dims: [u32; 3]) -> u32 {
+    i + dims[0] * (j + dims[1] * k)
+}
 
 /// True when q lies within half a voxel of the outer voxel centres on every axis.
 pub fn inside_source(q: [f32; 3], dims: [u32; 3]) -> bool {

@@ -1,0 +1,51 @@
+// compose.wgsl: the total field u = R + u0 ∘ (id + R): a target point x reaches its source
+// point through the warp first, then through the initial field where the warp lands, so the
+// source is resampled once. u0 is read trilinearly at x + R(x), clamped to its grid (beyond
+// the grid the initial field's edge values continue).
+//
+// Bindings (group 0):
+//   0 uniform  ComposeParams
+//   1 storage  warp: array<f32>     R, 3 floats per voxel of this slab
+//   2 storage  initial: array<f32>  u0, 3 floats per voxel of the whole grid
+//   3 storage  out: array<f32>      u, 3 floats per voxel of this slab (read_write)
+// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(depth/4)).
+
+// Keep in sync with abi::ComposeParams.
+struct ComposeParams {
+    dims: vec4<u32>,   // nx, ny, nz, z0 (first slice of this slab)
+    slab: vec4<u32>,   // depth, unused x3
+    mm_to_index: array<vec4<f32>, 3>,
+}
+
+@group(0) @binding(0) var<uniform> params: ComposeParams;
+@group(0) @binding(1) var<storage, read> warp: array<f32>;
+@group(0) @binding(2) var<storage, read> initial: array<f32>;
+@group(0) @binding(3) var<storage, read_write> out: array<f32>;
+
+// The component of u0 that sample.wgsl reads.
+var<private> component: u32;
+
+fn sampled_value(index: u32) -> f32 {
+    return initial[3u * index + component];
+}
+
+@compute @workgroup_size(4, 4, 4)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let d = params.dims;
+    let depth = params.slab.x;
+    if (gid.x >= d.x || gid.y >= d.y || gid.z >= depth) {
+        return;
+    }
+    let o = 3u * voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth));
+    let r = vec3<f32>(warp[o], warp[o + 1u], warp[o + 2u]);
+    let q = vec3<f32>(f32(gid.x), f32(gid.y), f32(gid.z + d.w)) + vec3<f32>(
+        linear_row(params.mm_to_index[0], r),
+        linear_row(params.mm_to_index[1], r),
+        linear_row(params.mm_to_index[2], r),
+    );
+    let qc = clamp(q, vec3<f32>(0.0), vec3<f32>(d.xyz) - vec3<f32>(1.0));
+    for (var c = 0u; c < 3u; c = c + 1u) {
+        component = c;
+        out[o + c] = r[c] + trilinear_with_gradient(qc, d.xyz).x;
+    }
+}

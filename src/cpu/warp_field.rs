@@ -1,0 +1,21 @@
+//! CPU twin of shaders/warp_field.wgsl.
+
+use super::rbf_grad::warp_at;
+use crate::abi::RbfGradParams;
+use rayon::prelude::*;
+
+/// Fills `out` (3 floats per voxel of the slab) with the warp interpolated from `lattice`.
+pub fn warp_field(params: &RbfGradParams, lattice: &[f32], out: &mut [f32]) {
+    let [nx, ny, _, z0] = params.dims;
+    out.par_chunks_mut(3 * (nx * ny) as usize)
+        .enumerate()
+        .for_each(|(zl, slice)| {
+            let k = zl as u32 + z0;
+            for j in 0..ny {
+                for i in 0..nx {
+                    let o = 3 * (i + nx * j) as usize;
+                    slice[o..o + 3].copy_from_slice(&warp_at(params, lattice, i, j, k).to_array());
+                }
+            }
+        });
+}
