@@ -34,34 +34,37 @@ pub fn rbf_adjoint(
         .par_chunks_mut(3 * rows)
         .enumerate()
         .for_each(|(c, out)| {
-            let range = c * chunk..((c + 1) * chunk).min(nodes);
+            // The chunk's node positions, computed as the shader does, once for all its rows.
+            let l = [params.lattice[0], params.lattice[1], params.lattice[2]];
+            let positions: Vec<[f64; 3]> = (c * chunk..((c + 1) * chunk).min(nodes))
+                .map(|n| {
+                    let a = [
+                        n as u32 % l[0],
+                        (n as u32 / l[0]) % l[1],
+                        n as u32 / (l[0] * l[1]),
+                    ];
+                    node_position(geometry, a, params.step[0])
+                })
+                .collect();
+            let gradient = &node_gradient[3 * c * chunk..3 * (c * chunk + positions.len())];
             out.par_chunks_mut(3 * BLOCK)
                 .enumerate()
                 .for_each(|(block, rows)| {
-                    sum_block(
-                        params,
-                        geometry,
-                        spline,
-                        node_gradient,
-                        range.clone(),
-                        block,
-                        rows,
-                    )
+                    sum_block(params, spline, &positions, gradient, block, rows)
                 });
         });
 }
 
-/// One chunk's sums for output rows block · BLOCK .. (as many as `out` holds).
+/// One chunk's sums for output rows block · BLOCK .. (as many as `out` holds), from the chunk's
+/// node `positions` and `gradient` (3 floats per node).
 fn sum_block(
     params: &RbfLatticeParams,
-    geometry: &[f64],
     spline: &[f64],
-    node_gradient: &[f32],
-    nodes: std::ops::Range<usize>,
+    positions: &[[f64; 3]],
+    gradient: &[f32],
     block: usize,
     out: &mut [f64],
 ) {
-    let l = [params.lattice[0], params.lattice[1], params.lattice[2]];
     let points = params.points();
     let first = block * BLOCK;
     let rows_here = out.len() / 3;
@@ -76,14 +79,8 @@ fn sum_block(
     let [cx, cy, cz] = [0, 1, 2].map(|a| centres.map(|c| c[a]));
     let mut point_sums = [[0.0f64; BLOCK]; 3];
     let mut affine_sums = [[0.0f64; 3]; BLOCK];
-    for n in nodes {
-        let a = [
-            n as u32 % l[0],
-            (n as u32 / l[0]) % l[1],
-            n as u32 / (l[0] * l[1]),
-        ];
-        let x = node_position(geometry, a, params.step[0]);
-        let g = [0, 1, 2].map(|c| node_gradient[3 * n + c] as f64);
+    for (x, g) in positions.iter().zip(gradient.chunks_exact(3)) {
+        let (x, g) = (*x, [0, 1, 2].map(|c| g[c] as f64));
         if first < points {
             let [sx, sy, sz] = &mut point_sums;
             for r in 0..BLOCK {

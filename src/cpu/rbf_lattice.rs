@@ -1,11 +1,13 @@
 //! CPU twin of shaders/rbf_lattice.wgsl and of the helpers in shaders/rbf_nodes.wgsl.
 //!
 //! Each node's sum runs in the shader's order (the affine part, then the points in order); the
-//! twin only walks a row of nodes at a time through each point, so the loop over nodes
-//! vectorises.
+//! twin walks a run of nodes at a time through each point, so the loop over nodes vectorises.
 
 use crate::abi::RbfLatticeParams;
 use rayon::prelude::*;
+
+/// Nodes one task evaluates (a run long enough for the loop over them to vectorise well).
+const NODES_PER_TASK: usize = 256;
 
 /// World position (mm) of lattice node `a`, which sits on voxel a · step.
 pub fn node_position(geometry: &[f64], a: [u32; 3], step: u32) -> [f64; 3] {
@@ -35,13 +37,16 @@ pub fn rbf_lattice(
     let [lx, ly, _, points] = params.lattice;
     let s = spline;
     values
-        .par_chunks_mut(3 * lx as usize)
+        .par_chunks_mut(3 * NODES_PER_TASK)
         .enumerate()
-        .for_each(|(row, out)| {
-            let (b, c) = (row as u32 % ly, row as u32 / ly);
-            // Coordinates and sums by axis, so the loop over the row's nodes vectorises.
-            let x: Vec<[f64; 3]> = (0..lx)
-                .map(|a| node_position(geometry, [a, b, c], params.step[0]))
+        .for_each(|(task, out)| {
+            // Coordinates and sums by axis, so the loop over the task's nodes vectorises.
+            let first = task * NODES_PER_TASK;
+            let x: Vec<[f64; 3]> = (first..first + out.len() / 3)
+                .map(|n| {
+                    let a = [n as u32 % lx, (n as u32 / lx) % ly, n as u32 / (lx * ly)];
+                    node_position(geometry, a, params.step[0])
+                })
                 .collect();
             let [xs, ys, zs] = [0, 1, 2].map(|a| x.iter().map(|p| p[a]).collect::<Vec<f64>>());
             let mut r: [Vec<f64>; 3] = std::array::from_fn(|k| {
