@@ -205,23 +205,10 @@ pub struct JacobianParams {
 impl JacobianParams {
     /// Parameters for the Jacobian of a field on `grid` (whole volume as one slab).
     pub fn new(grid: &Grid) -> Self {
-        let inv = snap_to_integers(&grid.world_to_voxel_affine());
         JacobianParams {
-            dims: [
-                grid.dims[0] as u32,
-                grid.dims[1] as u32,
-                grid.dims[2] as u32,
-                0,
-            ],
+            dims: dims4(grid, 0),
             slab: [grid.dims[2] as u32, 0, 0, 0],
-            mm_to_index: std::array::from_fn(|r| {
-                [
-                    inv[(r, 0)] as f32,
-                    inv[(r, 1)] as f32,
-                    inv[(r, 2)] as f32,
-                    0.0,
-                ]
-            }),
+            mm_to_index: mm_to_index_rows(grid),
         }
     }
 }
@@ -268,6 +255,19 @@ fn rows(m: &Affine) -> [[f32; 4]; 3] {
 /// Rows of the linear part only (w = 0).
 fn linear_rows(m: &nalgebra::Matrix3<f64>) -> [[f32; 4]; 3] {
     std::array::from_fn(|r| [m[(r, 0)] as f32, m[(r, 1)] as f32, m[(r, 2)] as f32, 0.0])
+}
+
+/// Rows of the inverse of `grid`'s linear part (d(index)/d(world mm)), whole numbers snapped.
+fn mm_to_index_rows(grid: &Grid) -> [[f32; 4]; 3] {
+    let inv = snap_to_integers(&grid.world_to_voxel_affine());
+    std::array::from_fn(|r| {
+        [
+            inv[(r, 0)] as f32,
+            inv[(r, 1)] as f32,
+            inv[(r, 2)] as f32,
+            0.0,
+        ]
+    })
 }
 
 fn dims4(g: &Grid, w: u32) -> [u32; 4] {
@@ -752,18 +752,10 @@ pub struct ComposeParams {
 impl ComposeParams {
     /// For fields on `grid` (whole volume as one slab).
     pub fn new(grid: &Grid) -> Self {
-        let inv = snap_to_integers(&grid.world_to_voxel_affine());
         ComposeParams {
             dims: dims4(grid, 0),
             slab: [grid.dims[2] as u32, 0, 0, 0],
-            mm_to_index: std::array::from_fn(|r| {
-                [
-                    inv[(r, 0)] as f32,
-                    inv[(r, 1)] as f32,
-                    inv[(r, 2)] as f32,
-                    0.0,
-                ]
-            }),
+            mm_to_index: mm_to_index_rows(grid),
         }
     }
 }
