@@ -1,5 +1,5 @@
 // sample.wgsl: trilinear interpolation by hand (no sampler, so the CPU twin in
-// src/cpu/sample.rs can match it). Prepended to kernels that sample a volume; such a kernel
+// src/sample.rs can match it). Prepended to kernels that sample a volume; such a kernel
 // defines `fn sampled_value(index: u32) -> f32` reading its source binding.
 //
 // Invariants: q is a continuous voxel index of the source. A point is inside when every

@@ -606,7 +606,7 @@ pub fn lattice_geometry(grid: &Grid) -> Vec<f64> {
         .collect()
 }
 
-/// The cubic RBF as the RBF kernels read it (`spline`): the affine part a[k][c] at 3k + c, then
+/// The cubic RBF as the RBF kernels read it (`spline`): the affine part a_kc at 3k + c, then
 /// per control point its position and λ.
 pub fn spline_buffer(
     affine: &[[f64; 3]; 4],

@@ -3,12 +3,15 @@
 //! and their displacements optimised by L-BFGS on the sum of squared differences (plus, after
 //! the articulated initialisation, the membrane energy of the added warp: crate::regularise).
 //!
-//! Cost: the warp is evaluated on a coarse lattice (about every 5 mm) on the host — nodes ×
-//! control points, not voxels × control points — and interpolated per voxel on the backend
-//! (rbf_grad); the gradient comes back through the adjoint of that interpolation
-//! (lattice_splat) and the solved system (RbfSystem::value_gradient). During optimisation the
-//! moving image is the initialised source I0 on the target grid; the final field is composed
-//! with the initial field, u = R + u0 ∘ (id + R), and the source resampled once through it.
+//! Cost: the warp is evaluated on a coarse lattice (about every 5 mm) — nodes × control points,
+//! not voxels × control points — and interpolated per voxel; the gradient comes back through the
+//! adjoint of that interpolation (lattice_splat), the RBF's adjoint at the nodes and the solved
+//! system (RbfSystem::value_gradient). Each evaluation is one pass of kernels on the backend's
+//! buffers (`Evaluator`): only the coefficients go up and only the gradient with respect to
+//! them and a few partial sums come back. The per-refinement warped image (cell costs, gain) is
+//! still evaluated on the host's lattice and read back. During optimisation the moving image is
+//! the initialised source I0 on the target grid; the final field is composed with the initial
+//! field, u = R + u0 ∘ (id + R), and the source resampled once through it.
 
 use crate::abi::{
     lattice_geometry, spline_buffer, EnergyParams, RbfGradParams, RbfLatticeParams, SplatParams,

@@ -8,8 +8,8 @@ mod common;
 use posereg::progress::Silent;
 
 use posereg::evaluate::{field_error, FieldError};
+use posereg::labels as label;
 use posereg::metric::correlation;
-use posereg::phantom::anatomy::label;
 use posereg::phantom::{generate, Phantom, PhantomSize, PhantomSpec};
 use posereg::register::{register, RegisterOptions, Registration};
 use posereg::Backend;
