@@ -32,24 +32,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let k = gid.z + d.w;
-    let r = warp_at(gid.x, gid.y, k);
-    let q = vec3<f32>(f32(gid.x), f32(gid.y), f32(k)) + vec3<f32>(
-        linear_row(params.mm_to_index[0], r),
-        linear_row(params.mm_to_index[1], r),
-        linear_row(params.mm_to_index[2], r),
-    );
-    let o = 4u * voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth));
-    if (!inside_source(q, d.xyz)) {
-        out[o] = 0.0;
-        out[o + 1u] = 0.0;
-        out[o + 2u] = 0.0;
-        out[o + 3u] = 0.0;
-        return;
-    }
-    let vg = trilinear_with_gradient(q, d.xyz);
-    let residual = 2.0 * (vg.x - fixed[voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth))]);
-    out[o] = vg.x;
-    out[o + 1u] = residual * linear_row(params.gradient_to_world[0], vg.yzw);
-    out[o + 2u] = residual * linear_row(params.gradient_to_world[1], vg.yzw);
-    out[o + 3u] = residual * linear_row(params.gradient_to_world[2], vg.yzw);
+    let v = voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth));
+    let s = warped_sample(gid.x, gid.y, k, fixed[v]);
+    out[4u * v] = s.x;
+    out[4u * v + 1u] = s.y;
+    out[4u * v + 2u] = s.z;
+    out[4u * v + 3u] = s.w;
 }

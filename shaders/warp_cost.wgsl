@@ -39,27 +39,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var sum = 0.0;
     for (var i = 0u; i < d.x; i = i + 1u) {
         let v = voxel_index(i, j, k, d.xyz);
-        let r = warp_at(i, j, k);
-        let q = vec3<f32>(f32(i), f32(j), f32(k)) + vec3<f32>(
-            linear_row(params.mm_to_index[0], r),
-            linear_row(params.mm_to_index[1], r),
-            linear_row(params.mm_to_index[2], r),
-        );
+        let s = warped_sample(i, j, k, fixed[v]);
         let c = covered[v];
-        var w = 0.0;
-        var g = vec3<f32>(0.0);
-        if (inside_source(q, d.xyz)) {
-            let vg = trilinear_with_gradient(q, d.xyz);
-            let residual = 2.0 * (vg.x - fixed[v]);
-            w = vg.x;
-            g = vec3<f32>(
-                residual * linear_row(params.gradient_to_world[0], vg.yzw),
-                residual * linear_row(params.gradient_to_world[1], vg.yzw),
-                residual * linear_row(params.gradient_to_world[2], vg.yzw),
-            );
-        }
-        let e = w - fixed[v];
+        let e = s.x - fixed[v];
         sum = sum + c * e * e;
+        let g = s.yzw;
         gradient[3u * v] = c * g.x;
         gradient[3u * v + 1u] = c * g.y;
         gradient[3u * v + 2u] = c * g.z;

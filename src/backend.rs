@@ -7,7 +7,7 @@ use crate::abi::{
 };
 use crate::error::Result;
 use crate::metric::CellSsd;
-use crate::volume::{Affine, Field, Grid, Volume};
+use crate::volume::{Affine, Field, Grid, Image, Volume};
 
 /// What a backend has moved between the host and the device, and how much work it launched,
 /// since it was opened. The CPU backend moves nothing and counts nothing.
@@ -229,24 +229,13 @@ pub trait Backend {
     fn sum_chunks(&self, values: &Self::Buffer<f32>) -> Result<Self::Buffer<f64>>;
 }
 
-/// Checks two fields combined voxel by voxel share a grid.
-pub fn check_fields(a: &Field, b: &Field) -> Result<()> {
-    if a.grid.same_as(&b.grid, 1e-3) {
-        Ok(())
-    } else {
-        Err(crate::error::Error::InvalidInput(
-            "the warp and the initial field are on different grids".into(),
-        ))
-    }
-}
-
-/// Checks two volumes compared voxel by voxel share a grid.
-pub fn check_pair(a: &Volume, b: &Volume) -> Result<()> {
+/// Checks two images (volumes or fields) combined voxel by voxel share a grid.
+pub fn check_pair<T, U>(a: &Image<T>, b: &Image<U>) -> Result<()> {
     if a.grid.same_as(&b.grid, 1e-4) {
         Ok(())
     } else {
         Err(crate::error::Error::InvalidInput(format!(
-            "volumes are on different grids ({:?} vs {:?} voxels, or different affines)",
+            "images are on different grids ({:?} vs {:?} voxels, or different affines)",
             a.grid.dims, b.grid.dims
         )))
     }

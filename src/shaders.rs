@@ -7,6 +7,10 @@ const LATTICE_WARP: (&str, &str) = (
     "lattice_warp.wgsl",
     include_str!("../shaders/lattice_warp.wgsl"),
 );
+const WARP_SAMPLE: (&str, &str) = (
+    "warp_sample.wgsl",
+    include_str!("../shaders/warp_sample.wgsl"),
+);
 const RBF_NODES: (&str, &str) = ("rbf_nodes.wgsl", include_str!("../shaders/rbf_nodes.wgsl"));
 
 /// Every kernel: its name and the files it is assembled from, in order.
@@ -49,6 +53,7 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             SAMPLE,
             LATTICE_WARP,
+            WARP_SAMPLE,
             ("rbf_grad.wgsl", include_str!("../shaders/rbf_grad.wgsl")),
         ],
     ),
@@ -58,6 +63,7 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             SAMPLE,
             LATTICE_WARP,
+            WARP_SAMPLE,
             ("warp_cost.wgsl", include_str!("../shaders/warp_cost.wgsl")),
         ],
     ),

@@ -27,7 +27,7 @@ use crate::abi::{
     PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams,
     SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
 };
-use crate::backend::{check_fields, check_pair, Backend, CostImages, Element, Traffic};
+use crate::backend::{check_pair, Backend, CostImages, Element, Traffic};
 use crate::error::Result;
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Affine, Field, Grid, Image, Volume};
@@ -206,7 +206,7 @@ impl Backend for CpuBackend {
     }
 
     fn compose(&self, warp: &Field, initial: &Field) -> Result<Field> {
-        check_fields(warp, initial)?;
+        check_pair(warp, initial)?;
         let params = ComposeParams::new(&warp.grid);
         let mut out = vec![0.0f32; 3 * warp.grid.len()];
         compose::compose(

@@ -38,6 +38,36 @@ pub fn warp_at(params: &RbfGradParams, lattice: &[f32], i: u32, j: u32, k: u32) 
     (1.0 - t[2]) * c0 + t[2] * c1
 }
 
+/// (W, ∂(W − t)²/∂R) at voxel (i, j, k) of `moving` through the warp `lattice`, against the
+/// target value `t`; all zero outside (warped_sample in shaders/warp_sample.wgsl).
+pub fn warped_sample(
+    params: &RbfGradParams,
+    lattice: &[f32],
+    moving: &[f32],
+    [i, j, k]: [u32; 3],
+    t: f32,
+) -> [f32; 4] {
+    let d = [params.dims[0], params.dims[1], params.dims[2]];
+    let r = warp_at(params, lattice, i, j, k).to_array();
+    let q = [
+        i as f32 + linear_row(params.mm_to_index[0], r),
+        j as f32 + linear_row(params.mm_to_index[1], r),
+        k as f32 + linear_row(params.mm_to_index[2], r),
+    ];
+    if !inside_source(q, d) {
+        return [0.0; 4];
+    }
+    let vg = trilinear_with_gradient(moving, q, d);
+    let g = [vg[1], vg[2], vg[3]];
+    let residual = 2.0 * (vg[0] - t);
+    [
+        vg[0],
+        residual * linear_row(params.gradient_to_world[0], g),
+        residual * linear_row(params.gradient_to_world[1], g),
+        residual * linear_row(params.gradient_to_world[2], g),
+    ]
+}
+
 /// Fills `out` (4 floats per voxel of the slab: W, then the cost gradient in mm).
 pub fn rbf_grad(
     params: &RbfGradParams,
@@ -46,7 +76,7 @@ pub fn rbf_grad(
     fixed: &[f32],
     out: &mut [f32],
 ) {
-    let [nx, ny, nz, z0] = params.dims;
+    let [nx, ny, _, z0] = params.dims;
     let depth = params.slab[0];
     out.par_chunks_mut((4 * nx * ny) as usize)
         .enumerate()
@@ -54,25 +84,15 @@ pub fn rbf_grad(
             let k = zl as u32 + z0;
             for j in 0..ny {
                 for i in 0..nx {
-                    let r = warp_at(params, lattice, i, j, k).to_array();
-                    let q = [
-                        i as f32 + linear_row(params.mm_to_index[0], r),
-                        j as f32 + linear_row(params.mm_to_index[1], r),
-                        k as f32 + linear_row(params.mm_to_index[2], r),
-                    ];
+                    let t = fixed[voxel_index(i, j, zl as u32, [nx, ny, depth]) as usize];
                     let o = 4 * (i + nx * j) as usize;
-                    if !inside_source(q, [nx, ny, nz]) {
-                        slice[o..o + 4].copy_from_slice(&[0.0; 4]);
-                        continue;
-                    }
-                    let vg = trilinear_with_gradient(moving, q, [nx, ny, nz]);
-                    let g = [vg[1], vg[2], vg[3]];
-                    let residual = 2.0
-                        * (vg[0] - fixed[voxel_index(i, j, zl as u32, [nx, ny, depth]) as usize]);
-                    slice[o] = vg[0];
-                    for c in 0..3 {
-                        slice[o + 1 + c] = residual * linear_row(params.gradient_to_world[c], g);
-                    }
+                    slice[o..o + 4].copy_from_slice(&warped_sample(
+                        params,
+                        lattice,
+                        moving,
+                        [i, j, k],
+                        t,
+                    ));
                 }
             }
         });

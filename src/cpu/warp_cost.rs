@@ -1,10 +1,9 @@
 //! CPU twin of shaders/warp_cost.wgsl.
 
-use super::common::{linear_row, voxel_index};
-use super::rbf_grad::warp_at;
+use super::common::voxel_index;
+use super::rbf_grad::warped_sample;
 use crate::abi::RbfGradParams;
 use crate::backend::CostImages;
-use crate::sample::{inside_source, trilinear_with_gradient};
 use rayon::prelude::*;
 
 /// Fills `gradient` (3 floats per voxel: c · 2 (W − T) ∇I0, world mm) and `rows` (Σ c (W − T)²
@@ -27,24 +26,12 @@ pub fn warp_cost(
             let mut sum = 0.0f32;
             for i in 0..nx {
                 let v = voxel_index(i, j, k, d) as usize;
-                let r = warp_at(params, lattice, i, j, k).to_array();
-                let q = [
-                    i as f32 + linear_row(params.mm_to_index[0], r),
-                    j as f32 + linear_row(params.mm_to_index[1], r),
-                    k as f32 + linear_row(params.mm_to_index[2], r),
-                ];
+                let t = images.fixed[v];
+                let s = warped_sample(params, lattice, images.moving, [i, j, k], t);
                 let c = images.covered[v];
-                let (mut w, mut g) = (0.0f32, [0.0f32; 3]);
-                if inside_source(q, d) {
-                    let vg = trilinear_with_gradient(images.moving, q, d);
-                    let residual = 2.0 * (vg[0] - images.fixed[v]);
-                    w = vg[0];
-                    g = std::array::from_fn(|a| {
-                        residual * linear_row(params.gradient_to_world[a], [vg[1], vg[2], vg[3]])
-                    });
-                }
-                let e = w - images.fixed[v];
+                let e = s[0] - t;
                 sum += c * e * e;
+                let g = [s[1], s[2], s[3]];
                 let o = 3 * i as usize;
                 for a in 0..3 {
                     out[o + a] = c * g[a];

@@ -25,7 +25,7 @@ use crate::abi::{
     RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams,
     SkinWeightsParams, SplatParams,
 };
-use crate::backend::{check_fields, check_pair, Backend, CostImages, Element, Traffic};
+use crate::backend::{check_pair, Backend, CostImages, Element, Traffic};
 use crate::error::{Error, Result};
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Affine, Field, Grid, Image, Volume};
@@ -365,7 +365,7 @@ impl Backend for GpuBackend {
     }
 
     fn compose(&self, warp: &Field, initial: &Field) -> Result<Field> {
-        check_fields(warp, initial)?;
+        check_pair(warp, initial)?;
         let params = ComposeParams::new(&warp.grid);
         let out = field::compose(
             self,
