@@ -7,7 +7,10 @@
 //! 64³, 128³ and the paper's 136×256×256.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use posereg::abi::Interpolation;
+use posereg::abi::{
+    pack_candidates, Interpolation, PyramidParams, RigidParams, ScoreParams, RIGID_SUMS,
+};
+use posereg::backend::BoneImages;
 use posereg::cpu::CpuBackend;
 use posereg::device::Opened;
 use posereg::gpu::GpuBackend;
@@ -104,6 +107,21 @@ fn group<R>(
         });
     }
     group.finish();
+}
+
+/// Uploads `inputs`, runs `kernels` on them and downloads what they return: a kernel's cost
+/// when called on host data.
+fn resident<B: Backend, T: posereg::backend::Element, const N: usize>(
+    b: &B,
+    inputs: &[&Vec<f32>; N],
+    kernels: impl Fn(&B, [&B::Buffer<f32>; N]) -> posereg::Result<B::Buffer<T>>,
+) -> posereg::Result<Vec<T>> {
+    let buffers = inputs
+        .iter()
+        .map(|v| b.upload("bench input", v.to_vec()))
+        .collect::<posereg::Result<Vec<_>>>()?;
+    let out = kernels(b, std::array::from_fn(|k| &buffers[k]))?;
+    Ok(b.download(&[&out])?.pop().expect("one buffer asked for"))
 }
 
 /// The non-rigid evaluation's kernels on resident buffers (lattice every 4 voxels, 100 control
@@ -214,14 +232,12 @@ fn kernels(c: &mut Criterion) {
             |b| posereg::on_backend!(b, b => b.jacobian(&u)),
         );
         let (coarse, factors) = posereg::pyramid::next_level_grid(&g).unwrap();
-        group(
-            c,
-            "pyramid",
-            g.len() as u64,
-            &label,
-            &backends,
-            |b| posereg::on_backend!(b, b => b.pyramid_level(&source, &coarse, factors)),
-        );
+        let down = PyramidParams::new(&g, coarse.dims, factors);
+        group(c, "pyramid", g.len() as u64, &label, &backends, |b| {
+            posereg::on_backend!(b, b => resident(b, &[&source.data], |b, [s]| {
+                b.pyramid_level(&down, s)
+            }))
+        });
         // The non-rigid stage's per-iteration work: lattice every 4 voxels.
         let step = 4;
         let ldims: [usize; 3] = std::array::from_fn(|a| (dims[a] - 1).div_ceil(step) + 1);
@@ -264,14 +280,13 @@ fn kernels(c: &mut Criterion) {
             &nalgebra::Vector6::new(0.02, -0.01, 0.03, 1.0, -0.5, 0.2),
             &nalgebra::Vector3::zeros(),
         );
-        group(
-            c,
-            "rigid_gn",
-            g.len() as u64,
-            &label,
-            &backends,
-            |b| posereg::on_backend!(b, b => b.rigid_sums(&source, &mask, &target, &motion, [0.0; 3])),
-        );
+        group(c, "rigid_gn", g.len() as u64, &label, &backends, |b| {
+            posereg::on_backend!(b, b => resident(b, &[&source.data, &mask.data, &target.data], |b, [s, m, t]| {
+                let params = RigidParams::new(&g, &g, &motion, [0.0; 3]);
+                let partial = b.rigid_sums(&params, &BoneImages { source: s, mask: m, target: t })?;
+                b.sum_partials(&partial, RIGID_SUMS)
+            }))
+        });
         let candidates: Vec<posereg::Affine> = (0..32)
             .map(|k| {
                 posereg::rigid::small_motion(
@@ -286,7 +301,15 @@ fn kernels(c: &mut Criterion) {
             32 * g.len() as u64,
             &label,
             &backends,
-            |b| posereg::on_backend!(b, b => b.rigid_scores(&source, &mask, &target, &candidates)),
+            |b| {
+                posereg::on_backend!(b, b => resident(b, &[&source.data, &mask.data, &target.data], |b, [s, m, t]| {
+                    let params = ScoreParams::new(&g, &g, candidates.len());
+                    let packed = b.upload("candidates", pack_candidates(&candidates))?;
+                    let images = BoneImages { source: s, mask: m, target: t };
+                    let partial = b.rigid_scores(&params, &images, &packed)?;
+                    b.sum_partials(&partial, 2 * candidates.len())
+                }))
+            },
         );
         let bones = 4;
         // Synthetic distances (mm) to each bone, per voxel of a grid of `voxels`.

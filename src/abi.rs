@@ -303,6 +303,11 @@ impl PyramidParams {
             factors: [factors[0] as u32, factors[1] as u32, factors[2] as u32, 0],
         }
     }
+
+    /// Voxels of the output level.
+    pub fn output_len(&self) -> usize {
+        self.dims[..3].iter().map(|&n| n as usize).product()
+    }
 }
 
 /// Keep in sync with `RigidParams` in shaders/rigid_gn.wgsl.
@@ -345,6 +350,11 @@ impl RigidParams {
             gradient_to_world: linear_rows(&grad),
         }
     }
+
+    /// Columns of the source (one partial result each): nx · nz.
+    pub fn columns(&self) -> usize {
+        self.dims[0] as usize * self.dims[2] as usize
+    }
 }
 
 /// Keep in sync with `ScoreParams` in shaders/rigid_score.wgsl.
@@ -373,6 +383,16 @@ impl ScoreParams {
             source_to_world: rows(&source.affine),
             world_to_target: rows(&target.world_to_voxel_affine()),
         }
+    }
+
+    /// Columns of the source (one partial result per candidate each): nx · nz.
+    pub fn columns(&self) -> usize {
+        self.dims[0] as usize * self.dims[2] as usize
+    }
+
+    /// Candidate motions scored.
+    pub fn candidates(&self) -> usize {
+        self.slab[1] as usize
     }
 }
 
@@ -724,16 +744,39 @@ impl EnergyParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct PartialsParams {
-    /// Values per chunk, chunks, unused ×2.
+    /// Values per chunk, chunks, chunks per group, unused.
     pub counts: [u32; 4],
 }
 
+/// Most chunks one sum_partials invocation adds.
+pub const PARTIALS_GROUP: usize = 1024;
+
 impl PartialsParams {
-    /// `chunks` partial results of `values` values each.
-    pub fn new(values: usize, chunks: usize) -> Self {
-        PartialsParams {
-            counts: [values as u32, chunks as u32, 0, 0],
+    /// The passes that add `chunks` partial results of `values` values each down to one: each
+    /// adds groups of up to [`PARTIALS_GROUP`] chunks, and the next adds its groups.
+    pub fn passes(values: usize, chunks: usize) -> Vec<PartialsParams> {
+        let mut passes = Vec::new();
+        let mut chunks = chunks.max(1);
+        loop {
+            let group = chunks.min(PARTIALS_GROUP);
+            passes.push(PartialsParams {
+                counts: [values as u32, chunks as u32, group as u32, 0],
+            });
+            if group == chunks {
+                return passes;
+            }
+            chunks = chunks.div_ceil(group);
         }
+    }
+
+    /// Values per chunk.
+    pub fn values(&self) -> usize {
+        self.counts[0] as usize
+    }
+
+    /// Groups this pass writes (values each).
+    pub fn groups(&self) -> usize {
+        (self.counts[1] as usize).div_ceil(self.counts[2].max(1) as usize)
     }
 }
 

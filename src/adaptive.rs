@@ -16,7 +16,7 @@
 use crate::abi::{
     lattice_geometry, spline_buffer, EnergyParams, RbfGradParams, RbfLatticeParams, SplatParams,
 };
-use crate::backend::{Backend, CostImages, Traffic};
+use crate::backend::{Backend, CostImages, DeviceImage, Traffic};
 use crate::check::finite_non_negative;
 use crate::error::{Error, Result};
 use crate::gain::gain;
@@ -459,18 +459,33 @@ pub struct Moving<'a> {
 fn covered_levels<B: Backend>(
     backend: &B,
     coverage: &Volume,
-    target_levels: &[Volume],
+    levels: usize,
 ) -> Result<Vec<Vec<f32>>> {
-    Ok(pyramid::build_like(backend, coverage, target_levels)?
+    downloaded(backend, coverage, "coverage", levels)?
         .into_iter()
         .map(|level| {
-            level
+            Ok(level
                 .data
                 .iter()
                 .map(|&c| if c >= 0.999 { 1.0 } else { 0.0 })
-                .collect()
+                .collect())
         })
-        .collect())
+        .collect()
+}
+
+/// The pyramid of `image` (`levels` levels at most), built where the backend computes and
+/// brought back.
+fn downloaded<B: Backend>(
+    backend: &B,
+    image: &Volume,
+    what: &str,
+    levels: usize,
+) -> Result<Vec<Volume>> {
+    let image = DeviceImage::upload(backend, what, image.clone())?;
+    pyramid::build(backend, image, levels)?
+        .iter()
+        .map(|level| level.download(backend))
+        .collect()
 }
 
 /// Runs the adaptive stage on `moving`; `pins` are the points held at zero added
@@ -487,9 +502,10 @@ pub fn register<B: Backend>(
     crate::backend::check_pair(moving.coverage, target)?;
     options.check()?;
     let prealigned = moving.prealigned;
-    let target_levels = pyramid::build(backend, target, options.levels)?;
-    let moving_levels = pyramid::build_like(backend, moving.image, &target_levels)?;
-    let covered_levels = covered_levels(backend, moving.coverage, &target_levels)?;
+    let target_levels = downloaded(backend, target, "target", options.levels)?;
+    let levels = target_levels.len();
+    let moving_levels = downloaded(backend, moving.image, "moving image", levels)?;
+    let covered_levels = covered_levels(backend, moving.coverage, levels)?;
     let mut points: Vec<ControlPoint> = pins
         .iter()
         .map(|p| ControlPoint {

@@ -4,7 +4,7 @@
 use crate::abi::Blending;
 use crate::abi::Interpolation;
 use crate::adaptive::MAX_LEVELS;
-use crate::backend::Backend;
+use crate::backend::{Backend, DeviceImage};
 use crate::check::within;
 use crate::error::{Error, Result};
 use crate::io::transform::{BoneTransform, BoneTransforms};
@@ -12,7 +12,7 @@ use crate::joint::{flexion_axis, rotation_about, rotation_degrees, JointAxis};
 use crate::labels as label;
 use crate::progress::Progress;
 use crate::pyramid;
-use crate::rigid::{refine, score_candidates, LevelReport, RefineOptions};
+use crate::rigid::{refine, score_candidates, BoneLevel, LevelReport, RefineOptions};
 use crate::skinning::{self, distance_map, SkinningWeights};
 use crate::volume::{Affine, Field, Image, Labels, Volume};
 use crate::vsd::{initial_field, InitialField};
@@ -197,84 +197,128 @@ fn candidates(axis: &JointAxis, reference: &Affine, options: &InitOptions) -> Ve
         .collect()
 }
 
-/// Bone-region masks (label dilated by `dilation_mm`) on a pyramid's levels.
-fn region_masks<B: Backend>(
-    backend: &B,
-    labels: &Labels,
-    code: u16,
-    source_levels: &[Volume],
-    first: usize,
-    dilation_mm: f64,
-) -> Result<Vec<Volume>> {
-    let indicator: Volume = Image {
-        grid: labels.grid.clone(),
-        data: labels
-            .data
-            .iter()
-            .map(|&l| (l == code) as u8 as f32)
-            .collect(),
-    };
-    let down = pyramid::build_like(backend, &indicator, &source_levels[..=first])?;
-    let at_first = &down[first];
-    let inside: Vec<bool> = at_first.data.iter().map(|&v| v >= 0.5).collect();
-    let dilated: Volume = Image {
-        grid: at_first.grid.clone(),
-        data: distance_map(&at_first.grid, &inside)
-            .iter()
-            .map(|&d| (d <= dilation_mm as f32) as u8 as f32)
-            .collect(),
-    };
-    let mut masks = pyramid::build_like(backend, &dilated, &source_levels[first..])?;
-    // Index masks by absolute level: levels below `first` are never used.
-    let mut out: Vec<Volume> = source_levels[..first].to_vec();
-    out.append(&mut masks);
-    Ok(out)
+/// A bone's region at one pyramid level: its mask where the backend computes, and what the
+/// host loop needs of it.
+struct RegionLevel<B: Backend> {
+    mask: DeviceImage<B>,
+    /// Voxels inside (mask ≥ 0.5).
+    inside: usize,
+    /// Their centroid (world mm): the centre rotations are linearised about.
+    centroid: Vector3<f64>,
 }
 
-fn region_centroid(mask: &Volume) -> Vector3<f64> {
-    let (mut sum, mut n) = (Vector3::zeros(), 0.0f64);
-    for (i, &m) in mask.data.iter().enumerate() {
-        if m >= 0.5 {
-            sum += mask.grid.world_of(i);
-            n += 1.0;
+impl<B: Backend> RegionLevel<B> {
+    fn new(backend: &B, mask: DeviceImage<B>) -> Result<Self> {
+        let host = mask.download(backend)?;
+        let (mut sum, mut inside) = (Vector3::zeros(), 0usize);
+        for (i, &m) in host.data.iter().enumerate() {
+            if m >= 0.5 {
+                sum += host.grid.world_of(i);
+                inside += 1;
+            }
+        }
+        Ok(RegionLevel {
+            mask,
+            inside,
+            centroid: sum / inside.max(1) as f64,
+        })
+    }
+}
+
+/// A bone's region (label dilated by `dilation_mm`) on the pyramid levels from `first` on.
+struct Region<B: Backend> {
+    first: usize,
+    levels: Vec<RegionLevel<B>>,
+}
+
+impl<B: Backend> Region<B> {
+    fn new(
+        backend: &B,
+        labels: &Labels,
+        code: u16,
+        levels: usize,
+        first: usize,
+        dilation_mm: f64,
+    ) -> Result<Self> {
+        let indicator = Image {
+            grid: labels.grid.clone(),
+            data: labels
+                .data
+                .iter()
+                .map(|&l| (l == code) as u8 as f32)
+                .collect(),
+        };
+        let indicator = DeviceImage::upload(backend, "bone indicator", indicator)?;
+        let mut down = pyramid::build(backend, indicator, first + 1)?;
+        let at_first = down.pop().expect("level 0 at least").download(backend)?;
+        let inside: Vec<bool> = at_first.data.iter().map(|&v| v >= 0.5).collect();
+        let dilated = Image {
+            data: distance_map(&at_first.grid, &inside)
+                .iter()
+                .map(|&d| (d <= dilation_mm as f32) as u8 as f32)
+                .collect(),
+            grid: at_first.grid,
+        };
+        let dilated = DeviceImage::upload(backend, "bone region", dilated)?;
+        let levels = pyramid::build(backend, dilated, levels - first)?
+            .into_iter()
+            .map(|mask| RegionLevel::new(backend, mask))
+            .collect::<Result<_>>()?;
+        Ok(Region { first, levels })
+    }
+
+    /// The region at absolute pyramid level `level` (≥ first).
+    fn at(&self, level: usize) -> &RegionLevel<B> {
+        &self.levels[level - self.first]
+    }
+}
+
+/// A pair's pyramids, where the backend computes.
+struct Pyramids<B: Backend> {
+    source: Vec<DeviceImage<B>>,
+    target: Vec<DeviceImage<B>>,
+}
+
+impl<B: Backend> Pyramids<B> {
+    fn level<'a>(&'a self, level: usize, region: &'a Region<B>) -> BoneLevel<'a, B> {
+        BoneLevel {
+            source: &self.source[level],
+            mask: &region.at(level).mask,
+            target: &self.target[level],
         }
     }
-    sum / n.max(1.0)
 }
 
 /// Registers one bone from `start` through the levels coarse to fine, after an optional
 /// search at its coarsest usable level.
-#[allow(clippy::too_many_arguments)]
 fn register_bone<B: Backend>(
     backend: &B,
     code: u16,
-    source: &[Volume],
-    target: &[Volume],
-    masks: &[Volume],
-    first: usize,
+    pyramids: &Pyramids<B>,
+    region: &Region<B>,
     start: Affine,
     search: Option<Vec<(f64, Affine)>>,
 ) -> Result<(Affine, BoneReport)> {
-    let enough = |m: &Volume| m.data.iter().filter(|&&v| v >= 0.5).count() >= 200;
-    let coarsest = (first..source.len())
+    let first = region.first;
+    let coarsest = (first..first + region.levels.len())
         .rev()
-        .find(|&l| enough(&masks[l]))
+        .find(|&l| region.at(l).inside >= 200)
         .unwrap_or(first);
     let options = RefineOptions::default();
     let mut motion = start;
     let mut searched = None;
     let mut levels = Vec::new();
     if let Some(cands) = search {
-        let (s, m, t) = (&source[coarsest], &masks[coarsest], &target[coarsest]);
+        let level = pyramids.level(coarsest, region);
         let motions: Vec<Affine> = cands.iter().map(|c| c.1).collect();
-        let scores = score_candidates(backend, s, m, t, &motions)?;
+        let scores = score_candidates(backend, &level, &motions)?;
         let mut order: Vec<usize> = (0..cands.len()).collect();
         order.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]));
         // Refine the three best candidates and keep the one that fits best.
-        let centroid = region_centroid(m);
+        let centroid = region.at(coarsest).centroid;
         let mut best: Option<(f64, Affine, f64, LevelReport)> = None;
         for &k in order.iter().take(3).filter(|&&k| scores[k].is_finite()) {
-            let (refined, report) = refine(backend, s, m, t, cands[k].1, &centroid, &options)?;
+            let (refined, report) = refine(backend, &level, cands[k].1, &centroid, &options)?;
             if best.as_ref().is_none_or(|b| report.cost_after < b.0) {
                 best = Some((report.cost_after, refined, cands[k].0, report));
             }
@@ -299,10 +343,9 @@ fn register_bone<B: Backend>(
         (first..=finer_from).rev().collect()
     };
     for l in range {
-        let centroid = region_centroid(&masks[l]);
-        let (refined, report) = refine(
-            backend, &source[l], &masks[l], &target[l], motion, &centroid, &options,
-        )?;
+        let centroid = region.at(l).centroid;
+        let level = pyramids.level(l, region);
+        let (refined, report) = refine(backend, &level, motion, &centroid, &options)?;
         motion = refined;
         levels.push(report);
     }
@@ -367,39 +410,29 @@ pub fn initialise<B: Backend>(
             })
             .collect::<Result<_>>()?;
     } else {
-        let source_levels = pyramid::build(backend, source, options.levels)?;
-        let target_levels = pyramid::build(backend, target, options.levels)?;
-        let first = source_levels
+        let upload = |what, image: &Volume| DeviceImage::upload(backend, what, image.clone());
+        let mut pyramids = Pyramids {
+            source: pyramid::build(backend, upload("source", source)?, options.levels)?,
+            target: pyramid::build(backend, upload("target", target)?, options.levels)?,
+        };
+        let levels = pyramids.source.len().min(pyramids.target.len());
+        pyramids.source.truncate(levels);
+        let first = pyramids
+            .source
             .iter()
             .position(|v| v.grid.finest_spacing() >= options.finest_spacing_mm - 1e-9)
-            .unwrap_or(source_levels.len() - 1)
-            .min(target_levels.len() - 1);
-        let source_levels = &source_levels[..target_levels.len().min(source_levels.len())];
+            .unwrap_or(levels - 1)
+            .min(levels - 1);
         let mut order = bones.clone();
         order.sort_by_key(|&b| b != options.reference);
         let mut found: Vec<(u16, Affine)> = Vec::new();
         let mut reference = Affine::identity();
         for code in order {
-            let masks = region_masks(
-                backend,
-                labels,
-                code,
-                source_levels,
-                first,
-                options.dilation_mm,
-            )?;
+            let region = Region::new(backend, labels, code, levels, first, options.dilation_mm)?;
             let is_reference = code == options.reference;
             let search = (!is_reference).then(|| candidates(&axis, &reference, options));
-            let (motion, report) = register_bone(
-                backend,
-                code,
-                source_levels,
-                &target_levels,
-                &masks,
-                first,
-                reference,
-                search,
-            )?;
+            let (motion, report) =
+                register_bone(backend, code, &pyramids, &region, reference, search)?;
             if is_reference {
                 reference = motion;
             }

@@ -3,11 +3,12 @@
 //! against this trait only, so every stage runs on either and the two can be compared.
 
 use crate::abi::{
-    BoneBlend, EnergyParams, Interpolation, RbfGradParams, RbfLatticeParams, SplatParams,
+    BoneBlend, EnergyParams, Interpolation, PyramidParams, RbfGradParams, RbfLatticeParams,
+    RigidParams, ScoreParams, SplatParams,
 };
 use crate::error::Result;
 use crate::metric::CellSsd;
-use crate::volume::{Affine, Field, Grid, Image, Volume};
+use crate::volume::{Field, Grid, Image, Volume};
 
 /// What a backend has moved between the host and the device, and how much work it launched,
 /// since it was opened. The CPU backend moves nothing and counts nothing.
@@ -46,9 +47,50 @@ impl std::ops::AddAssign for Traffic {
 
 /// Element types a device buffer may hold: f32 for volumes and lattices, f64 where sums of
 /// large terms cancel (the cubic RBF, reductions).
-pub trait Element: bytemuck::Pod + Send + Sync {}
-impl Element for f32 {}
-impl Element for f64 {}
+pub trait Element: bytemuck::Pod + Send + Sync + Into<f64> {
+    /// Its WGSL type.
+    const WGSL: &'static str;
+}
+impl Element for f32 {
+    const WGSL: &'static str = "f32";
+}
+impl Element for f64 {
+    const WGSL: &'static str = "f64";
+}
+
+/// An image whose voxels are held where a backend computes; its grid stays on the host.
+pub struct DeviceImage<B: Backend> {
+    /// Where its voxels are.
+    pub grid: Grid,
+    /// One value per voxel, x fastest.
+    pub data: B::Buffer<f32>,
+}
+
+impl<B: Backend> DeviceImage<B> {
+    /// Puts `volume` where `backend` computes (the CPU backend takes it without a copy).
+    pub fn upload(backend: &B, what: &str, volume: Volume) -> Result<Self> {
+        Ok(DeviceImage {
+            data: backend.upload(what, volume.data)?,
+            grid: volume.grid,
+        })
+    }
+
+    /// Brings it back to the host.
+    pub fn download(&self, backend: &B) -> Result<Volume> {
+        let mut data = backend.download(&[&self.data])?;
+        Image::from_data(self.grid.clone(), data.pop().expect("one buffer asked for"))
+    }
+}
+
+/// The images one step of a bone's rigid registration compares, at one pyramid level.
+pub struct BoneImages<'a, T: ?Sized> {
+    /// The source S.
+    pub source: &'a T,
+    /// The bone's region on the source grid (≥ 0.5 inside).
+    pub mask: &'a T,
+    /// The target T, sampled through the motion.
+    pub target: &'a T,
+}
 
 /// The images one evaluation of the non-rigid cost compares, on the target grid.
 pub struct CostImages<'a, T: ?Sized> {
@@ -100,29 +142,30 @@ pub trait Backend {
     /// ≤ 0 the map folds.
     fn jacobian(&self, field: &Field) -> Result<Volume>;
 
-    /// One pyramid step: `input` smoothed and decimated by `factors` (1 or 2 per axis) onto
-    /// `output` (see pyramid::next_level_grid).
-    fn pyramid_level(&self, input: &Volume, output: &Grid, factors: [usize; 3]) -> Result<Volume>;
+    /// One pyramid step: a level smoothed and decimated (see pyramid::next_level_grid) as
+    /// `params` says.
+    fn pyramid_level(
+        &self,
+        params: &PyramidParams,
+        input: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
 
-    /// Per-column Gauss-Newton sums of a bone's rigid registration (29 per column of the
-    /// source, layout of shaders/rigid_gn.wgsl) for `motion` linearised about `centre`.
+    /// Per-column Gauss-Newton sums of a bone's rigid registration (abi::RIGID_SUMS per
+    /// column of the source, layout of shaders/rigid_gn.wgsl) at the motion in `params`.
     fn rigid_sums(
         &self,
-        source: &Volume,
-        mask: &Volume,
-        target: &Volume,
-        motion: &Affine,
-        centre: [f64; 3],
-    ) -> Result<Vec<f32>>;
+        params: &RigidParams,
+        images: &BoneImages<Self::Buffer<f32>>,
+    ) -> Result<Self::Buffer<f32>>;
 
-    /// Per-column (Σ r², count) of every candidate motion (layout of shaders/rigid_score.wgsl).
+    /// Per-column (Σ r², count) of every candidate motion (12 floats each, abi::pack_candidates;
+    /// layout of shaders/rigid_score.wgsl).
     fn rigid_scores(
         &self,
-        source: &Volume,
-        mask: &Volume,
-        target: &Volume,
-        candidates: &[Affine],
-    ) -> Result<Vec<f32>>;
+        params: &ScoreParams,
+        images: &BoneImages<Self::Buffer<f32>>,
+        candidates: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
 
     /// Skinning weights (bones per voxel) from distance maps (bones per voxel, mm) on `grid`.
     fn skin_weights(
@@ -218,10 +261,11 @@ pub trait Backend {
         node_gradient: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f64>>;
 
-    /// Per-chunk partial results of `values` values each, added in chunk order.
-    fn sum_partials(
+    /// Per-chunk partial results of `values` values each, added in chunk order (in groups,
+    /// abi::PartialsParams::passes), in f64.
+    fn sum_partials<T: Element>(
         &self,
-        partials: &Self::Buffer<f64>,
+        partials: &Self::Buffer<T>,
         values: usize,
     ) -> Result<Self::Buffer<f64>>;
 
@@ -231,12 +275,17 @@ pub trait Backend {
 
 /// Checks two images (volumes or fields) combined voxel by voxel share a grid.
 pub fn check_pair<T, U>(a: &Image<T>, b: &Image<U>) -> Result<()> {
-    if a.grid.same_as(&b.grid, 1e-4) {
+    check_grids(&a.grid, &b.grid)
+}
+
+/// Checks the grids of two images combined voxel by voxel are the same.
+pub fn check_grids(a: &Grid, b: &Grid) -> Result<()> {
+    if a.same_as(b, 1e-4) {
         Ok(())
     } else {
         Err(crate::error::Error::InvalidInput(format!(
             "images are on different grids ({:?} vs {:?} voxels, or different affines)",
-            a.grid.dims, b.grid.dims
+            a.dims, b.dims
         )))
     }
 }

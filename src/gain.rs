@@ -11,7 +11,7 @@
 //! brightness locally while anatomy, finer than that scale, is left to the registration. It is
 //! only meaningful once M is roughly aligned with T; adaptive.rs says when.
 
-use crate::backend::{check_pair, Backend};
+use crate::backend::{check_pair, Backend, DeviceImage};
 use crate::error::Result;
 use crate::pyramid;
 use crate::sample::trilinear;
@@ -42,9 +42,13 @@ pub fn gain<B: Backend>(
         grid: target.grid.clone(),
         data: moving.data.iter().map(|m| m * m).collect(),
     };
+    let smooth = |what, image| {
+        let image = DeviceImage::upload(backend, what, image)?;
+        pyramid::down_to_spacing(backend, image, scale_mm)?.download(backend)
+    };
     let (product, energy) = (
-        pyramid::down_to_spacing(backend, &product, scale_mm)?,
-        pyramid::down_to_spacing(backend, &energy, scale_mm)?,
+        smooth("gain product", product)?,
+        smooth("gain energy", energy)?,
     );
     // Where the moving image is (nearly) empty the ratio means nothing: keep the gain at 1.
     let floor =

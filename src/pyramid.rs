@@ -2,9 +2,10 @@
 //! already much coarser than the finest one (a 0.3 × 0.3 × 1.5 mm scan keeps its 1.5 mm axis
 //! until the others catch up), smoothing with the binomial kernel of shaders/pyramid.wgsl.
 
-use crate::backend::Backend;
+use crate::abi::PyramidParams;
+use crate::backend::{Backend, DeviceImage};
 use crate::error::Result;
-use crate::volume::{Grid, Volume};
+use crate::volume::Grid;
 
 /// Fewest voxels an axis keeps when halved.
 const MIN_AXIS_VOXELS: usize = 8;
@@ -36,51 +37,51 @@ pub fn next_level_grid(grid: &Grid) -> Option<(Grid, [usize; 3])> {
     Some((coarse, factors))
 }
 
-/// Levels of `volume`, finest first, at most `levels` of them (fewer when the grid runs out).
-pub fn build<B: Backend>(backend: &B, volume: &Volume, levels: usize) -> Result<Vec<Volume>> {
-    let mut out = vec![volume.clone()];
+/// `image` one level coarser, or None when no axis can be halved.
+fn coarser<B: Backend>(backend: &B, image: &DeviceImage<B>) -> Result<Option<DeviceImage<B>>> {
+    let Some((grid, factors)) = next_level_grid(&image.grid) else {
+        return Ok(None);
+    };
+    let params = PyramidParams::new(&image.grid, grid.dims, factors);
+    Ok(Some(DeviceImage {
+        data: backend.pyramid_level(&params, &image.data)?,
+        grid,
+    }))
+}
+
+/// Levels of `image`, finest first (`image` itself), at most `levels` of them (fewer when the
+/// grid runs out). The grids depend only on the first one's, so images on one grid get their
+/// levels on the same grids.
+pub fn build<B: Backend>(
+    backend: &B,
+    image: DeviceImage<B>,
+    levels: usize,
+) -> Result<Vec<DeviceImage<B>>> {
+    let mut out = vec![image];
     while out.len() < levels {
-        let last = out.last().expect("never empty");
-        let Some((grid, factors)) = next_level_grid(&last.grid) else {
-            break;
-        };
-        out.push(backend.pyramid_level(last, &grid, factors)?);
+        match coarser(backend, out.last().expect("never empty"))? {
+            Some(level) => out.push(level),
+            None => break,
+        }
     }
     Ok(out)
 }
 
-/// `volume` smoothed and halved until its finest spacing reaches `spacing_mm` (or the grid
+/// `image` smoothed and halved until its finest spacing reaches `spacing_mm` (or the grid
 /// runs out): Gaussian smoothing at about that scale, on the coarse grid it needs.
 pub fn down_to_spacing<B: Backend>(
     backend: &B,
-    volume: &Volume,
+    image: DeviceImage<B>,
     spacing_mm: f64,
-) -> Result<Volume> {
-    let finest = |v: &Volume| v.grid.finest_spacing();
-    let mut level = volume.clone();
-    while finest(&level) < spacing_mm {
-        let Some((grid, factors)) = next_level_grid(&level.grid) else {
-            break;
-        };
-        level = backend.pyramid_level(&level, &grid, factors)?;
+) -> Result<DeviceImage<B>> {
+    let mut level = image;
+    while level.grid.finest_spacing() < spacing_mm {
+        match coarser(backend, &level)? {
+            Some(next) => level = next,
+            None => break,
+        }
     }
     Ok(level)
-}
-
-/// Levels of `volume` on exactly the grids of `like` (same factors, level by level).
-pub fn build_like<B: Backend>(
-    backend: &B,
-    volume: &Volume,
-    like: &[Volume],
-) -> Result<Vec<Volume>> {
-    let mut out = vec![volume.clone()];
-    for level in like.iter().skip(1) {
-        let last = out.last().expect("never empty");
-        let (grid, factors) = next_level_grid(&last.grid).expect("same grids as `like`");
-        debug_assert!(grid.same_as(&level.grid, 1e-6));
-        out.push(backend.pyramid_level(last, &grid, factors)?);
-    }
-    Ok(out)
 }
 
 #[cfg(test)]

@@ -1,12 +1,12 @@
 //! Per-bone rigid registration by sum of squared intensity differences (paper eq. 2):
 //! Levenberg-Marquardt on 6 parameters, normal equations reduced per column by the rigid_gn
-//! kernel and folded here in f64, coarse to fine; large poses start from a one-pass score of
+//! kernel and added on the device in f64, coarse to fine; large poses start from a one-pass score of
 //! hundreds of rotations about the joint (rigid_score kernel).
 
-use crate::abi::RIGID_SUMS as SUMS;
-use crate::backend::Backend;
+use crate::abi::{pack_candidates, RigidParams, ScoreParams, RIGID_SUMS as SUMS};
+use crate::backend::{check_grids, Backend, BoneImages, DeviceImage};
 use crate::error::{Error, Result};
-use crate::volume::{Affine, Volume};
+use crate::volume::Affine;
 use nalgebra::{Matrix6, Rotation3, Vector3, Vector6};
 
 /// The folded Gauss-Newton system at one motion.
@@ -22,14 +22,43 @@ pub struct NormalEquations {
     pub count: f64,
 }
 
-/// Folds per-column sums (layout of shaders/rigid_gn.wgsl) in f64, in column order.
-pub fn fold_normal_equations(partial: &[f32]) -> NormalEquations {
-    let mut sums = [0.0f64; SUMS];
-    for column in partial.chunks_exact(SUMS) {
-        for (s, v) in sums.iter_mut().zip(column) {
-            *s += *v as f64;
+/// A bone's images at one pyramid level, where the backend computes.
+pub struct BoneLevel<'a, B: Backend> {
+    /// The source S.
+    pub source: &'a DeviceImage<B>,
+    /// The bone's region (≥ 0.5 inside), on the source's grid.
+    pub mask: &'a DeviceImage<B>,
+    /// The target T.
+    pub target: &'a DeviceImage<B>,
+}
+
+impl<B: Backend> BoneLevel<'_, B> {
+    fn images(&self) -> BoneImages<'_, B::Buffer<f32>> {
+        BoneImages {
+            source: &self.source.data,
+            mask: &self.mask.data,
+            target: &self.target.data,
         }
     }
+}
+
+/// The Gauss-Newton system of `level` at `motion`, linearised about `centre`: the rigid_gn
+/// kernel's column sums added on the device (f64); 29 numbers come back.
+pub fn normal_equations<B: Backend>(
+    backend: &B,
+    level: &BoneLevel<B>,
+    motion: &Affine,
+    centre: &Vector3<f64>,
+) -> Result<NormalEquations> {
+    check_grids(&level.source.grid, &level.mask.grid)?;
+    let params = RigidParams::new(
+        &level.source.grid,
+        &level.target.grid,
+        motion,
+        (*centre).into(),
+    );
+    let partial = backend.rigid_sums(&params, &level.images())?;
+    let sums = download_one(backend, &backend.sum_partials(&partial, SUMS)?)?;
     let mut jtj = Matrix6::zeros();
     let mut k = 0;
     for a in 0..6 {
@@ -39,24 +68,19 @@ pub fn fold_normal_equations(partial: &[f32]) -> NormalEquations {
             k += 1;
         }
     }
-    NormalEquations {
+    Ok(NormalEquations {
         jtj,
         jtr: Vector6::from_fn(|a, _| sums[21 + a]),
         ssd: sums[27],
         count: sums[28],
-    }
+    })
 }
 
-/// Folds per-column candidate partials into (Σ r², count) per candidate, in f64.
-pub fn fold_scores(partial: &[f32], candidates: usize) -> Vec<(f64, f64)> {
-    let mut out = vec![(0.0, 0.0); candidates];
-    for column in partial.chunks_exact(2 * candidates) {
-        for (c, o) in out.iter_mut().enumerate() {
-            o.0 += column[2 * c] as f64;
-            o.1 += column[2 * c + 1] as f64;
-        }
-    }
-    out
+fn download_one<B: Backend>(backend: &B, buffer: &B::Buffer<f64>) -> Result<Vec<f64>> {
+    Ok(backend
+        .download(&[buffer])?
+        .pop()
+        .expect("one buffer asked for"))
 }
 
 /// The small motion δ = (ω, v) about `centre`: y ↦ R(ω)(y − c) + c + v.
@@ -73,17 +97,22 @@ pub fn small_motion(delta: &Vector6<f64>, centre: &Vector3<f64>) -> Affine {
 /// covered candidate's voxels inside the target are scored infinite (they win by leaving).
 pub fn score_candidates<B: Backend>(
     backend: &B,
-    source: &Volume,
-    mask: &Volume,
-    target: &Volume,
+    level: &BoneLevel<B>,
     candidates: &[Affine],
 ) -> Result<Vec<f64>> {
-    let partial = backend.rigid_scores(source, mask, target, candidates)?;
-    let folded = fold_scores(&partial, candidates.len());
-    let most = folded.iter().map(|s| s.1).fold(0.0, f64::max);
-    Ok(folded
-        .iter()
-        .map(|&(ssd, n)| {
+    check_grids(&level.source.grid, &level.mask.grid)?;
+    let params = ScoreParams::new(&level.source.grid, &level.target.grid, candidates.len());
+    let packed = backend.upload("candidate motions", pack_candidates(candidates))?;
+    let partial = backend.rigid_scores(&params, &level.images(), &packed)?;
+    let totals = download_one(
+        backend,
+        &backend.sum_partials(&partial, 2 * candidates.len())?,
+    )?;
+    let most = totals.chunks_exact(2).map(|s| s[1]).fold(0.0, f64::max);
+    Ok(totals
+        .chunks_exact(2)
+        .map(|s| {
+            let (ssd, n) = (s[0], s[1]);
             if n > 0.0 && n >= 0.5 * most {
                 ssd / n
             } else {
@@ -129,9 +158,7 @@ impl Default for RefineOptions {
 /// similarly scaled.
 pub fn refine<B: Backend>(
     backend: &B,
-    source: &Volume,
-    mask: &Volume,
-    target: &Volume,
+    level: &BoneLevel<B>,
     motion: Affine,
     region_centroid: &Vector3<f64>,
     options: &RefineOptions,
@@ -141,8 +168,7 @@ pub fn refine<B: Backend>(
     let mut iterations = 0;
     let centre_of = |m: &Affine| (m * region_centroid.push(1.0)).xyz();
     let mut centre = centre_of(&m);
-    let mut eq =
-        fold_normal_equations(&backend.rigid_sums(source, mask, target, &m, centre.into())?);
+    let mut eq = normal_equations(backend, level, &m, &centre)?;
     if eq.count < 10.0 {
         return Err(Error::InvalidInput(
             "the bone region falls outside the target: no overlap to register".into(),
@@ -161,7 +187,7 @@ pub fn refine<B: Backend>(
             continue;
         };
         let trial = small_motion(&delta, &centre) * m;
-        let trial_cost = score_candidates(backend, source, mask, target, &[trial])?[0];
+        let trial_cost = score_candidates(backend, level, &[trial])?[0];
         if trial_cost < cost {
             m = trial;
             cost = trial_cost;
@@ -171,13 +197,7 @@ pub fn refine<B: Backend>(
                 break;
             }
             centre = centre_of(&m);
-            eq = fold_normal_equations(&backend.rigid_sums(
-                source,
-                mask,
-                target,
-                &m,
-                centre.into(),
-            )?);
+            eq = normal_equations(backend, level, &m, &centre)?;
         } else {
             lambda *= 4.0;
             if lambda > 1e6 {

@@ -12,6 +12,10 @@ const WARP_SAMPLE: (&str, &str) = (
     include_str!("../shaders/warp_sample.wgsl"),
 );
 const RBF_NODES: (&str, &str) = ("rbf_nodes.wgsl", include_str!("../shaders/rbf_nodes.wgsl"));
+const SUM_PARTIALS: (&str, &str) = (
+    "sum_partials.wgsl",
+    include_str!("../shaders/sum_partials.wgsl"),
+);
 
 /// Every kernel: its name and the files it is assembled from, in order.
 pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
@@ -132,10 +136,16 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         "sum_partials",
         &[
             COMMON,
-            (
-                "sum_partials.wgsl",
-                include_str!("../shaders/sum_partials.wgsl"),
-            ),
+            ("(f64 partials)", "alias Partial = f64;"),
+            SUM_PARTIALS,
+        ],
+    ),
+    (
+        "sum_partials_f32",
+        &[
+            COMMON,
+            ("(f32 partials)", "alias Partial = f32;"),
+            SUM_PARTIALS,
         ],
     ),
     (

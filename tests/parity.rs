@@ -11,7 +11,8 @@ mod common;
 
 use common::*;
 use posereg::abi::Interpolation;
-use posereg::abi::{Blending, BoneBlend};
+use posereg::abi::{pack_candidates, Blending, BoneBlend, RigidParams, ScoreParams, RIGID_SUMS};
+use posereg::backend::BoneImages;
 use posereg::cpu::CpuBackend;
 use posereg::volume::{Field, Grid, Volume};
 use posereg::Backend;
@@ -238,9 +239,8 @@ fn pyramid_parity_at_odd_sizes() {
     let Some(gpu) = gpu() else { return };
     for dims in [[33usize, 20, 17], [16, 40, 9]] {
         let v = smooth_volume(&oblique_grid(dims), 15);
-        let (grid, factors) = posereg::pyramid::next_level_grid(&v.grid).unwrap();
-        let cpu = CpuBackend.pyramid_level(&v, &grid, factors).unwrap();
-        let got = gpu.pyramid_level(&v, &grid, factors).unwrap();
+        let cpu = one_level_down(&CpuBackend, &v);
+        let got = one_level_down(gpu, &v);
         // Sums of 64 products of values ~100: a few ulp of 100 from fused multiply-adds.
         close("pyramid", &got.data, &cpu.data, 1e-3, 0.0);
     }
@@ -265,19 +265,46 @@ fn rigid_case() -> (Volume, Volume, Volume, posereg::Affine) {
     (source, mask, target, motion)
 }
 
+/// The rigid kernels' per-column partials (Gauss-Newton sums, candidate scores) and their
+/// totals added on the device.
+fn rigid_outputs<B: Backend>(
+    b: &B,
+    (source, mask, target): (&Volume, &Volume, &Volume),
+    motion: &posereg::Affine,
+    candidates: &[posereg::Affine],
+) -> [Vec<f64>; 4] {
+    let up = |v: &Volume| b.upload("test volume", v.data.clone()).unwrap();
+    let (s, m, t) = (up(source), up(mask), up(target));
+    let images = BoneImages {
+        source: &s,
+        mask: &m,
+        target: &t,
+    };
+    let centre = [-8.0, 18.0, 12.0];
+    let params = RigidParams::new(&source.grid, &target.grid, motion, centre);
+    let sums = b.rigid_sums(&params, &images).unwrap();
+    let packed = b.upload("candidates", pack_candidates(candidates)).unwrap();
+    let params = ScoreParams::new(&source.grid, &target.grid, candidates.len());
+    let scores = b.rigid_scores(&params, &images, &packed).unwrap();
+    let totals = [
+        b.sum_partials(&sums, RIGID_SUMS).unwrap(),
+        b.sum_partials(&scores, 2 * candidates.len()).unwrap(),
+    ];
+    let partials = b.download(&[&sums, &scores]).unwrap();
+    let totals = b.download(&[&totals[0], &totals[1]]).unwrap();
+    let wide = |v: &Vec<f32>| v.iter().map(|&x| x as f64).collect();
+    [
+        wide(&partials[0]),
+        wide(&partials[1]),
+        totals[0].clone(),
+        totals[1].clone(),
+    ]
+}
+
 #[test]
 fn rigid_kernels_parity() {
     let Some(gpu) = gpu() else { return };
     let (source, mask, target, motion) = rigid_case();
-    let centre = [-8.0, 18.0, 12.0];
-    let cpu = CpuBackend
-        .rigid_sums(&source, &mask, &target, &motion, centre)
-        .unwrap();
-    let got = gpu
-        .rigid_sums(&source, &mask, &target, &motion, centre)
-        .unwrap();
-    // Column sums of up to 23 products of gradients (~10) and lever arms (~30 mm).
-    close("rigid_gn", &got, &cpu, 1e-2, 1e-4);
     let candidates: Vec<posereg::Affine> = (0..7)
         .map(|k| {
             posereg::rigid::small_motion(
@@ -286,13 +313,49 @@ fn rigid_kernels_parity() {
             ) * motion
         })
         .collect();
-    let cpu = CpuBackend
-        .rigid_scores(&source, &mask, &target, &candidates)
-        .unwrap();
-    let got = gpu
-        .rigid_scores(&source, &mask, &target, &candidates)
-        .unwrap();
-    close("rigid_score", &got, &cpu, 1e-2, 1e-4);
+    let images = (&source, &mask, &target);
+    let cpu = rigid_outputs(&CpuBackend, images, &motion, &candidates);
+    let got = rigid_outputs(gpu, images, &motion, &candidates);
+    // Column sums of up to 23 products of gradients (~10) and lever arms (~30 mm).
+    let narrow = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+    close("rigid_gn", &narrow(&got[0]), &narrow(&cpu[0]), 1e-2, 1e-4);
+    close(
+        "rigid_score",
+        &narrow(&got[1]),
+        &narrow(&cpu[1]),
+        1e-2,
+        1e-4,
+    );
+    // The totals add the partials above: within their error times the columns' count.
+    close_f64("rigid_gn totals", &got[2], &cpu[2], 1e-4);
+    close_f64("rigid_score totals", &got[3], &cpu[3], 1e-4);
+}
+
+#[test]
+fn sum_partials_parity_over_several_passes() {
+    let Some(gpu) = gpu() else { return };
+    // 2 500 chunks of 29 values: three groups of up to 1 024 chunks, then a second pass.
+    let (values, chunks) = (29, 2500);
+    let partials: Vec<f32> = (0..values * chunks)
+        .map(|k| ((k * 7919) % 1000) as f32 * 0.37 - 150.0)
+        .collect();
+    let exact: Vec<f64> = (0..values)
+        .map(|v| (0..chunks).map(|c| partials[c * values + v] as f64).sum())
+        .collect();
+    for (name, got) in [
+        ("cpu", totals(&CpuBackend, &partials, values)),
+        ("gpu", totals(gpu, &partials, values)),
+    ] {
+        close_f64(name, &got, &exact, 1e-12);
+    }
+}
+
+fn totals<B: Backend>(b: &B, partials: &[f32], values: usize) -> Vec<f64> {
+    let up = b.upload("partials", partials.to_vec()).unwrap();
+    b.download(&[&b.sum_partials(&up, values).unwrap()])
+        .unwrap()
+        .pop()
+        .unwrap()
 }
 
 #[test]

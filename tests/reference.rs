@@ -5,6 +5,7 @@ mod common;
 use common::*;
 use posereg::abi::Interpolation;
 use posereg::abi::{Blending, BoneBlend};
+use posereg::backend::DeviceImage;
 use posereg::cpu::CpuBackend;
 use posereg::volume::{Affine, Grid, Image};
 use posereg::Backend;
@@ -289,12 +290,11 @@ fn pyramid_keeps_constants_and_linear_ramps() {
     let (coarse, factors) = posereg::pyramid::next_level_grid(&grid).unwrap();
     assert_eq!(factors, [2, 2, 2]);
     let constant = Image::filled(grid.clone(), 7.5f32);
-    let down = CpuBackend
-        .pyramid_level(&constant, &coarse, factors)
-        .unwrap();
+    let down = one_level_down(&CpuBackend, &constant);
+    assert!(down.grid.same_as(&coarse, 1e-9));
     assert!(down.data.iter().all(|&v| (v - 7.5).abs() < 1e-5));
     let ramp = ramp(&grid);
-    let down = CpuBackend.pyramid_level(&ramp, &coarse, factors).unwrap();
+    let down = one_level_down(&CpuBackend, &ramp);
     let to_fine = grid.world_to_voxel_affine();
     for k in 1..coarse.dims[2] - 1 {
         for j in 1..coarse.dims[1] - 1 {
@@ -331,17 +331,19 @@ fn rigid_gradient_matches_finite_differences() {
         }
     }
     let centre = nalgebra::Vector3::new(-15.0, 12.0, 10.0);
-    let eq = posereg::rigid::fold_normal_equations(
-        &CpuBackend
-            .rigid_sums(&source, &inner, &target, &base, centre.into())
-            .unwrap(),
-    );
+    let up = |v: &posereg::Volume| DeviceImage::upload(&CpuBackend, "test", v.clone()).unwrap();
+    let (source, inner, target) = (up(&source), up(&inner), up(&target));
+    let level = posereg::rigid::BoneLevel {
+        source: &source,
+        mask: &inner,
+        target: &target,
+    };
+    let system =
+        |m: &posereg::Affine| posereg::rigid::normal_equations(&CpuBackend, &level, m, &centre);
+    let eq = system(&base).unwrap();
     let cost = |delta: nalgebra::Vector6<f64>| {
-        let m = posereg::rigid::small_motion(&delta, &centre) * base;
-        let p = CpuBackend
-            .rigid_scores(&source, &inner, &target, &[m])
-            .unwrap();
-        posereg::rigid::fold_scores(&p, 1)[0]
+        let at = system(&(posereg::rigid::small_motion(&delta, &centre) * base)).unwrap();
+        (at.ssd, at.count)
     };
     let n0 = cost(nalgebra::Vector6::zeros()).1;
     for k in 0..6 {

@@ -67,7 +67,7 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
-    let pairs: [(&str, &str, usize); 18] = [
+    let pairs: [(&str, &str, usize); 19] = [
         ("rbf_grad", "RbfGradParams", size_of::<RbfGradParams>()),
         ("warp_cost", "RbfGradParams", size_of::<RbfGradParams>()),
         (
@@ -86,6 +86,11 @@ fn abi_structs_match_their_wgsl_twins() {
         ("compose", "ComposeParams", size_of::<ComposeParams>()),
         (
             "sum_partials",
+            "PartialsParams",
+            size_of::<PartialsParams>(),
+        ),
+        (
+            "sum_partials_f32",
             "PartialsParams",
             size_of::<PartialsParams>(),
         ),

@@ -27,10 +27,19 @@ use crate::abi::{
     PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams,
     SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
 };
-use crate::backend::{check_pair, Backend, CostImages, Element, Traffic};
+use crate::backend::{check_pair, Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::Result;
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
-use crate::volume::{Affine, Field, Grid, Image, Volume};
+use crate::volume::{Field, Grid, Image, Volume};
+
+/// The bone images as slices, for the twins.
+fn slices<'a>(images: &BoneImages<'a, Vec<f32>>) -> BoneImages<'a, [f32]> {
+    BoneImages {
+        source: images.source.as_slice(),
+        mask: images.mask.as_slice(),
+        target: images.target.as_slice(),
+    }
+}
 
 /// Runs every kernel on the host's cores.
 #[derive(Clone, Copy, Debug, Default)]
@@ -96,55 +105,26 @@ impl Backend for CpuBackend {
         })
     }
 
-    fn pyramid_level(&self, input: &Volume, output: &Grid, factors: [usize; 3]) -> Result<Volume> {
-        let params = PyramidParams::new(&input.grid, output.dims, factors);
-        let mut data = vec![0.0f32; output.len()];
-        pyramid::pyramid(&params, &input.data, &mut data);
-        Image::from_data(output.clone(), data)
+    fn pyramid_level(&self, params: &PyramidParams, input: &Vec<f32>) -> Result<Vec<f32>> {
+        let mut data = vec![0.0f32; params.output_len()];
+        pyramid::pyramid(params, input, &mut data);
+        Ok(data)
     }
 
-    fn rigid_sums(
-        &self,
-        source: &Volume,
-        mask: &Volume,
-        target: &Volume,
-        motion: &Affine,
-        centre: [f64; 3],
-    ) -> Result<Vec<f32>> {
-        check_pair(source, mask)?;
-        let params = RigidParams::new(&source.grid, &target.grid, motion, centre);
-        let [nx, _, nz] = source.grid.dims;
-        let mut partial = vec![0.0f32; nx * nz * crate::abi::RIGID_SUMS];
-        rigid_gn::rigid_gn(
-            &params,
-            &source.data,
-            &mask.data,
-            &target.data,
-            &mut partial,
-        );
+    fn rigid_sums(&self, params: &RigidParams, images: &BoneImages<Vec<f32>>) -> Result<Vec<f32>> {
+        let mut partial = vec![0.0f32; params.columns() * crate::abi::RIGID_SUMS];
+        rigid_gn::rigid_gn(params, &slices(images), &mut partial);
         Ok(partial)
     }
 
     fn rigid_scores(
         &self,
-        source: &Volume,
-        mask: &Volume,
-        target: &Volume,
-        candidates: &[Affine],
+        params: &ScoreParams,
+        images: &BoneImages<Vec<f32>>,
+        candidates: &Vec<f32>,
     ) -> Result<Vec<f32>> {
-        check_pair(source, mask)?;
-        let params = ScoreParams::new(&source.grid, &target.grid, candidates.len());
-        let packed = crate::abi::pack_candidates(candidates);
-        let [nx, _, nz] = source.grid.dims;
-        let mut partial = vec![0.0f32; nx * nz * candidates.len() * 2];
-        rigid_score::rigid_score(
-            &params,
-            &source.data,
-            &mask.data,
-            &target.data,
-            &packed,
-            &mut partial,
-        );
+        let mut partial = vec![0.0f32; params.columns() * params.candidates() * 2];
+        rigid_score::rigid_score(params, &slices(images), candidates, &mut partial);
         Ok(partial)
     }
 
@@ -278,11 +258,17 @@ impl Backend for CpuBackend {
         Ok(partials)
     }
 
-    fn sum_partials(&self, partials: &Vec<f64>, values: usize) -> Result<Vec<f64>> {
-        let params = PartialsParams::new(values, partials.len() / values.max(1));
-        let mut out = vec![0.0f64; values];
-        sum_partials::sum_partials(&params, partials, &mut out);
-        Ok(out)
+    fn sum_partials<T: Element>(&self, partials: &Vec<T>, values: usize) -> Result<Vec<f64>> {
+        let mut sums: Option<Vec<f64>> = None;
+        for pass in PartialsParams::passes(values, partials.len() / values.max(1)) {
+            let mut out = vec![0.0f64; pass.groups() * values];
+            match &sums {
+                None => sum_partials::sum_partials(&pass, partials, &mut out),
+                Some(earlier) => sum_partials::sum_partials(&pass, earlier, &mut out),
+            }
+            sums = Some(out);
+        }
+        Ok(sums.expect("at least one pass"))
     }
 
     fn sum_chunks(&self, values: &Vec<f32>) -> Result<Vec<f64>> {

@@ -2,19 +2,19 @@
 
 use super::common::{affine_row, linear_row, voxel_index};
 use crate::abi::{RigidParams, RIGID_SUMS as SUMS};
+use crate::backend::BoneImages;
 use crate::sample::{inside_source, trilinear_with_gradient};
 use glam::Vec3;
 use rayon::prelude::*;
 
 /// Fills `partial` (29 per column of the slab) from the slab's source and mask and the whole
 /// target.
-pub fn rigid_gn(
-    params: &RigidParams,
-    source: &[f32],
-    mask: &[f32],
-    target: &[f32],
-    partial: &mut [f32],
-) {
+pub fn rigid_gn(params: &RigidParams, images: &BoneImages<[f32]>, partial: &mut [f32]) {
+    let BoneImages {
+        source,
+        mask,
+        target,
+    } = *images;
     let [nx, ny, _, z0] = params.dims;
     let depth = params.slab[0];
     let tdims = [

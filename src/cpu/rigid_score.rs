@@ -2,6 +2,7 @@
 
 use super::common::{affine_row, voxel_index};
 use crate::abi::ScoreParams;
+use crate::backend::BoneImages;
 use crate::sample::{inside_source, trilinear};
 use rayon::prelude::*;
 
@@ -9,12 +10,15 @@ use rayon::prelude::*;
 /// ((zl * nx + x) * candidates + c) * 2.
 pub fn rigid_score(
     params: &ScoreParams,
-    source: &[f32],
-    mask: &[f32],
-    target: &[f32],
+    images: &BoneImages<[f32]>,
     candidates: &[f32],
     partial: &mut [f32],
 ) {
+    let BoneImages {
+        source,
+        mask,
+        target,
+    } = *images;
     let [nx, ny, _, z0] = params.dims;
     let [depth, count, _, _] = params.slab;
     let tdims = [

@@ -25,10 +25,10 @@ use crate::abi::{
     RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams,
     SkinWeightsParams, SplatParams,
 };
-use crate::backend::{check_pair, Backend, CostImages, Element, Traffic};
+use crate::backend::{check_pair, Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::{Error, Result};
 use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
-use crate::volume::{Affine, Field, Grid, Image, Volume};
+use crate::volume::{Field, Grid, Image, Volume};
 use context::GpuContext;
 use kernel::Kernel;
 use resident::GpuBuffer;
@@ -60,6 +60,7 @@ pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
     ("ssd_cells", ssd_cells::BINDINGS),
     ("sum_chunks", nonrigid::SUM_BINDINGS),
     ("sum_partials", nonrigid::PARTIALS_BINDINGS),
+    ("sum_partials_f32", nonrigid::PARTIALS_BINDINGS),
     ("warp_cost", nonrigid::COST_BINDINGS),
     ("warp_field", field::WARP_BINDINGS),
 ];
@@ -105,8 +106,10 @@ pub struct Kernels {
     pub rbf_adjoint: Kernel,
     /// shaders/sum_chunks.wgsl
     pub sum_chunks: Kernel,
-    /// shaders/sum_partials.wgsl
+    /// shaders/sum_partials.wgsl over f64 partials
     pub sum_partials: Kernel,
+    /// shaders/sum_partials.wgsl over f32 partials
+    pub sum_partials_f32: Kernel,
     /// shaders/warp_field.wgsl
     pub warp_field: Kernel,
     /// shaders/compose.wgsl
@@ -150,6 +153,7 @@ impl GpuBackend {
                 rbf_adjoint: compile(&ctx, "rbf_adjoint")?,
                 sum_chunks: compile(&ctx, "sum_chunks")?,
                 sum_partials: compile(&ctx, "sum_partials")?,
+                sum_partials_f32: compile(&ctx, "sum_partials_f32")?,
                 warp_field: compile(&ctx, "warp_field")?,
                 compose: compile(&ctx, "compose")?,
             },
@@ -274,45 +278,29 @@ impl Backend for GpuBackend {
         Image::from_data(field.grid.clone(), data)
     }
 
-    fn pyramid_level(&self, input: &Volume, output: &Grid, factors: [usize; 3]) -> Result<Volume> {
-        let params = PyramidParams::new(&input.grid, output.dims, factors);
-        Image::from_data(
-            output.clone(),
-            pyramid::pyramid(self, &params, &input.data)?,
-        )
+    fn pyramid_level(
+        &self,
+        params: &PyramidParams,
+        input: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_pyramid(params, input)
     }
 
     fn rigid_sums(
         &self,
-        source: &Volume,
-        mask: &Volume,
-        target: &Volume,
-        motion: &Affine,
-        centre: [f64; 3],
-    ) -> Result<Vec<f32>> {
-        check_pair(source, mask)?;
-        let params = RigidParams::new(&source.grid, &target.grid, motion, centre);
-        rigid::rigid_sums(self, &params, &source.data, &mask.data, &target.data)
+        params: &RigidParams,
+        images: &BoneImages<GpuBuffer<f32>>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_rigid_sums(params, images)
     }
 
     fn rigid_scores(
         &self,
-        source: &Volume,
-        mask: &Volume,
-        target: &Volume,
-        candidates: &[Affine],
-    ) -> Result<Vec<f32>> {
-        check_pair(source, mask)?;
-        let params = ScoreParams::new(&source.grid, &target.grid, candidates.len());
-        let packed = crate::abi::pack_candidates(candidates);
-        rigid::rigid_scores(
-            self,
-            &params,
-            &source.data,
-            &mask.data,
-            &target.data,
-            &packed,
-        )
+        params: &ScoreParams,
+        images: &BoneImages<GpuBuffer<f32>>,
+        candidates: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_rigid_scores(params, images, candidates)
     }
 
     fn skin_weights(
@@ -421,7 +409,11 @@ impl Backend for GpuBackend {
         self.record_rbf_adjoint(params, geometry, spline, node_gradient)
     }
 
-    fn sum_partials(&self, partials: &GpuBuffer<f64>, values: usize) -> Result<GpuBuffer<f64>> {
+    fn sum_partials<T: Element>(
+        &self,
+        partials: &GpuBuffer<T>,
+        values: usize,
+    ) -> Result<GpuBuffer<f64>> {
         self.record_sum_partials(partials, values)
     }
 

@@ -9,7 +9,7 @@ use super::GpuBackend;
 use crate::abi::{
     EnergyParams, PartialsParams, RbfGradParams, RbfLatticeParams, SplatParams, SumParams,
 };
-use crate::backend::CostImages;
+use crate::backend::{CostImages, Element};
 use crate::error::Result;
 
 use Binding::{Read, ReadWrite, Uniform};
@@ -141,21 +141,29 @@ impl GpuBackend {
         Ok(partials)
     }
 
-    /// shaders/sum_partials.wgsl
-    pub fn record_sum_partials(
+    /// shaders/sum_partials.wgsl, pass after pass until one group is left.
+    pub fn record_sum_partials<T: Element>(
         &self,
-        partials: &GpuBuffer<f64>,
+        partials: &GpuBuffer<T>,
         values: usize,
     ) -> Result<GpuBuffer<f64>> {
-        let params = PartialsParams::new(values, partials.len() / values.max(1));
-        let out = self.output_buffer("summed partials", values)?;
-        self.record(
-            &self.kernels.sum_partials,
-            &params,
-            &[partials.raw(), out.raw()],
-            [groups(values, 64), 1, 1],
-        )?;
-        Ok(out)
+        let mut sums: Option<GpuBuffer<f64>> = None;
+        for pass in PartialsParams::passes(values, partials.len() / values.max(1)) {
+            let (kernel, input) = match &sums {
+                None if T::WGSL == "f32" => (&self.kernels.sum_partials_f32, partials.raw()),
+                None => (&self.kernels.sum_partials, partials.raw()),
+                Some(earlier) => (&self.kernels.sum_partials, earlier.raw()),
+            };
+            let out = self.output_buffer("summed partials", pass.groups() * values)?;
+            self.record(
+                kernel,
+                &pass,
+                &[input, out.raw()],
+                [groups(values, 64), pass.groups() as u32, 1],
+            )?;
+            sums = Some(out);
+        }
+        Ok(sums.expect("at least one pass"))
     }
 
     /// shaders/sum_chunks.wgsl

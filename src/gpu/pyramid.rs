@@ -1,7 +1,7 @@
 //! Host side of shaders/pyramid.wgsl.
 
 use super::kernel::{groups, Binding};
-use super::run::{run_slabs, Input};
+use super::resident::GpuBuffer;
 use super::GpuBackend;
 use crate::abi::PyramidParams;
 use crate::error::Result;
@@ -9,16 +9,21 @@ use crate::error::Result;
 /// Bindings in the order the shader declares them.
 pub const BINDINGS: &[Binding] = &[Binding::Uniform, Binding::Read, Binding::ReadWrite];
 
-/// One coarser level.
-pub fn pyramid(gpu: &GpuBackend, params: &PyramidParams, input: &[f32]) -> Result<Vec<f32>> {
-    let dims = [0, 1, 2].map(|a| params.dims[a] as usize);
-    run_slabs(
-        gpu,
-        &gpu.kernels.pyramid,
-        params,
-        &[Input::Whole("finer pyramid level", input)],
-        dims,
-        dims[0] * dims[1],
-        |depth| [groups(dims[0], 4), groups(dims[1], 4), groups(depth, 4)],
-    )
+impl GpuBackend {
+    /// One coarser level, the whole grid in one dispatch.
+    pub fn record_pyramid(
+        &self,
+        params: &PyramidParams,
+        input: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let out = self.output_buffer("pyramid level", params.output_len())?;
+        let [nx, ny, nz, _] = params.dims;
+        self.record(
+            &self.kernels.pyramid,
+            params,
+            &[input.raw(), out.raw()],
+            [nx, ny, nz].map(|n| groups(n as usize, 4)),
+        )?;
+        Ok(out)
+    }
 }

@@ -1,87 +1,69 @@
-//! Host side of shaders/rigid_gn.wgsl and shaders/rigid_score.wgsl.
+//! Host side of shaders/rigid_gn.wgsl and shaders/rigid_score.wgsl: whole levels bound at once,
+//! per-column partial results left on the device for sum_partials.
 
 use super::kernel::{groups, Binding};
-use super::run::{run_slabs, Input};
+use super::resident::GpuBuffer;
 use super::GpuBackend;
-use crate::abi::RIGID_SUMS as SUMS;
-use crate::abi::{RigidParams, ScoreParams};
+use crate::abi::{RigidParams, ScoreParams, RIGID_SUMS};
+use crate::backend::BoneImages;
 use crate::error::Result;
 
+use Binding::{Read, ReadWrite, Uniform};
+
 /// rigid_gn bindings in the order the shader declares them.
-pub const GN_BINDINGS: &[Binding] = &[
-    Binding::Uniform,
-    Binding::Read,
-    Binding::Read,
-    Binding::Read,
-    Binding::ReadWrite,
-];
+pub const GN_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, ReadWrite];
 
 /// rigid_score bindings in the order the shader declares them.
-pub const SCORE_BINDINGS: &[Binding] = &[
-    Binding::Uniform,
-    Binding::Read,
-    Binding::Read,
-    Binding::Read,
-    Binding::Read,
-    Binding::ReadWrite,
-];
+pub const SCORE_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, Read, ReadWrite];
 
-fn per_voxel<'a>(what: &'a str, data: &'a [f32]) -> Input<'a> {
-    Input::PerVoxel {
-        what,
-        data,
-        per_voxel: 1,
-        halo: 0,
+impl GpuBackend {
+    /// Gauss-Newton column sums.
+    pub fn record_rigid_sums(
+        &self,
+        params: &RigidParams,
+        images: &BoneImages<GpuBuffer<f32>>,
+    ) -> Result<GpuBuffer<f32>> {
+        let partial = self.output_buffer("rigid column sums", params.columns() * RIGID_SUMS)?;
+        self.record(
+            &self.kernels.rigid_gn,
+            params,
+            &[
+                images.source.raw(),
+                images.mask.raw(),
+                images.target.raw(),
+                partial.raw(),
+            ],
+            [groups(params.dims[0] as usize, 64), params.dims[2], 1],
+        )?;
+        Ok(partial)
     }
-}
 
-/// Gauss-Newton column sums.
-pub fn rigid_sums(
-    gpu: &GpuBackend,
-    params: &RigidParams,
-    source: &[f32],
-    mask: &[f32],
-    target: &[f32],
-) -> Result<Vec<f32>> {
-    let dims = [0, 1, 2].map(|a| params.dims[a] as usize);
-    run_slabs(
-        gpu,
-        &gpu.kernels.rigid_gn,
-        params,
-        &[
-            per_voxel("source", source),
-            per_voxel("bone mask", mask),
-            Input::Whole("target", target),
-        ],
-        dims,
-        dims[0] * SUMS,
-        |depth| [groups(dims[0], 64), depth as u32, 1],
-    )
-}
-
-/// Candidate scores.
-pub fn rigid_scores(
-    gpu: &GpuBackend,
-    params: &ScoreParams,
-    source: &[f32],
-    mask: &[f32],
-    target: &[f32],
-    candidates: &[f32],
-) -> Result<Vec<f32>> {
-    let dims = [0, 1, 2].map(|a| params.dims[a] as usize);
-    let count = params.slab[1];
-    run_slabs(
-        gpu,
-        &gpu.kernels.rigid_score,
-        params,
-        &[
-            per_voxel("source", source),
-            per_voxel("bone mask", mask),
-            Input::Whole("target", target),
-            Input::Whole("candidate motions", candidates),
-        ],
-        dims,
-        dims[0] * count as usize * 2,
-        |depth| [groups(dims[0], 64), depth as u32, count],
-    )
+    /// Candidate scores per column.
+    pub fn record_rigid_scores(
+        &self,
+        params: &ScoreParams,
+        images: &BoneImages<GpuBuffer<f32>>,
+        candidates: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let count = params.candidates();
+        let partial =
+            self.output_buffer("candidate column scores", params.columns() * count * 2)?;
+        self.record(
+            &self.kernels.rigid_score,
+            params,
+            &[
+                images.source.raw(),
+                images.mask.raw(),
+                images.target.raw(),
+                candidates.raw(),
+                partial.raw(),
+            ],
+            [
+                groups(params.dims[0] as usize, 64),
+                params.dims[2],
+                count as u32,
+            ],
+        )?;
+        Ok(partial)
+    }
 }

@@ -114,3 +114,12 @@ pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
         .map(|(x, y)| (x - y).abs())
         .fold(0.0, f32::max)
 }
+
+/// `volume` one pyramid level down, built by `backend` and brought back.
+pub fn one_level_down<B: posereg::Backend>(backend: &B, volume: &Volume) -> Volume {
+    let image =
+        posereg::backend::DeviceImage::upload(backend, "test volume", volume.clone()).unwrap();
+    let mut levels = posereg::pyramid::build(backend, image, 2).unwrap();
+    assert_eq!(levels.len(), 2, "the grid can be halved");
+    levels.pop().unwrap().download(backend).unwrap()
+}
