@@ -8,9 +8,10 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use posereg::abi::{
-    pack_candidates, Interpolation, PyramidParams, RigidParams, ScoreParams, RIGID_SUMS,
+    pack_candidates, GainParams, Interpolation, PyramidParams, RbfGradParams, RigidParams,
+    ScoreParams, SsdParams, SumParams, RIGID_SUMS,
 };
-use posereg::backend::BoneImages;
+use posereg::backend::{BoneImages, CostImages};
 use posereg::cpu::CpuBackend;
 use posereg::device::Opened;
 use posereg::gpu::GpuBackend;
@@ -199,12 +200,48 @@ fn nonrigid_rows<B: Backend>(c: &mut Criterion, name: &str, b: &B, g: &Grid, lab
                 .rbf_adjoint(&shape, &geometry, &spline, &node_gradient)
                 .unwrap();
             let adjoint = b.sum_partials(&partials, 3 * shape.rows()).unwrap();
-            let sums = [b.sum_chunks(&rows).unwrap(), b.sum_chunks(&terms).unwrap()];
+            let sums = [
+                b.sum_chunks(&SumParams::new(warp_params.rows()), &rows)
+                    .unwrap(),
+                b.sum_chunks(&SumParams::new(energy.nodes()), &terms)
+                    .unwrap(),
+            ];
             b.download(&[&adjoint, &sums[0], &sums[1]])
         })
     });
     drop(rows);
     group.finish();
+}
+
+/// The intensity gain's kernels: the terms on the grid, the ratio and the application from a
+/// grid one pyramid level coarser.
+fn gain_rows(
+    c: &mut Criterion,
+    g: &Grid,
+    label: &str,
+    backends: &[(&'static str, Opened)],
+    (source, target): (&posereg::Volume, &posereg::Volume),
+) {
+    let (coarse, _) = posereg::pyramid::next_level_grid(g).unwrap();
+    let fine = GainParams::new(g, g, 0.0, 2.0);
+    group(c, "gain_terms", g.len() as u64, label, backends, |b| {
+        posereg::on_backend!(b, b => resident(b, &[&source.data, &target.data], |b, [s, t]| {
+            Ok(b.gain_terms(&fine, s, t)?.0)
+        }))
+    });
+    let ratio = GainParams::new(&coarse, &coarse, 1.0, 2.0);
+    let (p, e) = (volume(&coarse, 0.0), volume(&coarse, 0.3));
+    group(c, "gain_ratio", coarse.len() as u64, label, backends, |b| {
+        posereg::on_backend!(b, b => resident(b, &[&p.data, &e.data], |b, [p, e]| {
+            b.gain_ratio(&ratio, p, e)
+        }))
+    });
+    let apply = GainParams::new(g, &coarse, 1.0, 2.0);
+    group(c, "gain_apply", g.len() as u64, label, backends, |b| {
+        posereg::on_backend!(b, b => resident(b, &[&e.data, &source.data], |b, [gain, m]| {
+            b.gain_apply(&apply, gain, m)
+        }))
+    });
 }
 
 fn kernels(c: &mut Criterion) {
@@ -244,14 +281,13 @@ fn kernels(c: &mut Criterion) {
         let lattice: Vec<f32> = (0..3 * ldims.iter().product::<usize>())
             .map(|k| ((k % 17) as f32 - 8.0) * 0.1)
             .collect();
-        group(
-            c,
-            "rbf_grad",
-            g.len() as u64,
-            &label,
-            &backends,
-            |b| posereg::on_backend!(b, b => b.rbf_grad(&lattice, ldims, step, &source, &target)),
-        );
+        let warp = RbfGradParams::new(&g, ldims, step);
+        group(c, "warp_image", g.len() as u64, &label, &backends, |b| {
+            posereg::on_backend!(b, b => resident(b, &[&lattice, &source.data], |b, [l, s]| {
+                b.warp_image(&warp, l, s)
+            }))
+        });
+        gain_rows(c, &g, &label, &backends, (&source, &target));
         for (name, b) in &backends {
             posereg::on_backend!(b, b => nonrigid_rows(c, name, b, &g, &label));
         }
@@ -356,14 +392,12 @@ fn kernels(c: &mut Criterion) {
             &backends,
             |b| posereg::on_backend!(b, b => b.skin_blend(&weights, &weight_grid, &soft_tissue, &g, &g, &blend)),
         );
-        group(
-            c,
-            "ssd_cells_16",
-            g.len() as u64,
-            &label,
-            &backends,
-            |b| posereg::on_backend!(b, b => b.ssd_cells(&source, &target, [16, 16, 16])),
-        );
+        group(c, "ssd_cells_16", g.len() as u64, &label, &backends, |b| {
+            posereg::on_backend!(b, b => resident(b, &[&source.data, &target.data, &vec![1.0; g.len()]], |b, [s, t, c]| {
+                let images = CostImages { moving: s, fixed: t, covered: c };
+                b.ssd_cells(&SsdParams::new(g.dims, [16, 16, 16]), &images)
+            }))
+        });
     }
 }
 

@@ -17,6 +17,13 @@ fn linear_row(row: vec4<f32>, v: vec3<f32>) -> f32 {
     return row.x * v.x + row.y * v.y + row.z * v.z;
 }
 
+// Coverage at or above which a voxel of the moving image holds data from the source scan
+// (abi::COVERED_AT): coverage is 0 or 1 at the finest level and fractional after the
+// pyramid's smoothing, which erodes it.
+fn is_covered(coverage: f32) -> bool {
+    return coverage >= 0.999;
+}
+
 // First index of cell c when n voxels are split into `cells` cells: voxel i belongs to cell
 // floor(i * cells / n), so cell c starts at ceil(c * n / cells).
 fn cell_start(c: u32, n: u32, cells: u32) -> u32 {

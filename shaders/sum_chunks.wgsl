@@ -1,6 +1,7 @@
-// sum_chunks.wgsl: sums of consecutive chunks of an f32 array, in f64, each in index order, so
-// a reduction's partial sums are the same bits on the CPU twin and from run to run. The host
-// adds the few partials (a chunk holds SumParams.counts.y values).
+// sum_chunks.wgsl: sums of (v - shift)^power (power 1 or 2) over consecutive chunks of an f32
+// array, in f64, each in index order, so a reduction's partial sums are the same bits on the
+// CPU twin and from run to run. The host adds the few partials (a chunk holds
+// SumParams.counts.y values). Squares about the mean give a variance without cancellation.
 //
 // Bindings (group 0):
 //   0 uniform  SumParams
@@ -10,7 +11,8 @@
 
 // Keep in sync with abi::SumParams.
 struct SumParams {
-    counts: vec4<u32>,  // values, values per chunk, chunks, unused
+    counts: vec4<u32>,  // values, values per chunk, chunks, power
+    shift: vec4<f32>,   // shift, unused x3
 }
 
 @group(0) @binding(0) var<uniform> params: SumParams;
@@ -26,7 +28,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     var sum = 0.0lf;
     for (var v = c * n.y; v < min((c + 1u) * n.y, n.x); v = v + 1u) {
-        sum = sum + f64(values[v]);
+        let d = f64(values[v]) - f64(params.shift.x);
+        sum = sum + select(d, d * d, n.w == 2u);
     }
     sums[c] = sum;
 }

@@ -11,7 +11,7 @@
 //   1 storage  lattice: array<f32>    3 floats (R, mm) per lattice node
 //   2 storage  moving: array<f32>     I0 on the target grid
 //   3 storage  fixed: array<f32>      the target T
-//   4 storage  covered: array<f32>    c, 0 or 1 per voxel
+//   4 storage  covered: array<f32>    coverage c per voxel (counted where is_covered)
 //   5 storage  gradient: array<f32>   3 floats per voxel (read_write)
 //   6 storage  rows: array<f32>       1 float per row (j, k), index j + ny k (read_write)
 // Dispatch: workgroups (ceil(ny/8), ceil(nz/8), 1); one invocation per row.
@@ -40,7 +40,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var i = 0u; i < d.x; i = i + 1u) {
         let v = voxel_index(i, j, k, d.xyz);
         let s = warped_sample(i, j, k, fixed[v]);
-        let c = covered[v];
+        let c = select(0.0, 1.0, is_covered(covered[v]));
         let e = s.x - fixed[v];
         sum = sum + c * e * e;
         let g = s.yzw;

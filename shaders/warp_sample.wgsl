@@ -1,6 +1,6 @@
 // warp_sample.wgsl: the moving image sampled through the lattice warp at one voxel, against the
-// target's value there; shared by rbf_grad and warp_cost, which declare `params`, `lattice` and
-// `sampled_value` (I0). Mirrored in src/cpu/rbf_grad.rs (warped_sample).
+// target's value there; shared by warp_image and warp_cost, which declare `params`, `lattice` and
+// `sampled_value` (I0). Mirrored in src/cpu/warp_image.rs (warped_sample).
 
 // (W, ∂(W − t)²/∂R) at voxel (i, j, k): W = I0(x + R(x)), the gradient 2 (W − t) ∇I0 in world
 // mm; all zero where x + R(x) lies outside I0.

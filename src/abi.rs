@@ -165,27 +165,61 @@ impl SlabParams for ResampleParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SsdParams {
-    /// nx, ny, slices in this slab, unused.
+    /// nx, ny, nz, unused.
     pub dims: [u32; 4],
     /// Cells along x, y, z, unused.
     pub cells: [u32; 4],
 }
 
 impl SsdParams {
-    /// Parameters for a slab of `depth` slices of an (nx, ny, ·) volume split into `cells`.
-    pub fn new(dims: [usize; 3], cells: [usize; 3], depth: usize) -> Self {
+    /// Parameters for an (nx, ny, nz) volume split into `cells`.
+    pub fn new(dims: [usize; 3], cells: [usize; 3]) -> Self {
         SsdParams {
-            dims: [dims[0] as u32, dims[1] as u32, depth as u32, 0],
+            dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, 0],
             cells: [cells[0] as u32, cells[1] as u32, cells[2] as u32, 0],
         }
     }
+
+    /// Partial sums the kernel writes: nz · nx · cy.
+    pub fn partials(&self) -> usize {
+        (self.dims[2] * self.dims[0] * self.cells[1]) as usize
+    }
 }
 
-impl SlabParams for SsdParams {
-    fn for_slab(&self, _z0: u32, depth: u32, _first: u32) -> Self {
-        let mut p = *self;
-        p.dims[2] = depth;
-        p
+/// Coverage at or above which a voxel of the moving image holds data from the source scan
+/// (`is_covered` in shaders/common.wgsl): 0 or 1 at the finest level, fractional after the
+/// pyramid's smoothing, which erodes it.
+pub const COVERED_AT: f32 = 0.999;
+
+/// Keep in sync with `GainParams` in shaders/gain.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct GainParams {
+    /// nx, ny, nz of the grid written, its voxels.
+    pub dims: [u32; 4],
+    /// nx, ny, nz of the smoothed grid, unused.
+    pub coarse_dims: [u32; 4],
+    /// Voxel index of the grid written → continuous index of the smoothed grid.
+    pub to_coarse: [[f32; 4]; 3],
+    /// Energy floor, most gain, unused ×2.
+    pub limits: [f32; 4],
+}
+
+impl GainParams {
+    /// For kernels writing `grid`, the gain smoothed on `coarse`, ratios kept within a factor
+    /// `most` of 1 and set to 1 where the smoothed energy is at or below `floor`.
+    pub fn new(grid: &Grid, coarse: &Grid, floor: f32, most: f32) -> Self {
+        GainParams {
+            dims: dims4(grid, grid.len() as u32),
+            coarse_dims: dims4(coarse, 0),
+            to_coarse: rows(&(coarse.world_to_voxel_affine() * grid.affine)),
+            limits: [floor, most, 0.0, 0.0],
+        }
+    }
+
+    /// Voxels of the grid written.
+    pub fn voxels(&self) -> usize {
+        self.dims[3] as usize
     }
 }
 
@@ -238,9 +272,6 @@ macro_rules! slab_by_dims_and_slab {
 }
 slab_by_dims_and_slab!(
     ComposeParams,
-    PyramidParams,
-    RigidParams,
-    ScoreParams,
     SkinWeightsParams,
     SkinBlendParams,
     RbfGradParams,
@@ -499,7 +530,7 @@ fn dual_quaternion(m: &Affine) -> [[f32; 4]; 2] {
     [q(real), q(dual)]
 }
 
-/// Keep in sync with `RbfGradParams` in shaders/rbf_grad.wgsl.
+/// Keep in sync with `RbfGradParams` in shaders/lattice_warp.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct RbfGradParams {
@@ -532,6 +563,16 @@ impl RbfGradParams {
             mm_to_index: linear_rows(&inv),
             gradient_to_world: linear_rows(&inv.transpose()),
         }
+    }
+
+    /// Voxels of the target grid.
+    pub fn voxels(&self) -> usize {
+        self.dims[..3].iter().map(|&n| n as usize).product()
+    }
+
+    /// Rows of x (ny · nz): warp_cost writes one sum per row.
+    pub fn rows(&self) -> usize {
+        (self.dims[1] * self.dims[2]) as usize
     }
 }
 
@@ -648,8 +689,10 @@ pub const SUM_CHUNK: usize = 1024;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SumParams {
-    /// Values, values per chunk, chunks, unused.
+    /// Values, values per chunk, chunks, power (1 or 2).
     pub counts: [u32; 4],
+    /// Shift subtracted from each value before the power, unused ×3.
+    pub shift: [f32; 4],
 }
 
 impl SumParams {
@@ -660,9 +703,23 @@ impl SumParams {
                 values as u32,
                 SUM_CHUNK as u32,
                 values.div_ceil(SUM_CHUNK) as u32,
-                0,
+                1,
             ],
+            shift: [0.0; 4],
         }
+    }
+
+    /// Sums of the squares of `values` values minus `shift`.
+    pub fn squares_about(values: usize, shift: f32) -> Self {
+        let mut p = SumParams::new(values);
+        p.counts[3] = 2;
+        p.shift[0] = shift;
+        p
+    }
+
+    /// Values summed.
+    pub fn values(&self) -> usize {
+        self.counts[0] as usize
     }
 
     /// Chunks, hence sums.

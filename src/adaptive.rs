@@ -8,25 +8,29 @@
 //! adjoint of that interpolation (lattice_splat), the RBF's adjoint at the nodes and the solved
 //! system (RbfSystem::value_gradient). Each evaluation is one pass of kernels on the backend's
 //! buffers (`Evaluator`): only the coefficients go up and only the gradient with respect to
-//! them and a few partial sums come back. The per-refinement warped image (cell costs, gain) is
-//! still evaluated on the host's lattice and read back. During optimisation the moving image is
+//! them and a few partial sums come back. The per-refinement warped image, its cell costs and
+//! the intensity gain stay on the device too: only the per-cell sums come back. The pyramids are
+//! built there from one upload of the target, the moving image and its coverage. During
+//! optimisation the moving image is
 //! the initialised source I0 on the target grid; the final field is composed with the initial
 //! field, u = R + u0 ∘ (id + R), and the source resampled once through it.
 
 use crate::abi::{
     lattice_geometry, spline_buffer, EnergyParams, RbfGradParams, RbfLatticeParams, SplatParams,
+    SsdParams, SumParams,
 };
 use crate::backend::{Backend, CostImages, DeviceImage, Traffic};
 use crate::check::finite_non_negative;
 use crate::error::{Error, Result};
 use crate::gain::gain;
 use crate::levels::PerLevel;
+use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::optim::lbfgs;
 use crate::progress::Progress;
 use crate::pyramid;
 use crate::rbf::{RbfCoefficients, RbfSystem};
 use crate::regularise::energy_params;
-use crate::volume::{Field, Grid, Image, Volume};
+use crate::volume::{Field, Grid, Volume};
 use nalgebra::Vector3;
 
 /// Default weight of the membrane energy (AdaptiveOptions::membrane).
@@ -241,7 +245,6 @@ struct Lattice {
     dims: [usize; 3],
     step: usize,
     spacing_mm: [f64; 3],
-    nodes: Vec<Vector3<f64>>,
 }
 
 impl Lattice {
@@ -249,85 +252,107 @@ impl Lattice {
         let spacing = grid.finest_spacing();
         let step = ((lattice_mm / spacing).round() as usize).max(1);
         let dims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
-        let nodes = (0..dims[0] * dims[1] * dims[2])
-            .map(|n| {
-                let ijk = [
-                    n % dims[0],
-                    (n / dims[0]) % dims[1],
-                    n / (dims[0] * dims[1]),
-                ];
-                let w = grid.voxel_to_world(ijk.map(|v| (v * step) as f64));
-                Vector3::new(w[0], w[1], w[2])
-            })
-            .collect();
-        let spacing_mm = grid.spacing().map(|h| h * step as f64);
         Lattice {
             dims,
             step,
-            spacing_mm,
-            nodes,
+            spacing_mm: grid.spacing().map(|h| h * step as f64),
         }
-    }
-
-    /// The rbf_grad kernel's output for the warp `coef` evaluated on this lattice: `moving`
-    /// sampled through it and the squared residual's gradient, per voxel of `fixed`.
-    fn rbf_grad<B: Backend>(
-        &self,
-        backend: &B,
-        values: &[f32],
-        moving: &Volume,
-        fixed: &Volume,
-    ) -> Result<Vec<f32>> {
-        backend.rbf_grad(values, self.dims, self.step, moving, fixed)
-    }
-
-    fn values(&self, coef: &RbfCoefficients, centres: &[Vector3<f64>]) -> Vec<f32> {
-        coef.eval_many(centres, &self.nodes)
-            .iter()
-            .flat_map(|v| [v.x as f32, v.y as f32, v.z as f32])
-            .collect()
     }
 }
 
-/// One pyramid level's images and lattice on the device, for the optimiser's evaluations: each
-/// uploads the RBF's coefficients, runs the cost's kernels, and reads back only the gradient
-/// with respect to the coefficients and a few partial sums.
+/// A lattice placed on a grid, where the backend computes: the warp is evaluated at its nodes.
+struct PlacedLattice<B: Backend> {
+    lattice: Lattice,
+    geometry: B::Buffer<f64>,
+    /// The warp's parameters for kernels on the grid's voxels.
+    warp: RbfGradParams,
+}
+
+impl<B: Backend> PlacedLattice<B> {
+    fn new(backend: &B, grid: &Grid, lattice_mm: f64) -> Result<Self> {
+        let lattice = Lattice::new(grid, lattice_mm);
+        Ok(PlacedLattice {
+            geometry: backend.upload("lattice geometry", lattice_geometry(grid))?,
+            warp: RbfGradParams::new(grid, lattice.dims, lattice.step),
+            lattice,
+        })
+    }
+
+    /// The RBF `coef` (centres `centres`) at the nodes (rbf_lattice), with the uploaded
+    /// spline and the kernel's shape, for the adjoint to reuse.
+    fn warp(
+        &self,
+        backend: &B,
+        coef: &RbfCoefficients,
+        centres: &[Vector3<f64>],
+    ) -> Result<NodeWarp<B>> {
+        let positions: Vec<[f64; 3]> = centres.iter().map(|c| [c.x, c.y, c.z]).collect();
+        let spline = backend.upload(
+            "RBF coefficients",
+            spline_buffer(&coef.affine, &positions, &coef.lambda),
+        )?;
+        let shape = RbfLatticeParams::new(self.lattice.dims, self.lattice.step, centres.len());
+        let values = backend.rbf_lattice(&shape, &self.geometry, &spline)?;
+        Ok(NodeWarp {
+            spline,
+            shape,
+            values,
+        })
+    }
+}
+
+/// A warp evaluated at a lattice's nodes.
+struct NodeWarp<B: Backend> {
+    spline: B::Buffer<f64>,
+    shape: RbfLatticeParams,
+    /// 3 floats (R, mm) per node.
+    values: B::Buffer<f32>,
+}
+
+/// One pyramid level's images where the backend computes.
+struct Level<B: Backend> {
+    fixed: DeviceImage<B>,
+    moving: DeviceImage<B>,
+    covered: DeviceImage<B>,
+}
+
+impl<B: Backend> Level<B> {
+    fn images<'a>(&'a self, moving: &'a B::Buffer<f32>) -> CostImages<'a, B::Buffer<f32>> {
+        CostImages {
+            moving,
+            fixed: &self.fixed.data,
+            covered: &self.covered.data,
+        }
+    }
+}
+
+/// The optimiser's view of one pyramid level: each evaluation uploads the RBF's coefficients,
+/// runs the cost's kernels, and reads back only the gradient with respect to the coefficients
+/// and a few partial sums.
 struct Evaluator<'a, B: Backend> {
     backend: &'a B,
-    geometry: B::Buffer<f64>,
-    moving: B::Buffer<f32>,
-    fixed: B::Buffer<f32>,
-    covered: B::Buffer<f32>,
-    lattice_dims: [usize; 3],
-    step: usize,
-    warp: RbfGradParams,
+    placed: &'a PlacedLattice<B>,
+    images: CostImages<'a, B::Buffer<f32>>,
     splat: SplatParams,
     energy: EnergyParams,
     voxels: f64,
 }
 
 impl<'a, B: Backend> Evaluator<'a, B> {
-    /// Uploads `moving`, `fixed` and `covered` (1 or 0 per voxel); `weights` are the membrane's
-    /// and the bending energy's at this level.
+    /// `weights` are the membrane's and the bending energy's at this level.
     fn new(
         backend: &'a B,
-        lattice: &Lattice,
-        moving: &Volume,
-        fixed: &Volume,
-        covered: &[f32],
+        placed: &'a PlacedLattice<B>,
+        images: CostImages<'a, B::Buffer<f32>>,
+        grid: &Grid,
         weights: [f64; 2],
-    ) -> Result<Self> {
-        let grid = &fixed.grid;
+    ) -> Self {
         let voxels = grid.len() as f64;
-        Ok(Evaluator {
+        let lattice = &placed.lattice;
+        Evaluator {
             backend,
-            geometry: backend.upload("lattice geometry", lattice_geometry(grid))?,
-            moving: backend.upload("moving image", moving.data.clone())?,
-            fixed: backend.upload("target image", fixed.data.clone())?,
-            covered: backend.upload("coverage", covered.to_vec())?,
-            lattice_dims: lattice.dims,
-            step: lattice.step,
-            warp: RbfGradParams::new(grid, lattice.dims, lattice.step),
+            placed,
+            images,
             splat: SplatParams::new(lattice.dims, lattice.step, grid.dims),
             energy: energy_params(
                 lattice.dims,
@@ -337,7 +362,7 @@ impl<'a, B: Backend> Evaluator<'a, B> {
                 (1.0 / voxels) as f32,
             ),
             voxels,
-        })
+        }
     }
 
     /// The cost of the warp `coef` (centres `centres`): the mean masked squared residual plus
@@ -345,24 +370,20 @@ impl<'a, B: Backend> Evaluator<'a, B> {
     /// point and per affine row.
     fn evaluate(&self, coef: &RbfCoefficients, centres: &[Vector3<f64>]) -> Result<Evaluated> {
         let b = self.backend;
-        let positions: Vec<[f64; 3]> = centres.iter().map(|c| [c.x, c.y, c.z]).collect();
-        let spline = b.upload(
-            "RBF coefficients",
-            spline_buffer(&coef.affine, &positions, &coef.lambda),
-        )?;
-        let shape = RbfLatticeParams::new(self.lattice_dims, self.step, centres.len());
-        let warp = b.rbf_lattice(&shape, &self.geometry, &spline)?;
-        let images = CostImages {
-            moving: &self.moving,
-            fixed: &self.fixed,
-            covered: &self.covered,
-        };
-        let (per_voxel, rows) = b.warp_cost(&self.warp, &warp, &images)?;
+        let warp = self.placed.warp(b, coef, centres)?;
+        let (per_voxel, rows) = b.warp_cost(&self.placed.warp, &warp.values, &self.images)?;
         let splat = b.lattice_splat(&self.splat, &per_voxel)?;
-        let (node_gradient, energy) = b.lattice_energy(&self.energy, &warp, &splat)?;
-        let partials = b.rbf_adjoint(&shape, &self.geometry, &spline, &node_gradient)?;
-        let adjoint = b.sum_partials(&partials, 3 * shape.rows())?;
-        let (rows, energy) = (b.sum_chunks(&rows)?, b.sum_chunks(&energy)?);
+        let (node_gradient, energy) = b.lattice_energy(&self.energy, &warp.values, &splat)?;
+        let partials = b.rbf_adjoint(
+            &warp.shape,
+            &self.placed.geometry,
+            &warp.spline,
+            &node_gradient,
+        )?;
+        let adjoint = b.sum_partials(&partials, 3 * warp.shape.rows())?;
+        let sum = |v: &B::Buffer<f32>, n| b.sum_chunks(&SumParams::new(n), v);
+        let rows = sum(&rows, self.placed.warp.rows())?;
+        let energy = sum(&energy, self.energy.nodes())?;
         let [adjoint, rows, energy]: [Vec<f64>; 3] = b
             .download(&[&adjoint, &rows, &energy])?
             .try_into()
@@ -389,11 +410,18 @@ struct Evaluated {
     affine: [Vector3<f64>; 4],
 }
 
-/// Population variance of an image's intensities.
-fn variance(data: &[f32]) -> f64 {
-    let n = data.len().max(1) as f64;
-    let mean = data.iter().map(|&v| v as f64).sum::<f64>() / n;
-    data.iter().map(|&v| (v as f64 - mean).powi(2)).sum::<f64>() / n
+/// Population variance of an image's intensities, reduced where the backend computes: the
+/// mean, then the squares about it.
+fn variance<B: Backend>(backend: &B, image: &DeviceImage<B>) -> Result<f64> {
+    let n = image.grid.len();
+    let total = |params: SumParams| -> Result<f64> {
+        let sums = backend.sum_chunks(&params, &image.data)?;
+        Ok(backend.download(&[&sums])?[0].iter().sum::<f64>())
+    };
+    let mean = total(SumParams::new(n))? / n as f64;
+    let shift = mean as f32;
+    let squares = total(SumParams::squares_about(n, shift))? / n as f64;
+    Ok(squares - (mean - shift as f64).powi(2))
 }
 
 /// Centre (world) of cell `c` of a grid split into `cells`.
@@ -418,23 +446,44 @@ fn solve(points: &[ControlPoint], smoothing: f64) -> Result<(RbfCoefficients, Ve
     Ok((coefficients, centres))
 }
 
-/// The warp of the control points as they stand (its coefficients and centres) and `moving`
-/// sampled through it on `fixed`'s grid.
+/// The warp of the control points as they stand and the moving image seen through it.
+struct Warped<B: Backend> {
+    coef: RbfCoefficients,
+    centres: Vec<Vector3<f64>>,
+    image: B::Buffer<f32>,
+}
+
+/// The control points' warp and `moving` seen through it on the lattice's grid.
 fn warp_moving<B: Backend>(
-    points: &[ControlPoint],
-    lattice: &Lattice,
-    options: &AdaptiveOptions,
-    moving: &Volume,
-    fixed: &Volume,
     backend: &B,
-) -> Result<(RbfCoefficients, Vec<Vector3<f64>>, Volume)> {
-    let (coef, centres) = solve(points, options.smoothing)?;
-    let out = lattice.rbf_grad(backend, &lattice.values(&coef, &centres), moving, fixed)?;
-    let warped = Image::from_data(
-        fixed.grid.clone(),
-        out.chunks_exact(4).map(|c| c[0]).collect(),
-    )?;
-    Ok((coef, centres, warped))
+    points: &[ControlPoint],
+    smoothing: f64,
+    placed: &PlacedLattice<B>,
+    moving: &B::Buffer<f32>,
+) -> Result<Warped<B>> {
+    let (coef, centres) = solve(points, smoothing)?;
+    let warp = placed.warp(backend, &coef, &centres)?;
+    let image = backend.warp_image(&placed.warp, &warp.values, moving)?;
+    Ok(Warped {
+        coef,
+        centres,
+        image,
+    })
+}
+
+/// The mean squared residual per cell of `level`'s grid split into `cells`, counting only
+/// voxels where the moving image holds data.
+fn cell_costs<B: Backend>(
+    backend: &B,
+    level: &Level<B>,
+    warped: &B::Buffer<f32>,
+    cells: [usize; 3],
+) -> Result<CellSsd> {
+    let dims = level.fixed.grid.dims;
+    check_cells(dims, cells)?;
+    let partial = backend.ssd_cells(&SsdParams::new(dims, cells), &level.images(warped))?;
+    let partial = backend.download(&[&partial])?.pop().expect("one buffer");
+    Ok(fold_ssd_partials(dims, cells, &partial))
 }
 
 /// What the adaptive stage deforms: the source on the target grid.
@@ -452,40 +501,38 @@ pub struct Moving<'a> {
 /// leaves them out. Measured on the paper phantom at 10° with the initialisation: counting them,
 /// the adaptive stage pulled the tissue at the bottom of the field of view (where the turned
 /// shank's source lies below the straight scan) from 0.6 to 4.4 mm of error (0.98 → 0.53 mm
-/// mean). The coverage is the initial one, per level (the pyramid's smoothing below 1 erodes
-/// it at coarse levels). Coverage re-measured through the warp was tried and is worse: the
+/// mean). The coverage is the initial one, per level; the kernels count a voxel as covered
+/// where its level's coverage is at least abi::COVERED_AT (the pyramid's smoothing erodes it at
+/// coarse levels). Coverage re-measured through the warp was tried and is worse: the
 /// optimiser then hides mismatches by pulling samples off the grid (10° without
 /// initialisation, 1.34 → 1.59 mm).
-fn covered_levels<B: Backend>(
+fn levels<B: Backend>(
     backend: &B,
-    coverage: &Volume,
-    levels: usize,
-) -> Result<Vec<Vec<f32>>> {
-    downloaded(backend, coverage, "coverage", levels)?
+    moving: &Moving,
+    target: &Volume,
+    count: usize,
+) -> Result<Vec<Level<B>>> {
+    let pyramid_of = |what, image: &Volume, count| {
+        pyramid::build(
+            backend,
+            DeviceImage::upload(backend, what, image.clone())?,
+            count,
+        )
+    };
+    let fixed = pyramid_of("target", target, count)?;
+    let count = fixed.len();
+    let moving_levels = pyramid_of("moving image", moving.image, count)?;
+    let covered = pyramid_of("coverage", moving.coverage, count)?;
+    Ok(fixed
         .into_iter()
-        .map(|level| {
-            Ok(level
-                .data
-                .iter()
-                .map(|&c| if c >= 0.999 { 1.0 } else { 0.0 })
-                .collect())
+        .zip(moving_levels)
+        .zip(covered)
+        .map(|((fixed, moving), covered)| Level {
+            fixed,
+            moving,
+            covered,
         })
-        .collect()
-}
-
-/// The pyramid of `image` (`levels` levels at most), built where the backend computes and
-/// brought back.
-fn downloaded<B: Backend>(
-    backend: &B,
-    image: &Volume,
-    what: &str,
-    levels: usize,
-) -> Result<Vec<Volume>> {
-    let image = DeviceImage::upload(backend, what, image.clone())?;
-    pyramid::build(backend, image, levels)?
-        .iter()
-        .map(|level| level.download(backend))
-        .collect()
+        .collect())
 }
 
 /// Runs the adaptive stage on `moving`; `pins` are the points held at zero added
@@ -501,11 +548,7 @@ pub fn register<B: Backend>(
     crate::backend::check_pair(moving.image, target)?;
     crate::backend::check_pair(moving.coverage, target)?;
     options.check()?;
-    let prealigned = moving.prealigned;
-    let target_levels = downloaded(backend, target, "target", options.levels)?;
-    let levels = target_levels.len();
-    let moving_levels = downloaded(backend, moving.image, "moving image", levels)?;
-    let covered_levels = covered_levels(backend, moving.coverage, levels)?;
+    let levels = levels(backend, moving, target, options.levels)?;
     let mut points: Vec<ControlPoint> = pins
         .iter()
         .map(|p| ControlPoint {
@@ -517,149 +560,57 @@ pub fn register<B: Backend>(
         .collect();
     let mut stages = Vec::new();
     let evaluations = std::cell::Cell::new(Evaluations::default());
-    progress.begin(
-        "adaptive RBF",
-        target_levels.len() * options.cell_levels.len(),
-    );
-    let coarsest = target_levels.len() - 1;
-    for level in (0..target_levels.len()).rev() {
-        let fixed = &target_levels[level];
-        let covered = &covered_levels[level];
-        let lattice = Lattice::new(&fixed.grid, options.lattice_mm);
-        let voxels = fixed.grid.len() as f64;
-        // The membrane charges the whole warp R; after the initialisation R is the small
-        // correction, without it R carries the whole joint motion, which it would resist
-        // (half phantom 10° without initialisation, weight 10: 1.43 → 2.37 mm).
-        let target_variance = variance(&fixed.data);
-        let membrane_weight = match prealigned {
-            true => options.membrane.at_level(level) * target_variance,
-            false => 0.0,
-        };
-        let bending_weight = options.bending.at_level(level) * target_variance;
+    progress.begin("adaptive RBF", levels.len() * options.cell_levels.len());
+    for (index, level) in levels.iter().enumerate().rev() {
+        let placed = PlacedLattice::new(backend, &level.fixed.grid, options.lattice_mm)?;
+        let weights = energy_weights(backend, level, index, moving.prealigned, options)?;
         // Once the moving image is aligned, its smooth brightness difference to the target is
         // bias, not anatomy (crate::gain): match it at each level, measured through the warp
         // found so far. Aligned means from the start after the articulated initialisation;
         // without it, from the second level on (matched on the unaligned image at the coarsest
         // level, the gain absorbed anatomy: 10° paper phantom, 1.42 → 1.62 mm).
-        let gained;
-        let moving = if options.gain_scale_mm > 0.0 && (prealigned || level < coarsest) {
-            let (_, _, warped) = warp_moving(
-                &points,
-                &lattice,
-                options,
-                &moving_levels[level],
-                fixed,
-                backend,
-            )?;
-            let gain = gain(backend, &warped, fixed, options.gain_scale_mm)?;
-            gained = Image {
-                grid: fixed.grid.clone(),
-                data: moving_levels[level]
-                    .data
-                    .iter()
-                    .zip(&gain)
-                    .map(|(m, g)| m * g)
-                    .collect(),
-            };
-            &gained
-        } else {
-            &moving_levels[level]
+        let aligned = moving.prealigned || index + 1 < levels.len();
+        let gained = match options.gain_scale_mm > 0.0 && aligned {
+            true => {
+                let moving = &level.moving.data;
+                let warped = warp_moving(backend, &points, options.smoothing, &placed, moving)?;
+                Some(gain(
+                    backend,
+                    &warped.image,
+                    &level.fixed,
+                    moving,
+                    options.gain_scale_mm,
+                )?)
+            }
+            false => None,
+        };
+        let run = LevelRun {
+            backend,
+            index,
+            level,
+            placed: &placed,
+            moving: gained.as_ref().unwrap_or(&level.moving.data),
+            options,
         };
         let evaluator = Evaluator::new(
             backend,
-            &lattice,
-            moving,
-            fixed,
-            covered,
-            [membrane_weight, bending_weight],
-        )?;
+            &placed,
+            level.images(run.moving),
+            &level.fixed.grid,
+            weights,
+        );
         for &wanted in &options.cell_levels {
-            let cells: [usize; 3] = std::array::from_fn(|a| {
-                wanted
-                    .min(fixed.grid.dims[a] / options.min_cell_voxels)
-                    .max(1)
-            });
-            let (coef, centres, mut warped) =
-                warp_moving(&points, &lattice, options, moving, fixed, backend)?;
-
-            // Uncovered voxels count as matched, so no cell is refined for them.
-            for ((w, t), c) in warped.data.iter_mut().zip(&fixed.data).zip(covered) {
-                if *c == 0.0 {
-                    *w = *t;
-                }
-            }
-            let ssd = backend.ssd_cells(&warped, fixed, cells)?;
-            let means = ssd.mean();
-            let overall = ssd.total() / voxels;
-            let cell_size = (0..3)
-                .map(|a| fixed.grid.dims[a] as f64 * fixed.grid.spacing()[a] / cells[a] as f64)
-                .fold(f64::INFINITY, f64::min);
-            let mut added = 0;
-            for (k, mean) in means.iter().enumerate() {
-                let c = [
-                    k % cells[0],
-                    (k / cells[0]) % cells[1],
-                    k / (cells[0] * cells[1]),
-                ];
-                let centre = cell_centre(&fixed.grid, cells, c);
-                let poor = *mean > options.threshold.at_level(level) * overall
-                    || wanted == options.cell_levels[0];
-                let crowded = points
-                    .iter()
-                    .any(|p| (Vector3::from(p.position) - centre).norm() < 0.5 * cell_size);
-                if poor && !crowded && ssd.count[k] > 0 {
-                    let current = coef.eval(&centres, &centre);
-                    points.push(ControlPoint {
-                        position: centre.into(),
-                        displacement: current.into(),
-                        pinned: false,
-                        cells: wanted,
-                    });
-                    added += 1;
-                }
-            }
+            let cells = run.cells(wanted);
             let refinement = format!(
-                "level {level}, {}x{}x{} cells",
+                "level {index}, {}x{}x{} cells",
                 cells[0], cells[1], cells[2]
             );
+            let added = run.add_points(&mut points, wanted, cells)?;
             if added == 0 {
                 progress.step(&format!("{refinement}: no new points"));
                 continue;
             }
-            let centres: Vec<Vector3<f64>> =
-                points.iter().map(|p| Vector3::from(p.position)).collect();
-            let system = RbfSystem::new(centres.clone(), options.smoothing)?;
-            let free: Vec<usize> = (0..points.len()).filter(|&i| !points[i].pinned).collect();
-            let x0: Vec<f64> = free.iter().flat_map(|&i| points[i].displacement).collect();
-            let cost_grad = |x: &[f64]| -> Result<(f64, Vec<f64>)> {
-                let before = backend.traffic();
-                let mut values = vec![Vector3::zeros(); points.len()];
-                for (k, &i) in free.iter().enumerate() {
-                    values[i] = Vector3::new(x[3 * k], x[3 * k + 1], x[3 * k + 2]);
-                }
-                let coef = system.coefficients(&values)?;
-                let e = evaluator.evaluate(&coef, &centres)?;
-                let df = system.value_gradient(&e.points, &e.affine)?;
-                let mut counted = evaluations.get();
-                counted.add(backend.traffic() - before);
-                evaluations.set(counted);
-                Ok((
-                    e.cost,
-                    free.iter()
-                        .flat_map(|&i| [df[i].x, df[i].y, df[i].z])
-                        .collect(),
-                ))
-            };
-            let result = lbfgs(
-                cost_grad,
-                x0,
-                options.iterations.at_level(level),
-                options.tolerance.at_level(level),
-            )?;
-            for (k, &i) in free.iter().enumerate() {
-                points[i].displacement =
-                    [result.x[3 * k], result.x[3 * k + 1], result.x[3 * k + 2]];
-            }
+            let result = run.optimise(&mut points, &evaluator, &evaluations)?;
             progress.step(&format!(
                 "{refinement}: +{added} points ({} in all), cost {:.4} -> {:.4}",
                 points.len(),
@@ -667,7 +618,7 @@ pub fn register<B: Backend>(
                 result.cost
             ));
             stages.push(StageReport {
-                level,
+                level: index,
                 cells,
                 added,
                 cost_before: result.start_cost,
@@ -686,6 +637,138 @@ pub fn register<B: Backend>(
     })
 }
 
+/// The membrane's and the bending energy's weights at pyramid level `index`, scaled by the
+/// target's variance there so they do not depend on the intensity scale. The membrane charges
+/// the whole warp R; after the initialisation R is the small correction, without it R carries
+/// the whole joint motion, which it would resist (half phantom 10° without initialisation,
+/// weight 10: 1.43 → 2.37 mm).
+fn energy_weights<B: Backend>(
+    backend: &B,
+    level: &Level<B>,
+    index: usize,
+    prealigned: bool,
+    options: &AdaptiveOptions,
+) -> Result<[f64; 2]> {
+    let target_variance = variance(backend, &level.fixed)?;
+    let membrane = match prealigned {
+        true => options.membrane.at_level(index) * target_variance,
+        false => 0.0,
+    };
+    Ok([membrane, options.bending.at_level(index) * target_variance])
+}
+
+/// One pyramid level of the adaptive stage: its images, lattice and moving image (with its
+/// gain when matched).
+struct LevelRun<'a, B: Backend> {
+    backend: &'a B,
+    index: usize,
+    level: &'a Level<B>,
+    placed: &'a PlacedLattice<B>,
+    moving: &'a B::Buffer<f32>,
+    options: &'a AdaptiveOptions,
+}
+
+impl<B: Backend> LevelRun<'_, B> {
+    /// `wanted` cells per axis, fewer where an axis has too few voxels.
+    fn cells(&self, wanted: usize) -> [usize; 3] {
+        let dims = self.level.fixed.grid.dims;
+        std::array::from_fn(|a| wanted.min(dims[a] / self.options.min_cell_voxels).max(1))
+    }
+
+    /// Adds a control point at the centre of each cell that fits poorly (every cell at the
+    /// first refinement) and is not crowded by a point already there; returns how many.
+    fn add_points(
+        &self,
+        points: &mut Vec<ControlPoint>,
+        wanted: usize,
+        cells: [usize; 3],
+    ) -> Result<usize> {
+        let options = self.options;
+        let grid = &self.level.fixed.grid;
+        let warped = warp_moving(
+            self.backend,
+            points,
+            options.smoothing,
+            self.placed,
+            self.moving,
+        )?;
+        let ssd = cell_costs(self.backend, self.level, &warped.image, cells)?;
+        let means = ssd.mean();
+        let overall = ssd.total() / grid.len() as f64;
+        let cell_size = (0..3)
+            .map(|a| grid.dims[a] as f64 * grid.spacing()[a] / cells[a] as f64)
+            .fold(f64::INFINITY, f64::min);
+        let mut added = 0;
+        for (k, mean) in means.iter().enumerate() {
+            let c = [
+                k % cells[0],
+                (k / cells[0]) % cells[1],
+                k / (cells[0] * cells[1]),
+            ];
+            let centre = cell_centre(grid, cells, c);
+            let poor = *mean > options.threshold.at_level(self.index) * overall
+                || wanted == options.cell_levels[0];
+            let crowded = points
+                .iter()
+                .any(|p| (Vector3::from(p.position) - centre).norm() < 0.5 * cell_size);
+            if poor && !crowded && ssd.count[k] > 0 {
+                points.push(ControlPoint {
+                    position: centre.into(),
+                    displacement: warped.coef.eval(&warped.centres, &centre).into(),
+                    pinned: false,
+                    cells: wanted,
+                });
+                added += 1;
+            }
+        }
+        Ok(added)
+    }
+
+    /// L-BFGS on the free points' displacements through `evaluator`, counting each
+    /// evaluation's traffic in `evaluations`.
+    fn optimise(
+        &self,
+        points: &mut [ControlPoint],
+        evaluator: &Evaluator<B>,
+        evaluations: &std::cell::Cell<Evaluations>,
+    ) -> Result<crate::optim::Minimised> {
+        let options = self.options;
+        let centres: Vec<Vector3<f64>> = points.iter().map(|p| Vector3::from(p.position)).collect();
+        let system = RbfSystem::new(centres.clone(), options.smoothing)?;
+        let free: Vec<usize> = (0..points.len()).filter(|&i| !points[i].pinned).collect();
+        let x0: Vec<f64> = free.iter().flat_map(|&i| points[i].displacement).collect();
+        let cost_grad = |x: &[f64]| -> Result<(f64, Vec<f64>)> {
+            let before = self.backend.traffic();
+            let mut values = vec![Vector3::zeros(); points.len()];
+            for (k, &i) in free.iter().enumerate() {
+                values[i] = Vector3::new(x[3 * k], x[3 * k + 1], x[3 * k + 2]);
+            }
+            let coef = system.coefficients(&values)?;
+            let e = evaluator.evaluate(&coef, &centres)?;
+            let df = system.value_gradient(&e.points, &e.affine)?;
+            let mut counted = evaluations.get();
+            counted.add(self.backend.traffic() - before);
+            evaluations.set(counted);
+            Ok((
+                e.cost,
+                free.iter()
+                    .flat_map(|&i| [df[i].x, df[i].y, df[i].z])
+                    .collect(),
+            ))
+        };
+        let result = lbfgs(
+            cost_grad,
+            x0,
+            options.iterations.at_level(self.index),
+            options.tolerance.at_level(self.index),
+        )?;
+        for (k, &i) in free.iter().enumerate() {
+            points[i].displacement = [result.x[3 * k], result.x[3 * k + 1], result.x[3 * k + 2]];
+        }
+        Ok(result)
+    }
+}
+
 impl Adaptive {
     /// R on every voxel of `grid`, scaled by `scale`, through the same lattice interpolation
     /// the optimiser used.
@@ -696,17 +779,18 @@ impl Adaptive {
         lattice_mm: f64,
         scale: f64,
     ) -> Result<Field> {
-        let lattice = Lattice::new(grid, lattice_mm);
+        let placed = PlacedLattice::new(backend, grid, lattice_mm)?;
         let centres: Vec<Vector3<f64>> = self
             .points
             .iter()
             .map(|p| Vector3::from(p.position))
             .collect();
-        let values: Vec<f32> = lattice
-            .values(&self.coefficients, &centres)
+        let warp = placed.warp(backend, &self.coefficients, &centres)?;
+        let values: Vec<f32> = backend.download(&[&warp.values])?[0]
             .iter()
             .map(|v| v * scale as f32)
             .collect();
+        let lattice = &placed.lattice;
         backend.warp_field(&values, lattice.dims, lattice.step, grid)
     }
 }

@@ -3,11 +3,10 @@
 //! against this trait only, so every stage runs on either and the two can be compared.
 
 use crate::abi::{
-    BoneBlend, EnergyParams, Interpolation, PyramidParams, RbfGradParams, RbfLatticeParams,
-    RigidParams, ScoreParams, SplatParams,
+    BoneBlend, EnergyParams, GainParams, Interpolation, PyramidParams, RbfGradParams,
+    RbfLatticeParams, RigidParams, ScoreParams, SplatParams, SsdParams, SumParams,
 };
 use crate::error::Result;
-use crate::metric::CellSsd;
 use crate::volume::{Field, Grid, Image, Volume};
 
 /// What a backend has moved between the host and the device, and how much work it launched,
@@ -135,8 +134,14 @@ pub trait Backend {
         interpolation: Interpolation,
     ) -> Result<Volume>;
 
-    /// Sum of squared differences between `a` and `b` (same grid) per cell of `cells`.
-    fn ssd_cells(&self, a: &Volume, b: &Volume, cells: [usize; 3]) -> Result<CellSsd>;
+    /// Per-column partial sums of c (a − b)² per cell (layout of shaders/ssd_cells.wgsl, folded
+    /// by metric::fold_ssd_partials): a = `images.moving`, b = `images.fixed`, c = 1 where
+    /// `images.covered` says the moving image holds data.
+    fn ssd_cells(
+        &self,
+        params: &SsdParams,
+        images: &CostImages<Self::Buffer<f32>>,
+    ) -> Result<Self::Buffer<f32>>;
 
     /// det(I + du/dx) of the map x → x + u(x) at every voxel of the field's grid: where it is
     /// ≤ 0 the map folds.
@@ -189,17 +194,39 @@ pub trait Backend {
         blend: &BoneBlend,
     ) -> Result<Vec<f32>>;
 
-    /// The non-rigid cost's per-voxel terms: 4 floats per voxel of `fixed`'s grid — the moving
-    /// image I0 sampled through the lattice-interpolated warp, and the gradient of the squared
-    /// residual with respect to the warp (mm). `lattice` holds 3 floats per node.
-    fn rbf_grad(
+    /// `moving` seen through the warp `lattice` (3 floats per node) at every voxel of the grid
+    /// in `params`: W(x) = I0(x + R(x)), 0 outside.
+    fn warp_image(
         &self,
-        lattice: &[f32],
-        lattice_dims: [usize; 3],
-        step: usize,
-        moving: &Volume,
-        fixed: &Volume,
-    ) -> Result<Vec<f32>>;
+        params: &RbfGradParams,
+        lattice: &Self::Buffer<f32>,
+        moving: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// W · T and W · W per voxel: what the intensity gain smooths (crate::gain).
+    fn gain_terms(
+        &self,
+        params: &GainParams,
+        warped: &Self::Buffer<f32>,
+        target: &Self::Buffer<f32>,
+    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
+
+    /// The gain on the smoothed grid: product / energy, clamped, 1 where energy is at or below
+    /// the floor.
+    fn gain_ratio(
+        &self,
+        params: &GainParams,
+        product: &Self::Buffer<f32>,
+        energy: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// `moving` times the gain interpolated from the smoothed grid.
+    fn gain_apply(
+        &self,
+        params: &GainParams,
+        gain: &Self::Buffer<f32>,
+        moving: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
 
     /// The warp R at every voxel of `grid`, interpolated from `lattice` (3 floats per node of a
     /// lattice of `lattice_dims` nodes every `step` voxels) as the non-rigid cost does.
@@ -269,8 +296,12 @@ pub trait Backend {
         values: usize,
     ) -> Result<Self::Buffer<f64>>;
 
-    /// Sums of `values` in chunks of abi::SUM_CHUNK, in f64.
-    fn sum_chunks(&self, values: &Self::Buffer<f32>) -> Result<Self::Buffer<f64>>;
+    /// Sums of (v − shift)^power over chunks of abi::SUM_CHUNK values, in f64 (`params`).
+    fn sum_chunks(
+        &self,
+        params: &SumParams,
+        values: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f64>>;
 }
 
 /// Checks two images (volumes or fields) combined voxel by voxel share a grid.

@@ -11,81 +11,60 @@
 //! brightness locally while anatomy, finer than that scale, is left to the registration. It is
 //! only meaningful once M is roughly aligned with T; adaptive.rs says when.
 
-use crate::backend::{check_pair, Backend, DeviceImage};
+use crate::abi::{GainParams, SumParams};
+use crate::backend::{Backend, DeviceImage};
 use crate::error::Result;
 use crate::pyramid;
-use crate::sample::trilinear;
-use crate::volume::{Image, Volume};
-use rayon::prelude::*;
 
 /// Gains are kept within this factor of 1: a wider ratio is anatomy, not bias.
 const MOST_GAIN: f32 = 2.0;
 
-/// Per voxel of `target`'s grid, the smooth gain g with g·`moving` ≈ `target` at `scale_mm`.
+/// `moving` (on `target`'s grid) times the smooth gain g with g·`warped` ≈ `target` at
+/// `scale_mm`, `warped` being the moving image through the warp found so far.
 pub fn gain<B: Backend>(
     backend: &B,
-    moving: &Volume,
-    target: &Volume,
+    warped: &B::Buffer<f32>,
+    target: &DeviceImage<B>,
+    moving: &B::Buffer<f32>,
     scale_mm: f64,
-) -> Result<Vec<f32>> {
-    check_pair(moving, target)?;
-    let product = Image {
-        grid: target.grid.clone(),
-        data: moving
-            .data
-            .iter()
-            .zip(&target.data)
-            .map(|(m, t)| m * t)
-            .collect(),
-    };
-    let energy = Image {
-        grid: target.grid.clone(),
-        data: moving.data.iter().map(|m| m * m).collect(),
-    };
-    let smooth = |what, image| {
-        let image = DeviceImage::upload(backend, what, image)?;
-        pyramid::down_to_spacing(backend, image, scale_mm)?.download(backend)
-    };
-    let (product, energy) = (
-        smooth("gain product", product)?,
-        smooth("gain energy", energy)?,
-    );
-    // Where the moving image is (nearly) empty the ratio means nothing: keep the gain at 1.
-    let floor =
-        1e-3 * energy.data.iter().map(|&e| e as f64).sum::<f64>() / energy.data.len() as f64;
-    let gain: Vec<f32> = product
-        .data
-        .iter()
-        .zip(&energy.data)
-        .map(|(&p, &e)| {
-            if (e as f64) > floor {
-                (p / e).clamp(1.0 / MOST_GAIN, MOST_GAIN)
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    // Back onto the full grid, trilinear, clamped at the coarse grid's edge.
+) -> Result<B::Buffer<f32>> {
     let grid = &target.grid;
-    let to_coarse = product.grid.world_to_voxel_affine();
-    let dims = product.grid.dims.map(|d| d as u32);
-    let per_voxel = (0..grid.len())
-        .into_par_iter()
-        .map(|n| {
-            let q = to_coarse * grid.world_of(n).push(1.0);
-            let qc: [f32; 3] =
-                std::array::from_fn(|a| (q[a] as f32).clamp(0.0, dims[a] as f32 - 1.0));
-            trilinear(&gain, qc, dims, 1.0)
-        })
-        .collect();
-    Ok(per_voxel)
+    let (product, energy) = backend.gain_terms(
+        &GainParams::new(grid, grid, 0.0, MOST_GAIN),
+        warped,
+        &target.data,
+    )?;
+    let smooth = |data| {
+        let image = DeviceImage {
+            grid: grid.clone(),
+            data,
+        };
+        pyramid::down_to_spacing(backend, image, scale_mm)
+    };
+    let (product, energy) = (smooth(product)?, smooth(energy)?);
+    let coarse = &energy.grid;
+    // Where the moving image is (nearly) empty the ratio means nothing: keep the gain at 1.
+    let sums = backend.sum_chunks(&SumParams::new(coarse.len()), &energy.data)?;
+    let mean = backend.download(&[&sums])?[0].iter().sum::<f64>() / coarse.len() as f64;
+    let floor = (1e-3 * mean) as f32;
+    let ratio = backend.gain_ratio(
+        &GainParams::new(coarse, coarse, floor, MOST_GAIN),
+        &product.data,
+        &energy.data,
+    )?;
+    // Back onto the level's grid, trilinear, clamped at the coarse grid's edge.
+    backend.gain_apply(
+        &GainParams::new(grid, coarse, floor, MOST_GAIN),
+        &ratio,
+        moving,
+    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::cpu::CpuBackend;
-    use crate::volume::{Affine, Grid};
+    use crate::volume::{Affine, Grid, Image, Volume};
 
     /// A textured volume (anatomy-like detail at a few mm) on a 2 mm grid.
     fn textured(dims: [usize; 3]) -> Volume {
@@ -118,7 +97,14 @@ mod tests {
                     .map(|n| moving.data[n] * true_gain(moving.grid.world_of(n).x) as f32)
                     .collect(),
             };
-            let g = gain(&CpuBackend, &moving, &target, 20.0).unwrap();
+            // The moving image is aligned: it is its own warped image.
+            let target = DeviceImage::upload(&CpuBackend, "target", target).unwrap();
+            let gained = gain(&CpuBackend, &moving.data, &target, &moving.data, 20.0).unwrap();
+            let g: Vec<f32> = gained
+                .iter()
+                .zip(&moving.data)
+                .map(|(g, m)| g / m)
+                .collect();
             // Away from the faces, where the smoothing window is whole.
             let mut worst = 0.0f64;
             for (n, g) in g.iter().enumerate() {

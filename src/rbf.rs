@@ -9,7 +9,6 @@
 
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, DVector, Vector3};
-use rayon::prelude::*;
 
 /// φ(r) = r³.
 pub fn phi(r: f64) -> f64 {
@@ -168,81 +167,6 @@ impl RbfCoefficients {
         }
         r
     }
-
-    /// R at many points (rayon): the same arithmetic in the same order as [`Self::eval`], so
-    /// the same bits, but laid out as coordinate arrays over a chunk of points so the pairwise
-    /// loop vectorises (it is the host's main cost per cost evaluation in the adaptive stage).
-    pub fn eval_many(
-        &self,
-        centres: &[Vector3<f64>],
-        points: &[Vector3<f64>],
-    ) -> Vec<Vector3<f64>> {
-        points
-            .par_chunks(CHUNK)
-            .flat_map_iter(|chunk| self.eval_chunk(centres, chunk))
-            .collect()
-    }
-
-    fn eval_chunk(&self, centres: &[Vector3<f64>], chunk: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
-        let at = Coordinates::of(chunk);
-        let a = &self.affine;
-        let mut r: [Vec<f64>; 3] = std::array::from_fn(|c| {
-            (0..chunk.len())
-                .map(|k| a[0][c] + a[1][c] * at.x[k] + a[2][c] * at.y[k] + a[3][c] * at.z[k])
-                .collect()
-        });
-        let [rx, ry, rz] = &mut r;
-        for (centre, l) in centres.iter().zip(&self.lambda) {
-            at.for_each_distance(
-                centre,
-                rx.iter_mut().zip(ry.iter_mut()).zip(rz.iter_mut()),
-                |((x, y), z), d| {
-                    let f = phi(d);
-                    *x += l[0] * f;
-                    *y += l[1] * f;
-                    *z += l[2] * f;
-                },
-            );
-        }
-        (0..chunk.len())
-            .map(|k| Vector3::new(r[0][k], r[1][k], r[2][k]))
-            .collect()
-    }
-}
-
-/// Points per chunk in the pairwise loops: long enough to vectorise, short enough for cache.
-const CHUNK: usize = 256;
-
-/// Points as three coordinate arrays.
-struct Coordinates {
-    x: Vec<f64>,
-    y: Vec<f64>,
-    z: Vec<f64>,
-}
-
-impl Coordinates {
-    fn of(points: &[Vector3<f64>]) -> Self {
-        Coordinates {
-            x: points.iter().map(|p| p.x).collect(),
-            y: points.iter().map(|p| p.y).collect(),
-            z: points.iter().map(|p| p.z).collect(),
-        }
-    }
-
-    /// Calls `f(item, |p_k − c|)` for each point p_k with the k-th item of `items`; the distance
-    /// is computed as nalgebra's `(p − c).norm()` does (iterators, not indices, so the loop has
-    /// no bounds checks and vectorises).
-    fn for_each_distance<T>(
-        &self,
-        c: &Vector3<f64>,
-        items: impl Iterator<Item = T>,
-        mut f: impl FnMut(T, f64),
-    ) {
-        for (item, ((x, y), z)) in items.zip(self.x.iter().zip(&self.y).zip(&self.z)) {
-            let (dx, dy, dz) = (x - c.x, y - c.y, z - c.z);
-            f(item, (dx * dx + dy * dy + dz * dz).sqrt());
-        }
-    }
 }
 
 #[cfg(test)]
@@ -278,47 +202,6 @@ mod tests {
         let coef = system.coefficients(&bumpy).unwrap();
         for (c, v) in centres.iter().zip(&bumpy) {
             assert!((coef.eval(&centres, c) - v).norm() < 1e-7);
-        }
-    }
-
-    #[test]
-    fn the_vectorised_loops_give_the_scalar_bits() {
-        // eval_many reorders its loops for speed; results must stay bit for bit those of one
-        // point at a time, across chunk boundaries.
-        let centres: Vec<Vector3<f64>> = (0..19)
-            .map(|i| {
-                Vector3::new(
-                    (i * 37 % 17) as f64 * 3.1,
-                    (i * 5 % 11) as f64 * 2.7,
-                    i as f64,
-                )
-            })
-            .collect();
-        let values: Vec<Vector3<f64>> = (0..19)
-            .map(|i| {
-                Vector3::new(
-                    (i % 5) as f64 - 2.0,
-                    (i % 3) as f64 * 0.7,
-                    -(i as f64) * 0.1,
-                )
-            })
-            .collect();
-        let coef = RbfSystem::new(centres.clone(), 0.0)
-            .unwrap()
-            .coefficients(&values)
-            .unwrap();
-        let points: Vec<Vector3<f64>> = (0..3 * CHUNK + 17)
-            .map(|n| {
-                Vector3::new(
-                    (n % 13) as f64 * 4.3,
-                    (n % 29) as f64 * 1.9,
-                    (n % 7) as f64 * 6.1,
-                )
-            })
-            .collect();
-        let many = coef.eval_many(&centres, &points);
-        for (x, v) in points.iter().zip(&many) {
-            assert_eq!(coef.eval(&centres, x), *v);
         }
     }
 

@@ -12,6 +12,7 @@ const WARP_SAMPLE: (&str, &str) = (
     include_str!("../shaders/warp_sample.wgsl"),
 );
 const RBF_NODES: (&str, &str) = ("rbf_nodes.wgsl", include_str!("../shaders/rbf_nodes.wgsl"));
+const GAIN: (&str, &str) = ("gain.wgsl", include_str!("../shaders/gain.wgsl"));
 const SUM_PARTIALS: (&str, &str) = (
     "sum_partials.wgsl",
     include_str!("../shaders/sum_partials.wgsl"),
@@ -52,13 +53,50 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         ],
     ),
     (
-        "rbf_grad",
+        "warp_image",
         &[
             COMMON,
             SAMPLE,
             LATTICE_WARP,
             WARP_SAMPLE,
-            ("rbf_grad.wgsl", include_str!("../shaders/rbf_grad.wgsl")),
+            (
+                "warp_image.wgsl",
+                include_str!("../shaders/warp_image.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "gain_terms",
+        &[
+            COMMON,
+            GAIN,
+            (
+                "gain_terms.wgsl",
+                include_str!("../shaders/gain_terms.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "gain_ratio",
+        &[
+            COMMON,
+            GAIN,
+            (
+                "gain_ratio.wgsl",
+                include_str!("../shaders/gain_ratio.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "gain_apply",
+        &[
+            COMMON,
+            SAMPLE,
+            GAIN,
+            (
+                "gain_apply.wgsl",
+                include_str!("../shaders/gain_apply.wgsl"),
+            ),
         ],
     ),
     (

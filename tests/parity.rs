@@ -110,6 +110,13 @@ fn resample_random_smooth_field_between_different_grids() {
     check_resample("random smooth", &source, &field, 0.0);
 }
 
+/// Coverage 1, 0.9995, 0.5 and 0 in turn: half the voxels count.
+fn patchy_coverage(voxels: usize) -> Vec<f32> {
+    (0..voxels)
+        .map(|n| [1.0, 0.9995, 0.5, 0.0][n % 4])
+        .collect()
+}
+
 #[test]
 fn ssd_cells_parity_at_odd_sizes() {
     let Some(gpu) = gpu() else { return };
@@ -121,8 +128,14 @@ fn ssd_cells_parity_at_odd_sizes() {
         let grid = oblique_grid(dims);
         let a = smooth_volume(&grid, 6);
         let b = smooth_volume(&grid, 7);
-        let cpu = CpuBackend.ssd_cells(&a, &b, cells).unwrap();
-        let got = gpu.ssd_cells(&a, &b, cells).unwrap();
+        let covered = patchy_coverage(grid.len());
+        let cpu = cell_ssd(&CpuBackend, (&a, &b, &covered), cells);
+        let got = cell_ssd(gpu, (&a, &b, &covered), cells);
+        let full = cell_ssd(&CpuBackend, (&a, &b, &vec![1.0; grid.len()]), cells);
+        assert!(
+            cpu.total() < 0.7 * full.total() && cpu.total() > 0.3 * full.total(),
+            "{dims:?}: uncovered voxels are left out"
+        );
         assert_eq!(got.count, cpu.count);
         for (g, c) in got.sum.iter().zip(&cpu.sum) {
             assert!(
@@ -144,7 +157,8 @@ fn slabs_do_not_change_results() {
     let whole = gpu
         .resample(&source, &field, 0.0, Interpolation::Linear)
         .unwrap();
-    let whole_ssd = gpu.ssd_cells(&whole, &target, [3, 4, 5]).unwrap();
+    let covered = vec![1.0; target_grid.len()];
+    let whole_ssd = cell_ssd(gpu, (&whole, &target, &covered), [3, 4, 5]);
     // A second backend on its own device, forced to two slices (or fewer voxels) per dispatch.
     let small = posereg::gpu::GpuBackend::new()
         .unwrap()
@@ -158,7 +172,7 @@ fn slabs_do_not_change_results() {
         sliced.data, whole.data,
         "slabs changed the resampled values"
     );
-    let sliced_ssd = small.ssd_cells(&sliced, &target, [3, 4, 5]).unwrap();
+    let sliced_ssd = cell_ssd(&small, (&sliced, &target, &covered), [3, 4, 5]);
     assert_eq!(sliced_ssd, whole_ssd, "slabs changed the per-cell SSD");
     // The Jacobian reads one slice either side: slabs carry a halo.
     let whole_det = gpu.jacobian(&field).unwrap();
@@ -204,8 +218,9 @@ fn same_inputs_give_bit_identical_outputs() {
         .resample(&source, &field, 0.0, Interpolation::Linear)
         .unwrap();
     assert_eq!(c.data, d.data);
-    let s1 = gpu.ssd_cells(&a, &source, [4, 4, 4]).unwrap();
-    let s2 = gpu.ssd_cells(&b, &source, [4, 4, 4]).unwrap();
+    let covered = vec![1.0; grid.len()];
+    let s1 = cell_ssd(gpu, (&a, &source, &covered), [4, 4, 4]);
+    let s2 = cell_ssd(gpu, (&b, &source, &covered), [4, 4, 4]);
     assert_eq!(s1, s2);
 }
 
@@ -350,6 +365,22 @@ fn sum_partials_parity_over_several_passes() {
     }
 }
 
+#[test]
+fn sums_of_squares_parity() {
+    let Some(gpu) = gpu() else { return };
+    let values: Vec<f32> = (0..5000)
+        .map(|k| ((k * 7919) % 1000) as f32 * 0.37)
+        .collect();
+    let params = posereg::abi::SumParams::squares_about(values.len(), 185.0);
+    let cpu = CpuBackend.sum_chunks(&params, &values).unwrap();
+    let on_gpu = gpu.upload("values", values.clone()).unwrap();
+    let got = gpu.sum_chunks(&params, &on_gpu).unwrap();
+    let got = gpu.download(&[&got]).unwrap().pop().unwrap();
+    let exact: f64 = values.iter().map(|&v| (v as f64 - 185.0).powi(2)).sum();
+    assert!((cpu.iter().sum::<f64>() - exact).abs() < 1e-9 * exact);
+    close_f64("sum_chunks squares", &got, &cpu, 1e-12);
+}
+
 fn totals<B: Backend>(b: &B, partials: &[f32], values: usize) -> Vec<f64> {
     let up = b.upload("partials", partials.to_vec()).unwrap();
     b.download(&[&b.sum_partials(&up, values).unwrap()])
@@ -437,8 +468,44 @@ fn skinning_kernels_parity() {
     }
 }
 
+/// warp_image, then the gain's kernels on it (terms, a pyramid level down, ratio, applied back
+/// to the moving image), each downloaded.
+fn warp_and_gain<B: Backend>(
+    b: &B,
+    (moving, fixed): (&Volume, &Volume),
+    lattice: &[f32],
+    (ldims, step): ([usize; 3], usize),
+) -> [Vec<f32>; 4] {
+    use posereg::abi::{GainParams, RbfGradParams};
+    let grid = &fixed.grid;
+    let up = |v: &[f32]| b.upload("test data", v.to_vec()).unwrap();
+    let (m, f, l) = (up(&moving.data), up(&fixed.data), up(lattice));
+    let warped = b
+        .warp_image(&RbfGradParams::new(grid, ldims, step), &l, &m)
+        .unwrap();
+    let (product, energy) = b
+        .gain_terms(&GainParams::new(grid, grid, 0.0, 2.0), &warped, &f)
+        .unwrap();
+    let (coarse, factors) = posereg::pyramid::next_level_grid(grid).unwrap();
+    let down = posereg::abi::PyramidParams::new(grid, coarse.dims, factors);
+    let (product, energy) = (
+        b.pyramid_level(&down, &product).unwrap(),
+        b.pyramid_level(&down, &energy).unwrap(),
+    );
+    // A floor that some coarse voxels fall below, so both branches run.
+    let floor = 0.5 * 100.0f32.powi(2);
+    let ratio = GainParams::new(&coarse, &coarse, floor, 1.2);
+    let gain = b.gain_ratio(&ratio, &product, &energy).unwrap();
+    let apply = GainParams::new(grid, &coarse, floor, 1.2);
+    let gained = b.gain_apply(&apply, &gain, &m).unwrap();
+    b.download(&[&warped, &product, &gain, &gained])
+        .unwrap()
+        .try_into()
+        .unwrap()
+}
+
 #[test]
-fn rbf_kernels_parity() {
+fn warp_image_and_gain_kernels_parity() {
     let Some(gpu) = gpu() else { return };
     let grid = oblique_grid([27, 22, 17]);
     let moving = smooth_volume(&grid, 51);
@@ -448,15 +515,26 @@ fn rbf_kernels_parity() {
     let lattice: Vec<f32> = (0..3 * ldims.iter().product::<usize>())
         .map(|k| ((k * 29) % 31) as f32 * 0.2 - 3.0)
         .collect();
-    let cpu = CpuBackend
-        .rbf_grad(&lattice, ldims, step, &moving, &fixed)
-        .unwrap();
-    let got = gpu
-        .rbf_grad(&lattice, ldims, step, &moving, &fixed)
-        .unwrap();
-    // Gradients are 2 r ∇I0 with r up to ~100 and |∇| up to ~10: relative 1e-4 plus an
-    // absolute allowance for ulp-level changes of the sample point.
-    close("rbf_grad", &got, &cpu, 2e-2, 1e-4);
+    let images = (&moving, &fixed);
+    let cpu = warp_and_gain(&CpuBackend, images, &lattice, (ldims, step));
+    let got = warp_and_gain(gpu, images, &lattice, (ldims, step));
+    assert!(
+        cpu[0].iter().filter(|&&w| w == 0.0).count() > 0,
+        "some samples fall outside the moving image"
+    );
+    let (clamped, unity) = (
+        cpu[2]
+            .iter()
+            .filter(|&&g| g == 1.2 || g == 1.0 / 1.2)
+            .count(),
+        cpu[2].iter().filter(|&&g| g == 1.0).count(),
+    );
+    assert!(clamped > 0 && unity > 0, "{clamped} clamped, {unity} at 1");
+    // Values ~100 sampled at points that move by ulps between the backends.
+    close("warp_image", &got[0], &cpu[0], 2e-2, 1e-4);
+    close("gain_terms", &got[1], &cpu[1], 2.0, 1e-4);
+    close("gain_ratio", &got[2], &cpu[2], 1e-4, 1e-4);
+    close("gain_apply", &got[3], &cpu[3], 2e-2, 1e-4);
 }
 
 /// Every output of one non-rigid cost evaluation, downloaded.
@@ -532,7 +610,12 @@ fn evaluate<B: Backend>(
         .rbf_adjoint(&shape, &geometry, &spline, &node_gradient)
         .unwrap();
     let adjoint = b.sum_partials(&partials, 3 * shape.rows()).unwrap();
-    let sums = b.sum_chunks(&rows).unwrap();
+    let sums = b
+        .sum_chunks(
+            &posereg::abi::SumParams::new(grid.dims[1] * grid.dims[2]),
+            &rows,
+        )
+        .unwrap();
     let [warp, gradient, rows, splat, node_gradient, energy]: [Vec<f32>; 6] = b
         .download(&[&warp, &gradient, &rows, &splat, &node_gradient, &energy])
         .unwrap()

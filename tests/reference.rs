@@ -4,7 +4,7 @@ mod common;
 
 use common::*;
 use posereg::abi::Interpolation;
-use posereg::abi::{Blending, BoneBlend};
+use posereg::abi::{Blending, BoneBlend, SumParams};
 use posereg::backend::DeviceImage;
 use posereg::cpu::CpuBackend;
 use posereg::volume::{Affine, Grid, Image};
@@ -171,7 +171,7 @@ fn ssd_of_a_known_pair() {
     let a = smooth_volume(&grid, 11);
     let b = smooth_volume(&grid, 12);
     let cells = [3, 2, 2];
-    let ssd = CpuBackend.ssd_cells(&a, &b, cells).unwrap();
+    let ssd = cell_ssd(&CpuBackend, (&a, &b, &vec![1.0; grid.len()]), cells);
     let mut expected = vec![0.0f64; 12];
     let mut counts = vec![0u64; 12];
     for k in 0..4 {
@@ -195,18 +195,16 @@ fn ssd_of_a_known_pair() {
     let total: f64 = expected.iter().sum();
     assert!((ssd.total() - total).abs() <= 1e-5 * total);
     // Identical volumes: exactly zero everywhere.
-    let zero = CpuBackend.ssd_cells(&a, &a, cells).unwrap();
+    let zero = cell_ssd(&CpuBackend, (&a, &a, &vec![1.0; grid.len()]), cells);
     assert!(zero.sum.iter().all(|&s| s == 0.0));
 }
 
 #[test]
-fn ssd_rejects_bad_cell_grids_and_mismatched_volumes() {
-    let grid = Grid::new([4, 4, 4], Affine::identity()).unwrap();
-    let a = smooth_volume(&grid, 1);
-    assert!(CpuBackend.ssd_cells(&a, &a, [5, 1, 1]).is_err());
-    assert!(CpuBackend.ssd_cells(&a, &a, [0, 1, 1]).is_err());
-    let other = smooth_volume(&Grid::new([4, 4, 5], Affine::identity()).unwrap(), 1);
-    assert!(CpuBackend.ssd_cells(&a, &other, [1, 1, 1]).is_err());
+fn cell_grids_finer_than_the_volume_are_refused() {
+    use posereg::metric::check_cells;
+    assert!(check_cells([4, 4, 4], [5, 1, 1]).is_err());
+    assert!(check_cells([4, 4, 4], [0, 1, 1]).is_err());
+    assert!(check_cells([4, 4, 4], [4, 1, 2]).is_ok());
 }
 
 #[test]
@@ -483,7 +481,7 @@ fn lattice_splat_is_the_adjoint_of_the_lattice_interpolation() {
     // <interp(L), v> over voxels == <L, splat(v)> over nodes, for random L and v: the gradient
     // the optimiser gets through the lattice is exactly the gradient of what it evaluates.
     use posereg::abi::RbfGradParams;
-    use posereg::cpu::rbf_grad::warp_at;
+    use posereg::cpu::warp_image::warp_at;
     let grid = oblique_grid([19, 14, 11]);
     let step = 4;
     let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
@@ -578,8 +576,9 @@ fn rbf_cost_gradient_matches_finite_differences() {
             .rbf_adjoint(&shape, &geometry, &spline, &node_gradient)
             .unwrap();
         let adjoint = b.sum_partials(&partials, 3 * shape.rows()).unwrap();
-        let cost = b.sum_chunks(&rows).unwrap().iter().sum::<f64>() / voxels
-            + b.sum_chunks(&terms).unwrap().iter().sum::<f64>();
+        let total = |params, v| b.sum_chunks(&params, v).unwrap().iter().sum::<f64>();
+        let cost = total(SumParams::new(rows.len()), &rows) / voxels
+            + total(SumParams::new(terms.len()), &terms);
         let rows: Vec<Vector3<f64>> = adjoint
             .chunks_exact(3)
             .map(|v| Vector3::new(v[0], v[1], v[2]))

@@ -2,9 +2,9 @@
 //! has the same size in Rust and WGSL.
 
 use posereg::abi::{
-    ComposeParams, EnergyParams, JacobianParams, PartialsParams, PyramidParams, RbfGradParams,
-    RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
-    SplatParams, SsdParams, SumParams,
+    ComposeParams, EnergyParams, GainParams, JacobianParams, PartialsParams, PyramidParams,
+    RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams,
+    SkinWeightsParams, SplatParams, SsdParams, SumParams,
 };
 use posereg::shaders::{locate, source, KERNELS};
 use std::mem::size_of;
@@ -67,8 +67,11 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
-    let pairs: [(&str, &str, usize); 19] = [
-        ("rbf_grad", "RbfGradParams", size_of::<RbfGradParams>()),
+    let pairs: [(&str, &str, usize); 22] = [
+        ("warp_image", "RbfGradParams", size_of::<RbfGradParams>()),
+        ("gain_terms", "GainParams", size_of::<GainParams>()),
+        ("gain_ratio", "GainParams", size_of::<GainParams>()),
+        ("gain_apply", "GainParams", size_of::<GainParams>()),
         ("warp_cost", "RbfGradParams", size_of::<RbfGradParams>()),
         (
             "rbf_lattice",

@@ -12,6 +12,11 @@ pub fn linear_row(row: [f32; 4], v: [f32; 3]) -> f32 {
     row[0] * v[0] + row[1] * v[1] + row[2] * v[2]
 }
 
+/// Coverage at or above which a voxel holds data from the source scan.
+pub fn is_covered(coverage: f32) -> bool {
+    coverage >= crate::abi::COVERED_AT
+}
+
 /// First index of cell c when n voxels are split into `cells` cells.
 // Written as in WGSL, which has no div_ceil.
 #[allow(clippy::manual_div_ceil)]

@@ -4,12 +4,12 @@
 
 pub mod common;
 pub mod compose;
+pub mod gain;
 pub mod jacobian;
 pub mod lattice_energy;
 pub mod lattice_splat;
 pub mod pyramid;
 pub mod rbf_adjoint;
-pub mod rbf_grad;
 pub mod rbf_lattice;
 pub mod resample;
 pub mod rigid_gn;
@@ -21,15 +21,15 @@ pub mod sum_chunks;
 pub mod sum_partials;
 pub mod warp_cost;
 pub mod warp_field;
+pub mod warp_image;
 
 use crate::abi::{
-    BoneBlend, ComposeParams, EnergyParams, Interpolation, JacobianParams, PartialsParams,
-    PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams,
-    SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
+    BoneBlend, ComposeParams, EnergyParams, GainParams, Interpolation, JacobianParams,
+    PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
+    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
 };
 use crate::backend::{check_pair, Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::Result;
-use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Field, Grid, Image, Volume};
 
 /// The bone images as slices, for the twins.
@@ -38,6 +38,15 @@ fn slices<'a>(images: &BoneImages<'a, Vec<f32>>) -> BoneImages<'a, [f32]> {
         source: images.source.as_slice(),
         mask: images.mask.as_slice(),
         target: images.target.as_slice(),
+    }
+}
+
+/// The cost images as slices, for the twins.
+fn as_slices<'a>(images: &CostImages<'a, Vec<f32>>) -> CostImages<'a, [f32]> {
+    CostImages {
+        moving: images.moving.as_slice(),
+        fixed: images.fixed.as_slice(),
+        covered: images.covered.as_slice(),
     }
 }
 
@@ -85,14 +94,10 @@ impl Backend for CpuBackend {
         })
     }
 
-    fn ssd_cells(&self, a: &Volume, b: &Volume, cells: [usize; 3]) -> Result<CellSsd> {
-        check_pair(a, b)?;
-        let dims = a.grid.dims;
-        check_cells(dims, cells)?;
-        let params = SsdParams::new(dims, cells, dims[2]);
-        let mut partial = vec![0.0f32; dims[2] * dims[0] * cells[1]];
-        ssd_cells::ssd_cells(&params, &a.data, &b.data, &mut partial);
-        Ok(fold_ssd_partials(dims, cells, &partial))
+    fn ssd_cells(&self, params: &SsdParams, images: &CostImages<Vec<f32>>) -> Result<Vec<f32>> {
+        let mut partial = vec![0.0f32; params.partials()];
+        ssd_cells::ssd_cells(params, &as_slices(images), &mut partial);
+        Ok(partial)
     }
 
     fn jacobian(&self, field: &Field) -> Result<Volume> {
@@ -157,19 +162,49 @@ impl Backend for CpuBackend {
         Ok(out)
     }
 
-    fn rbf_grad(
+    fn warp_image(
         &self,
-        lattice: &[f32],
-        lattice_dims: [usize; 3],
-        step: usize,
-        moving: &Volume,
-        fixed: &Volume,
+        params: &RbfGradParams,
+        lattice: &Vec<f32>,
+        moving: &Vec<f32>,
     ) -> Result<Vec<f32>> {
-        check_pair(moving, fixed)?;
-        let params = RbfGradParams::new(&fixed.grid, lattice_dims, step);
-        let mut out = vec![0.0f32; 4 * fixed.grid.len()];
-        rbf_grad::rbf_grad(&params, lattice, &moving.data, &fixed.data, &mut out);
-        Ok(out)
+        let mut warped = vec![0.0f32; params.voxels()];
+        warp_image::warp_image(params, lattice, moving, &mut warped);
+        Ok(warped)
+    }
+
+    fn gain_terms(
+        &self,
+        params: &GainParams,
+        warped: &Vec<f32>,
+        target: &Vec<f32>,
+    ) -> Result<(Vec<f32>, Vec<f32>)> {
+        let mut product = vec![0.0f32; params.voxels()];
+        let mut energy = vec![0.0f32; params.voxels()];
+        gain::gain_terms(warped, target, &mut product, &mut energy);
+        Ok((product, energy))
+    }
+
+    fn gain_ratio(
+        &self,
+        params: &GainParams,
+        product: &Vec<f32>,
+        energy: &Vec<f32>,
+    ) -> Result<Vec<f32>> {
+        let mut gain = vec![0.0f32; params.voxels()];
+        gain::gain_ratio(params, product, energy, &mut gain);
+        Ok(gain)
+    }
+
+    fn gain_apply(
+        &self,
+        params: &GainParams,
+        gain: &Vec<f32>,
+        moving: &Vec<f32>,
+    ) -> Result<Vec<f32>> {
+        let mut gained = vec![0.0f32; params.voxels()];
+        gain::gain_apply(params, gain, moving, &mut gained);
+        Ok(gained)
     }
 
     fn warp_field(
@@ -218,12 +253,13 @@ impl Backend for CpuBackend {
         let [nx, ny, nz, _] = params.dims.map(|n| n as usize);
         let mut gradient = vec![0.0f32; 3 * nx * ny * nz];
         let mut rows = vec![0.0f32; ny * nz];
-        let images = CostImages {
-            moving: images.moving.as_slice(),
-            fixed: images.fixed.as_slice(),
-            covered: images.covered.as_slice(),
-        };
-        warp_cost::warp_cost(params, lattice, &images, &mut gradient, &mut rows);
+        warp_cost::warp_cost(
+            params,
+            lattice,
+            &as_slices(images),
+            &mut gradient,
+            &mut rows,
+        );
         Ok((gradient, rows))
     }
 
@@ -271,10 +307,9 @@ impl Backend for CpuBackend {
         Ok(sums.expect("at least one pass"))
     }
 
-    fn sum_chunks(&self, values: &Vec<f32>) -> Result<Vec<f64>> {
-        let params = SumParams::new(values.len());
+    fn sum_chunks(&self, params: &SumParams, values: &Vec<f32>) -> Result<Vec<f64>> {
         let mut sums = vec![0.0f64; params.chunks()];
-        sum_chunks::sum_chunks(&params, values, &mut sums);
+        sum_chunks::sum_chunks(params, values, &mut sums);
         Ok(sums)
     }
 }

@@ -1,7 +1,7 @@
 //! CPU twin of shaders/warp_cost.wgsl.
 
-use super::common::voxel_index;
-use super::rbf_grad::warped_sample;
+use super::common::{is_covered, voxel_index};
+use super::warp_image::warped_sample;
 use crate::abi::RbfGradParams;
 use crate::backend::CostImages;
 use rayon::prelude::*;
@@ -28,7 +28,11 @@ pub fn warp_cost(
                 let v = voxel_index(i, j, k, d) as usize;
                 let t = images.fixed[v];
                 let s = warped_sample(params, lattice, images.moving, [i, j, k], t);
-                let c = images.covered[v];
+                let c = if is_covered(images.covered[v]) {
+                    1.0
+                } else {
+                    0.0
+                };
                 let e = s[0] - t;
                 sum += c * e * e;
                 let g = [s[1], s[2], s[3]];

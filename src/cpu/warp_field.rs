@@ -1,6 +1,6 @@
 //! CPU twin of shaders/warp_field.wgsl.
 
-use super::rbf_grad::warp_at;
+use super::warp_image::warp_at;
 use crate::abi::RbfGradParams;
 use rayon::prelude::*;
 

@@ -12,22 +12,19 @@ pub mod jacobian;
 pub mod kernel;
 pub mod nonrigid;
 pub mod pyramid;
-pub mod rbf;
 pub mod resample;
 pub mod resident;
 pub mod rigid;
 pub mod run;
 pub mod skinning;
-pub mod ssd_cells;
 
 use crate::abi::{
-    BoneBlend, ComposeParams, EnergyParams, Interpolation, JacobianParams, PyramidParams,
-    RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams,
-    SkinWeightsParams, SplatParams,
+    BoneBlend, ComposeParams, EnergyParams, GainParams, Interpolation, JacobianParams,
+    PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams,
+    SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
 };
 use crate::backend::{check_pair, Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::{Error, Result};
-use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::volume::{Field, Grid, Image, Volume};
 use context::GpuContext;
 use kernel::Kernel;
@@ -45,24 +42,27 @@ pub struct Slab {
 /// The bind group layout of every kernel, by name (the names of crate::shaders::KERNELS).
 pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
     ("compose", field::COMPOSE_BINDINGS),
+    ("gain_apply", nonrigid::GAIN_BINDINGS),
+    ("gain_ratio", nonrigid::GAIN_BINDINGS),
+    ("gain_terms", nonrigid::GAIN_TERMS_BINDINGS),
     ("jacobian", jacobian::BINDINGS),
     ("lattice_energy", nonrigid::ENERGY_BINDINGS),
     ("lattice_splat", nonrigid::SPLAT_BINDINGS),
     ("pyramid", pyramid::BINDINGS),
     ("rbf_adjoint", nonrigid::ADJOINT_BINDINGS),
-    ("rbf_grad", rbf::GRAD_BINDINGS),
     ("rbf_lattice", nonrigid::LATTICE_BINDINGS),
     ("resample", resample::BINDINGS),
     ("rigid_gn", rigid::GN_BINDINGS),
     ("rigid_score", rigid::SCORE_BINDINGS),
     ("skin_blend", skinning::BLEND_BINDINGS),
     ("skin_weights", skinning::WEIGHTS_BINDINGS),
-    ("ssd_cells", ssd_cells::BINDINGS),
+    ("ssd_cells", nonrigid::SSD_BINDINGS),
     ("sum_chunks", nonrigid::SUM_BINDINGS),
     ("sum_partials", nonrigid::PARTIALS_BINDINGS),
     ("sum_partials_f32", nonrigid::PARTIALS_BINDINGS),
     ("warp_cost", nonrigid::COST_BINDINGS),
     ("warp_field", field::WARP_BINDINGS),
+    ("warp_image", nonrigid::WARP_IMAGE_BINDINGS),
 ];
 
 fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
@@ -92,8 +92,14 @@ pub struct Kernels {
     pub skin_weights: Kernel,
     /// shaders/skin_blend.wgsl
     pub skin_blend: Kernel,
-    /// shaders/rbf_grad.wgsl
-    pub rbf_grad: Kernel,
+    /// shaders/warp_image.wgsl
+    pub warp_image: Kernel,
+    /// shaders/gain_terms.wgsl
+    pub gain_terms: Kernel,
+    /// shaders/gain_ratio.wgsl
+    pub gain_ratio: Kernel,
+    /// shaders/gain_apply.wgsl
+    pub gain_apply: Kernel,
     /// shaders/lattice_splat.wgsl
     pub lattice_splat: Kernel,
     /// shaders/rbf_lattice.wgsl
@@ -145,7 +151,10 @@ impl GpuBackend {
                 rigid_score: compile(&ctx, "rigid_score")?,
                 skin_weights: compile(&ctx, "skin_weights")?,
                 skin_blend: compile(&ctx, "skin_blend")?,
-                rbf_grad: compile(&ctx, "rbf_grad")?,
+                warp_image: compile(&ctx, "warp_image")?,
+                gain_terms: compile(&ctx, "gain_terms")?,
+                gain_ratio: compile(&ctx, "gain_ratio")?,
+                gain_apply: compile(&ctx, "gain_apply")?,
                 lattice_splat: compile(&ctx, "lattice_splat")?,
                 rbf_lattice: compile(&ctx, "rbf_lattice")?,
                 warp_cost: compile(&ctx, "warp_cost")?,
@@ -264,12 +273,12 @@ impl Backend for GpuBackend {
         Image::from_data(field.grid.clone(), data)
     }
 
-    fn ssd_cells(&self, a: &Volume, b: &Volume, cells: [usize; 3]) -> Result<CellSsd> {
-        check_pair(a, b)?;
-        let dims = a.grid.dims;
-        check_cells(dims, cells)?;
-        let partial = ssd_cells::ssd_partials(self, dims, cells, &a.data, &b.data)?;
-        Ok(fold_ssd_partials(dims, cells, &partial))
+    fn ssd_cells(
+        &self,
+        params: &SsdParams,
+        images: &CostImages<GpuBuffer<f32>>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_ssd_cells(params, images)
     }
 
     fn jacobian(&self, field: &Field) -> Result<Volume> {
@@ -327,17 +336,40 @@ impl Backend for GpuBackend {
         skinning::skin_blend(self, &params, weights, bone_of_voxel)
     }
 
-    fn rbf_grad(
+    fn warp_image(
         &self,
-        lattice: &[f32],
-        lattice_dims: [usize; 3],
-        step: usize,
-        moving: &Volume,
-        fixed: &Volume,
-    ) -> Result<Vec<f32>> {
-        check_pair(moving, fixed)?;
-        let params = RbfGradParams::new(&fixed.grid, lattice_dims, step);
-        rbf::rbf_grad(self, &params, lattice, &moving.data, &fixed.data)
+        params: &RbfGradParams,
+        lattice: &GpuBuffer<f32>,
+        moving: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_warp_image(params, lattice, moving)
+    }
+
+    fn gain_terms(
+        &self,
+        params: &GainParams,
+        warped: &GpuBuffer<f32>,
+        target: &GpuBuffer<f32>,
+    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
+        self.record_gain_terms(params, warped, target)
+    }
+
+    fn gain_ratio(
+        &self,
+        params: &GainParams,
+        product: &GpuBuffer<f32>,
+        energy: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_gain_ratio(params, product, energy)
+    }
+
+    fn gain_apply(
+        &self,
+        params: &GainParams,
+        gain: &GpuBuffer<f32>,
+        moving: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_gain_apply(params, gain, moving)
     }
 
     fn warp_field(
@@ -417,7 +449,7 @@ impl Backend for GpuBackend {
         self.record_sum_partials(partials, values)
     }
 
-    fn sum_chunks(&self, values: &GpuBuffer<f32>) -> Result<GpuBuffer<f64>> {
-        self.record_sum_chunks(values)
+    fn sum_chunks(&self, params: &SumParams, values: &GpuBuffer<f32>) -> Result<GpuBuffer<f64>> {
+        self.record_sum_chunks(params, values)
     }
 }

@@ -7,7 +7,8 @@ use super::kernel::{groups, Binding};
 use super::resident::GpuBuffer;
 use super::GpuBackend;
 use crate::abi::{
-    EnergyParams, PartialsParams, RbfGradParams, RbfLatticeParams, SplatParams, SumParams,
+    EnergyParams, GainParams, PartialsParams, RbfGradParams, RbfLatticeParams, SplatParams,
+    SsdParams, SumParams,
 };
 use crate::backend::{CostImages, Element};
 use crate::error::Result;
@@ -28,6 +29,14 @@ pub const ADJOINT_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, ReadWrite]
 pub const PARTIALS_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
 /// sum_chunks bindings.
 pub const SUM_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
+/// warp_image bindings.
+pub const WARP_IMAGE_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
+/// ssd_cells bindings.
+pub const SSD_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, ReadWrite];
+/// gain_terms bindings.
+pub const GAIN_TERMS_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite, ReadWrite];
+/// gain_ratio and gain_apply bindings.
+pub const GAIN_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
 
 fn cover(dims: [u32; 3], size: u32) -> [u32; 3] {
     dims.map(|n| groups(n as usize, size))
@@ -167,15 +176,108 @@ impl GpuBackend {
     }
 
     /// shaders/sum_chunks.wgsl
-    pub fn record_sum_chunks(&self, values: &GpuBuffer<f32>) -> Result<GpuBuffer<f64>> {
-        let params = SumParams::new(values.len());
+    pub fn record_sum_chunks(
+        &self,
+        params: &SumParams,
+        values: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f64>> {
         let sums = self.output_buffer("partial sums", params.chunks())?;
         self.record(
             &self.kernels.sum_chunks,
-            &params,
+            params,
             &[values.raw(), sums.raw()],
             [groups(params.chunks(), 64), 1, 1],
         )?;
         Ok(sums)
+    }
+
+    /// shaders/warp_image.wgsl
+    pub fn record_warp_image(
+        &self,
+        params: &RbfGradParams,
+        lattice: &GpuBuffer<f32>,
+        moving: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let warped = self.output_buffer("warped image", params.voxels())?;
+        self.record(
+            &self.kernels.warp_image,
+            params,
+            &[lattice.raw(), moving.raw(), warped.raw()],
+            cover([params.dims[0], params.dims[1], params.dims[2]], 4),
+        )?;
+        Ok(warped)
+    }
+
+    /// shaders/ssd_cells.wgsl
+    pub fn record_ssd_cells(
+        &self,
+        params: &SsdParams,
+        images: &CostImages<GpuBuffer<f32>>,
+    ) -> Result<GpuBuffer<f32>> {
+        let partial = self.output_buffer("cell SSD partial sums", params.partials())?;
+        self.record(
+            &self.kernels.ssd_cells,
+            params,
+            &[
+                images.moving.raw(),
+                images.fixed.raw(),
+                images.covered.raw(),
+                partial.raw(),
+            ],
+            [groups(params.dims[0] as usize, 64), params.dims[2], 1],
+        )?;
+        Ok(partial)
+    }
+
+    /// shaders/gain_terms.wgsl
+    pub fn record_gain_terms(
+        &self,
+        params: &GainParams,
+        warped: &GpuBuffer<f32>,
+        target: &GpuBuffer<f32>,
+    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
+        let product = self.output_buffer("gain product", params.voxels())?;
+        let energy = self.output_buffer("gain energy", params.voxels())?;
+        self.record(
+            &self.kernels.gain_terms,
+            params,
+            &[warped.raw(), target.raw(), product.raw(), energy.raw()],
+            [groups(params.voxels(), 64), 1, 1],
+        )?;
+        Ok((product, energy))
+    }
+
+    /// shaders/gain_ratio.wgsl
+    pub fn record_gain_ratio(
+        &self,
+        params: &GainParams,
+        product: &GpuBuffer<f32>,
+        energy: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let gain = self.output_buffer("gain", params.voxels())?;
+        self.record(
+            &self.kernels.gain_ratio,
+            params,
+            &[product.raw(), energy.raw(), gain.raw()],
+            [groups(params.voxels(), 64), 1, 1],
+        )?;
+        Ok(gain)
+    }
+
+    /// shaders/gain_apply.wgsl
+    pub fn record_gain_apply(
+        &self,
+        params: &GainParams,
+        gain: &GpuBuffer<f32>,
+        moving: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let gained = self.output_buffer("moving image with its gain", params.voxels())?;
+        self.record(
+            &self.kernels.gain_apply,
+            params,
+            &[gain.raw(), moving.raw(), gained.raw()],
+            cover([params.dims[0], params.dims[1], params.dims[2]], 4),
+        )?;
+        Ok(gained)
     }
 }

@@ -123,3 +123,24 @@ pub fn one_level_down<B: posereg::Backend>(backend: &B, volume: &Volume) -> Volu
     assert_eq!(levels.len(), 2, "the grid can be halved");
     levels.pop().unwrap().download(backend).unwrap()
 }
+
+/// Per-cell SSD of `a` against `b` where `covered` (≥ abi::COVERED_AT) says `a` holds data.
+pub fn cell_ssd<B: posereg::Backend>(
+    backend: &B,
+    (a, b, covered): (&Volume, &Volume, &[f32]),
+    cells: [usize; 3],
+) -> posereg::metric::CellSsd {
+    let up = |v: &[f32]| backend.upload("test volume", v.to_vec()).unwrap();
+    let (a_data, b_data, c_data) = (up(&a.data), up(&b.data), up(covered));
+    let images = posereg::backend::CostImages {
+        moving: &a_data,
+        fixed: &b_data,
+        covered: &c_data,
+    };
+    let dims = a.grid.dims;
+    let partial = backend
+        .ssd_cells(&posereg::abi::SsdParams::new(dims, cells), &images)
+        .unwrap();
+    let partial = backend.download(&[&partial]).unwrap().pop().unwrap();
+    posereg::metric::fold_ssd_partials(dims, cells, &partial)
+}

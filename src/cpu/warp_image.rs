@@ -1,4 +1,5 @@
-//! CPU twin of shaders/rbf_grad.wgsl.
+//! CPU twin of shaders/warp_image.wgsl, with the lattice warp and the warped sample it shares
+//! with the cost's twins (shaders/lattice_warp.wgsl, shaders/warp_sample.wgsl).
 
 use super::common::{linear_row, voxel_index};
 use crate::abi::RbfGradParams;
@@ -68,31 +69,17 @@ pub fn warped_sample(
     ]
 }
 
-/// Fills `out` (4 floats per voxel of the slab: W, then the cost gradient in mm).
-pub fn rbf_grad(
-    params: &RbfGradParams,
-    lattice: &[f32],
-    moving: &[f32],
-    fixed: &[f32],
-    out: &mut [f32],
-) {
-    let [nx, ny, _, z0] = params.dims;
-    let depth = params.slab[0];
-    out.par_chunks_mut((4 * nx * ny) as usize)
+/// Fills `warped` (one per voxel) with `moving` seen through the warp `lattice`.
+pub fn warp_image(params: &RbfGradParams, lattice: &[f32], moving: &[f32], warped: &mut [f32]) {
+    let [nx, ny, _, _] = params.dims;
+    warped
+        .par_chunks_mut((nx * ny) as usize)
         .enumerate()
-        .for_each(|(zl, slice)| {
-            let k = zl as u32 + z0;
+        .for_each(|(k, slice)| {
             for j in 0..ny {
                 for i in 0..nx {
-                    let t = fixed[voxel_index(i, j, zl as u32, [nx, ny, depth]) as usize];
-                    let o = 4 * (i + nx * j) as usize;
-                    slice[o..o + 4].copy_from_slice(&warped_sample(
-                        params,
-                        lattice,
-                        moving,
-                        [i, j, k],
-                        t,
-                    ));
+                    slice[(i + nx * j) as usize] =
+                        warped_sample(params, lattice, moving, [i, j, k as u32], 0.0)[0];
                 }
             }
         });
