@@ -203,7 +203,7 @@ pub trait Backend {
         moving: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
-    /// W · T and W · W per voxel: what the intensity gain smooths (crate::gain).
+    /// W · T and W · W per voxel: what the intensity gain smooths (gain.rs).
     fn gain_terms(
         &self,
         params: &GainParams,
