@@ -7,13 +7,12 @@
 // Bindings (group 0):
 //   0 uniform  PyramidParams
 //   1 storage  input: array<f32>   the finer level, whole
-//   2 storage  output: array<f32>  this slab of the coarser level (read_write)
-// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(depth/4)) over the coarser level.
+//   2 storage  output: array<f32>  the coarser level (read_write)
+// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(nz/4)) over the coarser level.
 
 // Keep in sync with abi::PyramidParams.
 struct PyramidParams {
-    dims: vec4<u32>,        // output nx, ny, nz, z0 (first slice of this slab)
-    slab: vec4<u32>,        // depth, unused x3
+    dims: vec4<u32>,        // output nx, ny, nz, unused
     input_dims: vec4<u32>,  // input nx, ny, nz, unused
     factors: vec4<u32>,     // 1 or 2 per axis, unused
 }
@@ -35,10 +34,10 @@ fn tap(o: u32, t: u32, factor: u32, n: u32) -> vec2<f32> {
 @compute @workgroup_size(4, 4, 4)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let d = params.dims;
-    if (gid.x >= d.x || gid.y >= d.y || gid.z >= params.slab.x) {
+    if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
         return;
     }
-    let k = gid.z + d.w;
+    let k = gid.z;
     let n = params.input_dims.xyz;
     var sum = 0.0;
     for (var tz = 0u; tz < 4u; tz = tz + 1u) {
@@ -54,5 +53,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    output[voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, params.slab.x))] = sum;
+    output[voxel_index(gid.x, gid.y, gid.z, d.xyz)] = sum;
 }

@@ -10,16 +10,15 @@
 //
 // Bindings (group 0):
 //   0 uniform  RigidParams
-//   1 storage  source: array<f32>   this slab of the source level
-//   2 storage  mask: array<f32>     this slab of the bone-region mask (fractional after pyramids)
-//   3 storage  target_image: array<f32>   the whole target level
-//   4 storage  partial: array<f32>  29 sums per column of this slab (read_write)
-// Dispatch: workgroups (ceil(nx/64), depth, 1).
+//   1 storage  source: array<f32>   the source level
+//   2 storage  mask: array<f32>     the bone-region mask (fractional after pyramids)
+//   3 storage  target_image: array<f32>   the target level
+//   4 storage  partial: array<f32>  29 sums per column (read_write)
+// Dispatch: workgroups (ceil(nx/64), nz, 1).
 
 // Keep in sync with abi::RigidParams.
 struct RigidParams {
-    dims: vec4<u32>,          // source nx, ny, nz, z0 (first slice of this slab)
-    slab: vec4<u32>,          // depth, unused x3
+    dims: vec4<u32>,          // source nx, ny, nz, unused
     target_dims: vec4<u32>,   // target nx, ny, nz, unused
     to_target_index: array<vec4<f32>, 3>,   // source index -> target continuous index
     to_centred_world: array<vec4<f32>, 3>,  // source index -> y - c (world mm)
@@ -42,10 +41,9 @@ const SUMS: u32 = 29u;
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let nx = params.dims.x;
     let ny = params.dims.y;
-    let depth = params.slab.x;
     let x = gid.x;
-    let zl = gid.y;
-    if (x >= nx || zl >= depth) {
+    let z = gid.y;
+    if (x >= nx || z >= params.dims.z) {
         return;
     }
     var acc: array<f32, 29>;
@@ -54,11 +52,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let tdims = params.target_dims.xyz;
     for (var y = 0u; y < ny; y = y + 1u) {
-        let i = voxel_index(x, y, zl, vec3<u32>(nx, ny, depth));
+        let i = voxel_index(x, y, z, params.dims.xyz);
         if (mask[i] < 0.5) {
             continue;
         }
-        let p = vec3<f32>(f32(x), f32(y), f32(zl + params.dims.w));
+        let p = vec3<f32>(f32(x), f32(y), f32(z));
         let q = vec3<f32>(
             affine_row(params.to_target_index[0], p),
             affine_row(params.to_target_index[1], p),
@@ -94,7 +92,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         acc[27] = acc[27] + r * r;
         acc[28] = acc[28] + 1.0;
     }
-    let base = (zl * nx + x) * SUMS;
+    let base = (z * nx + x) * SUMS;
     for (var s = 0u; s < SUMS; s = s + 1u) {
         partial[base + s] = acc[s];
     }

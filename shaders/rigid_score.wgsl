@@ -7,18 +7,17 @@
 //
 // Bindings (group 0):
 //   0 uniform  ScoreParams
-//   1 storage  source: array<f32>      this slab of the source level
-//   2 storage  mask: array<f32>        this slab of the bone-region mask
-//   3 storage  target_image: array<f32>      the whole target level
+//   1 storage  source: array<f32>      the source level
+//   2 storage  mask: array<f32>        the bone-region mask
+//   3 storage  target_image: array<f32>      the target level
 //   4 storage  candidates: array<f32>  12 floats (3 rows of 4) per candidate
 //   5 storage  partial: array<f32>     (sum, count) per column and candidate (read_write):
-//                                      index ((zl * nx + x) * candidates + c) * 2
-// Dispatch: workgroups (ceil(nx/64), depth, candidates).
+//                                      index ((z * nx + x) * candidates + c) * 2
+// Dispatch: workgroups (ceil(nx/64), nz, candidates).
 
 // Keep in sync with abi::ScoreParams.
 struct ScoreParams {
-    dims: vec4<u32>,          // source nx, ny, nz, z0
-    slab: vec4<u32>,          // depth, candidates, unused x2
+    dims: vec4<u32>,          // source nx, ny, nz, candidates
     target_dims: vec4<u32>,   // target nx, ny, nz, unused
     source_to_world: array<vec4<f32>, 3>,
     world_to_target: array<vec4<f32>, 3>,
@@ -44,12 +43,11 @@ fn candidate_row(c: u32, r: u32) -> vec4<f32> {
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let nx = params.dims.x;
     let ny = params.dims.y;
-    let depth = params.slab.x;
-    let count = params.slab.y;
+    let count = params.dims.w;
     let x = gid.x;
-    let zl = gid.y;
+    let z = gid.y;
     let c = gid.z;
-    if (x >= nx || zl >= depth || c >= count) {
+    if (x >= nx || z >= params.dims.z || c >= count) {
         return;
     }
     let m0 = candidate_row(c, 0u);
@@ -59,11 +57,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var sum = 0.0;
     var n = 0.0;
     for (var y = 0u; y < ny; y = y + 1u) {
-        let i = voxel_index(x, y, zl, vec3<u32>(nx, ny, depth));
+        let i = voxel_index(x, y, z, params.dims.xyz);
         if (mask[i] < 0.5) {
             continue;
         }
-        let p = vec3<f32>(f32(x), f32(y), f32(zl + params.dims.w));
+        let p = vec3<f32>(f32(x), f32(y), f32(z));
         let w = vec3<f32>(
             affine_row(params.source_to_world[0], p),
             affine_row(params.source_to_world[1], p),
@@ -82,7 +80,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         sum = sum + r * r;
         n = n + 1.0;
     }
-    let base = ((zl * nx + x) * count + c) * 2u;
+    let base = ((z * nx + x) * count + c) * 2u;
     partial[base] = sum;
     partial[base + 1u] = n;
 }

@@ -309,10 +309,8 @@ fn dims4(g: &Grid, w: u32) -> [u32; 4] {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct PyramidParams {
-    /// Output nx, ny, nz, first slice of this slab.
+    /// Output nx, ny, nz, unused.
     pub dims: [u32; 4],
-    /// Slices in this slab, unused ×3.
-    pub slab: [u32; 4],
     /// Input nx, ny, nz, unused.
     pub input_dims: [u32; 4],
     /// 1 or 2 per axis, unused.
@@ -329,7 +327,6 @@ impl PyramidParams {
                 output_dims[2] as u32,
                 0,
             ],
-            slab: [output_dims[2] as u32, 0, 0, 0],
             input_dims: dims4(input, 0),
             factors: [factors[0] as u32, factors[1] as u32, factors[2] as u32, 0],
         }
@@ -345,10 +342,8 @@ impl PyramidParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct RigidParams {
-    /// Source nx, ny, nz, first slice of this slab.
+    /// Source nx, ny, nz, unused.
     pub dims: [u32; 4],
-    /// Slices in this slab, unused ×3.
-    pub slab: [u32; 4],
     /// Target nx, ny, nz, unused.
     pub target_dims: [u32; 4],
     /// Source voxel index → target continuous index under the current motion.
@@ -374,7 +369,6 @@ impl RigidParams {
             .transpose();
         RigidParams {
             dims: dims4(source, 0),
-            slab: [source.dims[2] as u32, 0, 0, 0],
             target_dims: dims4(target, 0),
             to_target_index: rows(&to_target),
             to_centred_world: rows(&centred),
@@ -392,10 +386,8 @@ impl RigidParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct ScoreParams {
-    /// Source nx, ny, nz, first slice of this slab.
+    /// Source nx, ny, nz, number of candidates.
     pub dims: [u32; 4],
-    /// Slices in this slab, number of candidates, unused ×2.
-    pub slab: [u32; 4],
     /// Target nx, ny, nz, unused.
     pub target_dims: [u32; 4],
     /// Source voxel index → world.
@@ -408,8 +400,7 @@ impl ScoreParams {
     /// For `candidates` motions of a bone from `source` into `target`.
     pub fn new(source: &Grid, target: &Grid, candidates: usize) -> Self {
         ScoreParams {
-            dims: dims4(source, 0),
-            slab: [source.dims[2] as u32, candidates as u32, 0, 0],
+            dims: dims4(source, candidates as u32),
             target_dims: dims4(target, 0),
             source_to_world: rows(&source.affine),
             world_to_target: rows(&target.world_to_voxel_affine()),
@@ -423,7 +414,7 @@ impl ScoreParams {
 
     /// Candidate motions scored.
     pub fn candidates(&self) -> usize {
-        self.slab[1] as usize
+        self.dims[3] as usize
     }
 }
 

@@ -13,9 +13,9 @@ fn tap(o: u32, t: u32, factor: u32, n: u32) -> (f32, f32) {
     (i as f32, w)
 }
 
-/// Fills `output` (one slab of the coarser level) from the whole finer level `input`.
+/// Fills `output` (the coarser level) from the finer level `input`.
 pub fn pyramid(params: &PyramidParams, input: &[f32], output: &mut [f32]) {
-    let [nx, ny, _, z0] = params.dims;
+    let [nx, ny, _, _] = params.dims;
     let n = [
         params.input_dims[0],
         params.input_dims[1],
@@ -25,8 +25,8 @@ pub fn pyramid(params: &PyramidParams, input: &[f32], output: &mut [f32]) {
     output
         .par_chunks_mut((nx * ny) as usize)
         .enumerate()
-        .for_each(|(zl, out)| {
-            let k = zl as u32 + z0;
+        .for_each(|(k, out)| {
+            let k = k as u32;
             for j in 0..ny {
                 for i in 0..nx {
                     let mut sum = 0.0f32;

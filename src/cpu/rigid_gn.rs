@@ -7,16 +7,14 @@ use crate::sample::{inside_source, trilinear_with_gradient};
 use glam::Vec3;
 use rayon::prelude::*;
 
-/// Fills `partial` (29 per column of the slab) from the slab's source and mask and the whole
-/// target.
+/// Fills `partial` (29 per (x, z) column) from the source, the mask and the target.
 pub fn rigid_gn(params: &RigidParams, images: &BoneImages<[f32]>, partial: &mut [f32]) {
     let BoneImages {
         source,
         mask,
         target,
     } = *images;
-    let [nx, ny, _, z0] = params.dims;
-    let depth = params.slab[0];
+    let [nx, ny, nz, _] = params.dims;
     let tdims = [
         params.target_dims[0],
         params.target_dims[1],
@@ -25,16 +23,16 @@ pub fn rigid_gn(params: &RigidParams, images: &BoneImages<[f32]>, partial: &mut 
     partial
         .par_chunks_mut(nx as usize * SUMS)
         .enumerate()
-        .for_each(|(zl, out)| {
-            let zl = zl as u32;
+        .for_each(|(z, out)| {
+            let z = z as u32;
             for x in 0..nx {
                 let mut acc = [0.0f32; SUMS];
                 for y in 0..ny {
-                    let i = voxel_index(x, y, zl, [nx, ny, depth]) as usize;
+                    let i = voxel_index(x, y, z, [nx, ny, nz]) as usize;
                     if mask[i] < 0.5 {
                         continue;
                     }
-                    let p = [x as f32, y as f32, (zl + z0) as f32];
+                    let p = [x as f32, y as f32, z as f32];
                     let q: [f32; 3] =
                         std::array::from_fn(|r| affine_row(params.to_target_index[r], p));
                     if !inside_source(q, tdims) {

@@ -7,7 +7,7 @@ use crate::sample::{inside_source, trilinear};
 use rayon::prelude::*;
 
 /// Fills `partial` with (Σ r², count) per column and candidate, layout
-/// ((zl * nx + x) * candidates + c) * 2.
+/// ((z * nx + x) * candidates + c) * 2.
 pub fn rigid_score(
     params: &ScoreParams,
     images: &BoneImages<[f32]>,
@@ -19,8 +19,7 @@ pub fn rigid_score(
         mask,
         target,
     } = *images;
-    let [nx, ny, _, z0] = params.dims;
-    let [depth, count, _, _] = params.slab;
+    let [nx, ny, nz, count] = params.dims;
     let tdims = [
         params.target_dims[0],
         params.target_dims[1],
@@ -29,8 +28,8 @@ pub fn rigid_score(
     partial
         .par_chunks_mut((nx * count * 2) as usize)
         .enumerate()
-        .for_each(|(zl, out)| {
-            let zl = zl as u32;
+        .for_each(|(z, out)| {
+            let z = z as u32;
             for x in 0..nx {
                 for c in 0..count {
                     let row = |r: u32| -> [f32; 4] {
@@ -45,11 +44,11 @@ pub fn rigid_score(
                     let m = [row(0), row(1), row(2)];
                     let (mut sum, mut n) = (0.0f32, 0.0f32);
                     for y in 0..ny {
-                        let i = voxel_index(x, y, zl, [nx, ny, depth]) as usize;
+                        let i = voxel_index(x, y, z, [nx, ny, nz]) as usize;
                         if mask[i] < 0.5 {
                             continue;
                         }
-                        let p = [x as f32, y as f32, (zl + z0) as f32];
+                        let p = [x as f32, y as f32, z as f32];
                         let w: [f32; 3] =
                             std::array::from_fn(|r| affine_row(params.source_to_world[r], p));
                         let moved: [f32; 3] = std::array::from_fn(|r| affine_row(m[r], w));
