@@ -122,7 +122,7 @@ fn resident<B: Backend, T: posereg::backend::Element, const N: usize>(
         .map(|v| b.upload("bench input", v.to_vec()))
         .collect::<posereg::Result<Vec<_>>>()?;
     let out = kernels(b, std::array::from_fn(|k| &buffers[k]))?;
-    Ok(b.download(&[&out])?.pop().expect("one buffer asked for"))
+    b.download_one(&out)
 }
 
 /// The non-rigid evaluation's kernels on resident buffers (lattice every 4 voxels, 100 control

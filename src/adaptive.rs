@@ -19,7 +19,7 @@ use crate::abi::{
     lattice_geometry, spline_buffer, EnergyParams, RbfGradParams, RbfLatticeParams, SplatParams,
     SsdParams, SumParams,
 };
-use crate::backend::{Backend, CostImages, DeviceImage, Traffic};
+use crate::backend::{total, Backend, CostImages, DeviceImage, Traffic};
 use crate::check::finite_non_negative;
 use crate::error::{Error, Result};
 use crate::gain::gain;
@@ -52,7 +52,7 @@ pub struct AdaptiveOptions {
     /// Cells whose mean squared residual exceeds this multiple of the mean over all cells get a
     /// control point (the 2³ cells always do). Measured on the phantom: raising it from 1 to 8
     /// cut the points from ~900 to ~180 and lowered the error (10°, small: 2.70 → 1.40 mm) —
-    /// fewer, well-placed points keep the optimisation well conditioned.
+    /// fewer, well-lattice points keep the optimisation well conditioned.
     /// Per pyramid level, coarse to fine.
     pub threshold: PerLevel<f64>,
     /// L-BFGS iterations per refinement, per pyramid level, coarse to fine.
@@ -240,41 +240,27 @@ impl Evaluations {
     }
 }
 
-/// A lattice of nodes every `step` voxels over a grid.
-struct Lattice {
+/// A lattice of nodes every `step` voxels over a grid, lattice where the backend computes: the
+/// warp is evaluated at its nodes and interpolated at the grid's voxels.
+struct Lattice<B: Backend> {
     dims: [usize; 3],
     step: usize,
     spacing_mm: [f64; 3],
+    geometry: B::Buffer<f64>,
+    /// Parameters of the kernels that interpolate it at the grid's voxels.
+    voxel_params: RbfGradParams,
 }
 
-impl Lattice {
-    fn new(grid: &Grid, lattice_mm: f64) -> Self {
-        let spacing = grid.finest_spacing();
-        let step = ((lattice_mm / spacing).round() as usize).max(1);
+impl<B: Backend> Lattice<B> {
+    fn new(backend: &B, grid: &Grid, lattice_mm: f64) -> Result<Self> {
+        let step = ((lattice_mm / grid.finest_spacing()).round() as usize).max(1);
         let dims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
-        Lattice {
+        Ok(Lattice {
             dims,
             step,
             spacing_mm: grid.spacing().map(|h| h * step as f64),
-        }
-    }
-}
-
-/// A lattice placed on a grid, where the backend computes: the warp is evaluated at its nodes.
-struct PlacedLattice<B: Backend> {
-    lattice: Lattice,
-    geometry: B::Buffer<f64>,
-    /// The warp's parameters for kernels on the grid's voxels.
-    warp: RbfGradParams,
-}
-
-impl<B: Backend> PlacedLattice<B> {
-    fn new(backend: &B, grid: &Grid, lattice_mm: f64) -> Result<Self> {
-        let lattice = Lattice::new(grid, lattice_mm);
-        Ok(PlacedLattice {
             geometry: backend.upload("lattice geometry", lattice_geometry(grid))?,
-            warp: RbfGradParams::new(grid, lattice.dims, lattice.step),
-            lattice,
+            voxel_params: RbfGradParams::new(grid, dims, step),
         })
     }
 
@@ -291,7 +277,7 @@ impl<B: Backend> PlacedLattice<B> {
             "RBF coefficients",
             spline_buffer(&coef.affine, &positions, &coef.lambda),
         )?;
-        let shape = RbfLatticeParams::new(self.lattice.dims, self.lattice.step, centres.len());
+        let shape = RbfLatticeParams::new(self.dims, self.step, centres.len());
         let values = backend.rbf_lattice(&shape, &self.geometry, &spline)?;
         Ok(NodeWarp {
             spline,
@@ -331,7 +317,7 @@ impl<B: Backend> Level<B> {
 /// and a few partial sums.
 struct Evaluator<'a, B: Backend> {
     backend: &'a B,
-    placed: &'a PlacedLattice<B>,
+    lattice: &'a Lattice<B>,
     images: CostImages<'a, B::Buffer<f32>>,
     splat: SplatParams,
     energy: EnergyParams,
@@ -342,16 +328,15 @@ impl<'a, B: Backend> Evaluator<'a, B> {
     /// `weights` are the membrane's and the bending energy's at this level.
     fn new(
         backend: &'a B,
-        placed: &'a PlacedLattice<B>,
+        lattice: &'a Lattice<B>,
         images: CostImages<'a, B::Buffer<f32>>,
         grid: &Grid,
         weights: [f64; 2],
     ) -> Self {
         let voxels = grid.len() as f64;
-        let lattice = &placed.lattice;
         Evaluator {
             backend,
-            placed,
+            lattice,
             images,
             splat: SplatParams::new(lattice.dims, lattice.step, grid.dims),
             energy: energy_params(
@@ -370,19 +355,20 @@ impl<'a, B: Backend> Evaluator<'a, B> {
     /// point and per affine row.
     fn evaluate(&self, coef: &RbfCoefficients, centres: &[Vector3<f64>]) -> Result<Evaluated> {
         let b = self.backend;
-        let warp = self.placed.warp(b, coef, centres)?;
-        let (per_voxel, rows) = b.warp_cost(&self.placed.warp, &warp.values, &self.images)?;
+        let warp = self.lattice.warp(b, coef, centres)?;
+        let (per_voxel, rows) =
+            b.warp_cost(&self.lattice.voxel_params, &warp.values, &self.images)?;
         let splat = b.lattice_splat(&self.splat, &per_voxel)?;
         let (node_gradient, energy) = b.lattice_energy(&self.energy, &warp.values, &splat)?;
         let partials = b.rbf_adjoint(
             &warp.shape,
-            &self.placed.geometry,
+            &self.lattice.geometry,
             &warp.spline,
             &node_gradient,
         )?;
         let adjoint = b.sum_partials(&partials, 3 * warp.shape.rows())?;
         let sum = |v: &B::Buffer<f32>, n| b.sum_chunks(&SumParams::new(n), v);
-        let rows = sum(&rows, self.placed.warp.rows())?;
+        let rows = sum(&rows, self.lattice.voxel_params.rows())?;
         let energy = sum(&energy, self.energy.nodes())?;
         let [adjoint, rows, energy]: [Vec<f64>; 3] = b
             .download(&[&adjoint, &rows, &energy])?
@@ -414,13 +400,9 @@ struct Evaluated {
 /// mean, then the squares about it.
 fn variance<B: Backend>(backend: &B, image: &DeviceImage<B>) -> Result<f64> {
     let n = image.grid.len();
-    let total = |params: SumParams| -> Result<f64> {
-        let sums = backend.sum_chunks(&params, &image.data)?;
-        Ok(backend.download(&[&sums])?[0].iter().sum::<f64>())
-    };
-    let mean = total(SumParams::new(n))? / n as f64;
+    let mean = total(backend, &SumParams::new(n), &image.data)? / n as f64;
     let shift = mean as f32;
-    let squares = total(SumParams::squares_about(n, shift))? / n as f64;
+    let squares = total(backend, &SumParams::squares_about(n, shift), &image.data)? / n as f64;
     Ok(squares - (mean - shift as f64).powi(2))
 }
 
@@ -458,12 +440,12 @@ fn warp_moving<B: Backend>(
     backend: &B,
     points: &[ControlPoint],
     smoothing: f64,
-    placed: &PlacedLattice<B>,
+    lattice: &Lattice<B>,
     moving: &B::Buffer<f32>,
 ) -> Result<Warped<B>> {
     let (coef, centres) = solve(points, smoothing)?;
-    let warp = placed.warp(backend, &coef, &centres)?;
-    let image = backend.warp_image(&placed.warp, &warp.values, moving)?;
+    let warp = lattice.warp(backend, &coef, &centres)?;
+    let image = backend.warp_image(&lattice.voxel_params, &warp.values, moving)?;
     Ok(Warped {
         coef,
         centres,
@@ -482,7 +464,7 @@ fn cell_costs<B: Backend>(
     let dims = level.fixed.grid.dims;
     check_cells(dims, cells)?;
     let partial = backend.ssd_cells(&SsdParams::new(dims, cells), &level.images(warped))?;
-    let partial = backend.download(&[&partial])?.pop().expect("one buffer");
+    let partial = backend.download_one(&partial)?;
     Ok(fold_ssd_partials(dims, cells, &partial))
 }
 
@@ -562,7 +544,7 @@ pub fn register<B: Backend>(
     let evaluations = std::cell::Cell::new(Evaluations::default());
     progress.begin("adaptive RBF", levels.len() * options.cell_levels.len());
     for (index, level) in levels.iter().enumerate().rev() {
-        let placed = PlacedLattice::new(backend, &level.fixed.grid, options.lattice_mm)?;
+        let lattice = Lattice::new(backend, &level.fixed.grid, options.lattice_mm)?;
         let weights = energy_weights(backend, level, index, moving.prealigned, options)?;
         // Once the moving image is aligned, its smooth brightness difference to the target is
         // bias, not anatomy (crate::gain): match it at each level, measured through the warp
@@ -573,7 +555,7 @@ pub fn register<B: Backend>(
         let gained = match options.gain_scale_mm > 0.0 && aligned {
             true => {
                 let moving = &level.moving.data;
-                let warped = warp_moving(backend, &points, options.smoothing, &placed, moving)?;
+                let warped = warp_moving(backend, &points, options.smoothing, &lattice, moving)?;
                 Some(gain(
                     backend,
                     &warped.image,
@@ -588,13 +570,13 @@ pub fn register<B: Backend>(
             backend,
             index,
             level,
-            placed: &placed,
+            lattice: &lattice,
             moving: gained.as_ref().unwrap_or(&level.moving.data),
             options,
         };
         let evaluator = Evaluator::new(
             backend,
-            &placed,
+            &lattice,
             level.images(run.moving),
             &level.fixed.grid,
             weights,
@@ -663,7 +645,7 @@ struct LevelRun<'a, B: Backend> {
     backend: &'a B,
     index: usize,
     level: &'a Level<B>,
-    placed: &'a PlacedLattice<B>,
+    lattice: &'a Lattice<B>,
     moving: &'a B::Buffer<f32>,
     options: &'a AdaptiveOptions,
 }
@@ -689,7 +671,7 @@ impl<B: Backend> LevelRun<'_, B> {
             self.backend,
             points,
             options.smoothing,
-            self.placed,
+            self.lattice,
             self.moving,
         )?;
         let ssd = cell_costs(self.backend, self.level, &warped.image, cells)?;
@@ -779,18 +761,18 @@ impl Adaptive {
         lattice_mm: f64,
         scale: f64,
     ) -> Result<Field> {
-        let placed = PlacedLattice::new(backend, grid, lattice_mm)?;
+        let lattice = Lattice::new(backend, grid, lattice_mm)?;
         let centres: Vec<Vector3<f64>> = self
             .points
             .iter()
             .map(|p| Vector3::from(p.position))
             .collect();
-        let warp = placed.warp(backend, &self.coefficients, &centres)?;
-        let values: Vec<f32> = backend.download(&[&warp.values])?[0]
+        let warp = lattice.warp(backend, &self.coefficients, &centres)?;
+        let values: Vec<f32> = backend
+            .download_one(&warp.values)?
             .iter()
             .map(|v| v * scale as f32)
             .collect();
-        let lattice = &placed.lattice;
         backend.warp_field(&values, lattice.dims, lattice.step, grid)
     }
 }

@@ -76,8 +76,7 @@ impl<B: Backend> DeviceImage<B> {
 
     /// Brings it back to the host.
     pub fn download(&self, backend: &B) -> Result<Volume> {
-        let mut data = backend.download(&[&self.data])?;
-        Image::from_data(self.grid.clone(), data.pop().expect("one buffer asked for"))
+        Image::from_data(self.grid.clone(), backend.download_one(&self.data)?)
     }
 }
 
@@ -97,7 +96,8 @@ pub struct CostImages<'a, T: ?Sized> {
     pub moving: &'a T,
     /// The target T.
     pub fixed: &'a T,
-    /// c: 1 where I0 holds data from the source scan, else 0.
+    /// c: the share of I0's sample that holds data from the source scan (0 or 1 at the finest
+    /// level); kernels count a voxel where c ≥ abi::COVERED_AT.
     pub covered: &'a T,
 }
 
@@ -123,6 +123,14 @@ pub trait Backend {
 
     /// Brings `buffers` back to the host, after all work recorded so far, with one wait.
     fn download<T: Element>(&self, buffers: &[&Self::Buffer<T>]) -> Result<Vec<Vec<T>>>;
+
+    /// Brings one buffer back ([`Backend::download`]).
+    fn download_one<T: Element>(&self, buffer: &Self::Buffer<T>) -> Result<Vec<T>> {
+        Ok(self
+            .download(&[buffer])?
+            .pop()
+            .expect("one buffer asked for"))
+    }
 
     /// Resampling of `source` at x + u(x) for every voxel x of `field`'s grid (the target
     /// grid), trilinear or nearest; `background` where that point is outside the source.
@@ -302,6 +310,13 @@ pub trait Backend {
         params: &SumParams,
         values: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f64>>;
+}
+
+/// Σ (v − shift)^power over all of `values` (`params`), reduced where the backend computes; the
+/// chunks' sums come back and are added here.
+pub fn total<B: Backend>(backend: &B, params: &SumParams, values: &B::Buffer<f32>) -> Result<f64> {
+    let sums = backend.sum_chunks(params, values)?;
+    Ok(backend.download_one(&sums)?.iter().sum())
 }
 
 /// Checks two images (volumes or fields) combined voxel by voxel share a grid.

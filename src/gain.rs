@@ -12,7 +12,7 @@
 //! only meaningful once M is roughly aligned with T; adaptive.rs says when.
 
 use crate::abi::{GainParams, SumParams};
-use crate::backend::{Backend, DeviceImage};
+use crate::backend::{total, Backend, DeviceImage};
 use crate::error::Result;
 use crate::pyramid;
 
@@ -44,8 +44,7 @@ pub fn gain<B: Backend>(
     let (product, energy) = (smooth(product)?, smooth(energy)?);
     let coarse = &energy.grid;
     // Where the moving image is (nearly) empty the ratio means nothing: keep the gain at 1.
-    let sums = backend.sum_chunks(&SumParams::new(coarse.len()), &energy.data)?;
-    let mean = backend.download(&[&sums])?[0].iter().sum::<f64>() / coarse.len() as f64;
+    let mean = total(backend, &SumParams::new(coarse.len()), &energy.data)? / coarse.len() as f64;
     let floor = (1e-3 * mean) as f32;
     let ratio = backend.gain_ratio(
         &GainParams::new(coarse, coarse, floor, MOST_GAIN),

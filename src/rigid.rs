@@ -1,7 +1,7 @@
 //! Per-bone rigid registration by sum of squared intensity differences (paper eq. 2):
 //! Levenberg-Marquardt on 6 parameters, normal equations reduced per column by the rigid_gn
-//! kernel and added on the device in f64, coarse to fine; large poses start from a one-pass score of
-//! hundreds of rotations about the joint (rigid_score kernel).
+//! kernel and added on the device in f64, coarse to fine; large poses start from a one-pass
+//! score of hundreds of rotations about the joint (rigid_score kernel).
 
 use crate::abi::{pack_candidates, RigidParams, ScoreParams, RIGID_SUMS as SUMS};
 use crate::backend::{check_grids, Backend, BoneImages, DeviceImage};
@@ -58,7 +58,7 @@ pub fn normal_equations<B: Backend>(
         (*centre).into(),
     );
     let partial = backend.rigid_sums(&params, &level.images())?;
-    let sums = download_one(backend, &backend.sum_partials(&partial, SUMS)?)?;
+    let sums = backend.download_one(&backend.sum_partials(&partial, SUMS)?)?;
     let mut jtj = Matrix6::zeros();
     let mut k = 0;
     for a in 0..6 {
@@ -74,13 +74,6 @@ pub fn normal_equations<B: Backend>(
         ssd: sums[27],
         count: sums[28],
     })
-}
-
-fn download_one<B: Backend>(backend: &B, buffer: &B::Buffer<f64>) -> Result<Vec<f64>> {
-    Ok(backend
-        .download(&[buffer])?
-        .pop()
-        .expect("one buffer asked for"))
 }
 
 /// The small motion δ = (ω, v) about `centre`: y ↦ R(ω)(y − c) + c + v.
@@ -104,10 +97,7 @@ pub fn score_candidates<B: Backend>(
     let params = ScoreParams::new(&level.source.grid, &level.target.grid, candidates.len());
     let packed = backend.upload("candidate motions", pack_candidates(candidates))?;
     let partial = backend.rigid_scores(&params, &level.images(), &packed)?;
-    let totals = download_one(
-        backend,
-        &backend.sum_partials(&partial, 2 * candidates.len())?,
-    )?;
+    let totals = backend.download_one(&backend.sum_partials(&partial, 2 * candidates.len())?)?;
     let most = totals.chunks_exact(2).map(|s| s[1]).fold(0.0, f64::max);
     Ok(totals
         .chunks_exact(2)

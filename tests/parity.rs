@@ -375,7 +375,7 @@ fn sums_of_squares_parity() {
     let cpu = CpuBackend.sum_chunks(&params, &values).unwrap();
     let on_gpu = gpu.upload("values", values.clone()).unwrap();
     let got = gpu.sum_chunks(&params, &on_gpu).unwrap();
-    let got = gpu.download(&[&got]).unwrap().pop().unwrap();
+    let got = gpu.download_one(&got).unwrap();
     let exact: f64 = values.iter().map(|&v| (v as f64 - 185.0).powi(2)).sum();
     assert!((cpu.iter().sum::<f64>() - exact).abs() < 1e-9 * exact);
     close_f64("sum_chunks squares", &got, &cpu, 1e-12);
@@ -383,9 +383,7 @@ fn sums_of_squares_parity() {
 
 fn totals<B: Backend>(b: &B, partials: &[f32], values: usize) -> Vec<f64> {
     let up = b.upload("partials", partials.to_vec()).unwrap();
-    b.download(&[&b.sum_partials(&up, values).unwrap()])
-        .unwrap()
-        .pop()
+    b.download_one(&b.sum_partials(&up, values).unwrap())
         .unwrap()
 }
 

@@ -39,6 +39,7 @@ pub fn gain_apply(params: &GainParams, gain: &[f32], moving: &[f32], gained: &mu
         params.coarse_dims[1],
         params.coarse_dims[2],
     ];
+    debug_assert_eq!(gained.len(), (nx * ny * nz) as usize);
     gained
         .par_chunks_mut((nx * ny) as usize)
         .enumerate()
@@ -54,5 +55,4 @@ pub fn gain_apply(params: &GainParams, gain: &[f32], moving: &[f32], gained: &mu
                 }
             }
         });
-    debug_assert_eq!(gained.len(), (nx * ny * nz) as usize);
 }

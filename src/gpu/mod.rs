@@ -1,9 +1,11 @@
 //! The GPU backend: wgpu compute shaders, one host file per kernel.
 //!
-//! Large volumes are processed in slabs of whole z-slices, each slab's per-voxel buffers bound
-//! on their own, so no binding exceeds `max_storage_buffer_binding_size` and no dispatch
-//! exceeds 65535 workgroups per dimension. Volumes that must be bound whole (the source of a
-//! resample) and do not fit get a clear error naming the size and the limit.
+//! Kernels on resident buffers (resident.rs: the pyramid, the rigid, non-rigid and gain kernels)
+//! bind whole volumes; one that does not fit the device's binding limit gets a clear error
+//! naming the size and the limit. The kernels still called on host volumes (resample, jacobian,
+//! skinning, warp_field, compose: run.rs) upload them in slabs of whole z-slices, so no binding
+//! exceeds `max_storage_buffer_binding_size` and no dispatch exceeds 65535 workgroups per
+//! dimension.
 
 pub mod buffer;
 pub mod context;

@@ -141,6 +141,6 @@ pub fn cell_ssd<B: posereg::Backend>(
     let partial = backend
         .ssd_cells(&posereg::abi::SsdParams::new(dims, cells), &images)
         .unwrap();
-    let partial = backend.download(&[&partial]).unwrap().pop().unwrap();
+    let partial = backend.download_one(&partial).unwrap();
     posereg::metric::fold_ssd_partials(dims, cells, &partial)
 }
