@@ -1,15 +1,16 @@
 //! Kernel benchmarks: each kernel × backend (CPU twin, GPU) × size, throughput in voxels/s.
-//! GPU timings of the slice kernels include upload, submit, wait and read-back; the non-rigid
-//! evaluation's kernels run on resident buffers and include only the submit, the wait and a
-//! small read-back.
+//! Most rows time a kernel called on host data (upload, dispatch, submit, wait, read-back:
+//! `resident`); the non-rigid evaluation's rows run on resident buffers and include only the
+//! submit, the wait and a small read-back.
 //!
 //! Sizes: POSEREG_BENCH_SIZES=tiny (CI smoke: 16³), =small (64³, 128³), default all three of
 //! 64³, 128³ and the paper's 136×256×256.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use posereg::abi::{
-    pack_candidates, GainParams, Interpolation, PyramidParams, RbfGradParams, RigidParams,
-    ScoreParams, SsdParams, SumParams, RIGID_SUMS,
+    pack_candidates, BoneLookupParams, ComposeParams, DilateParams, FoldParams, GainParams,
+    Interpolation, JacobianParams, LabelParams, PyramidParams, RbfGradParams, ResampleParams,
+    RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SsdParams, SumParams, RIGID_SUMS,
 };
 use posereg::backend::{BoneImages, CostImages};
 use posereg::cpu::CpuBackend;
@@ -123,6 +124,64 @@ fn resident<B: Backend, T: posereg::backend::Element, const N: usize>(
         .collect::<posereg::Result<Vec<_>>>()?;
     let out = kernels(b, std::array::from_fn(|k| &buffers[k]))?;
     b.download_one(&out)
+}
+
+/// The label lookups and the fold repair's kernels, on `field` (3 floats per voxel of `g`)
+/// and a label map of runs of codes 0..6; bones 2 and 3.
+fn label_and_fold_rows(
+    c: &mut Criterion,
+    g: &Grid,
+    label: &str,
+    backends: &[(&'static str, Opened)],
+    field: &Vec<f32>,
+) {
+    let labels: Vec<f32> = (0..g.len()).map(|n| ((n / 3) % 7) as f32).collect();
+    let zeros = vec![0.0f32; g.len()];
+    let codes = LabelParams::new(g, &[2, 3]).unwrap();
+    group(
+        c,
+        "label_index",
+        g.len() as u64,
+        label,
+        backends,
+        |b| posereg::on_backend!(b, b => resident(b, &[&labels], |b, [l]| b.label_index(&codes, l))),
+    );
+    let lookup = BoneLookupParams::new(g, g, &[2, 3], f32::MAX).unwrap();
+    group(c, "bone_at_source", g.len() as u64, label, backends, |b| {
+        posereg::on_backend!(b, b => resident(b, &[field, &zeros, &labels], |b, [f, r, l]| {
+            b.bone_at_source(&lookup, f, r, l)
+        }))
+    });
+    // A determinant folded on one voxel in 50; nothing held.
+    let det: Vec<f32> = (0..g.len())
+        .map(|n| if n % 50 == 0 { -0.1 } else { 1.0 })
+        .collect();
+    let folds = FoldParams::new(g, 0.05);
+    group(c, "fold_stats", g.len() as u64, label, backends, |b| {
+        posereg::on_backend!(b, b => resident(b, &[&det, &zeros], |b, [d, h]| {
+            b.fold_stats(&folds, d, h)
+        }))
+    });
+    group(c, "fold_mark", g.len() as u64, label, backends, |b| {
+        posereg::on_backend!(b, b => resident(b, &[&det, &zeros], |b, [d, h]| {
+            b.fold_mark(&folds, d, h)
+        }))
+    });
+    let marked: Vec<f32> = det.iter().map(|&d| (d <= 0.05) as u8 as f32).collect();
+    let passes = DilateParams::passes(g, 2);
+    group(c, "dilate_3_passes", g.len() as u64, label, backends, |b| {
+        posereg::on_backend!(b, b => resident(b, &[&marked, &zeros], |b, [m, h]| {
+            let x = b.dilate(&passes[0], m, h)?;
+            let y = b.dilate(&passes[1], &x, h)?;
+            b.dilate(&passes[2], &y, h)
+        }))
+    });
+    let region: Vec<f32> = (0..g.len()).map(|n| (n % 5 == 0) as u8 as f32).collect();
+    group(c, "fold_smooth", g.len() as u64, label, backends, |b| {
+        posereg::on_backend!(b, b => resident(b, &[field, &region, &labels], |b, [f, r, l]| {
+            b.fold_smooth(&lookup, f, r, l)
+        }))
+    });
 }
 
 /// The non-rigid evaluation's kernels on resident buffers (lattice every 4 voxels, 100 control
@@ -252,22 +311,27 @@ fn kernels(c: &mut Criterion) {
         let target = volume(&g, 0.5);
         let u = field(&g);
         let label = format!("{}x{}x{}", dims[0], dims[1], dims[2]);
+        let uf: Vec<f32> = bytemuck::cast_slice(&u.data).to_vec();
+        let sample = ResampleParams::new(&g, &g, 0.0, Interpolation::Linear);
+        group(c, "resample", g.len() as u64, &label, &backends, |b| {
+            posereg::on_backend!(b, b => resident(b, &[&source.data, &uf], |b, [s, f]| {
+                b.resample(&sample, s, f)
+            }))
+        });
         group(
             c,
-            "resample",
+            "coverage",
             g.len() as u64,
             &label,
             &backends,
-            |b| posereg::on_backend!(b, b => b.resample(&source, &u, 0.0, Interpolation::Linear)),
+            |b| posereg::on_backend!(b, b => resident(b, &[&uf], |b, [f]| b.coverage(&sample, f))),
         );
-        group(
-            c,
-            "jacobian",
-            g.len() as u64,
-            &label,
-            &backends,
-            |b| posereg::on_backend!(b, b => b.jacobian(&u)),
-        );
+        group(c, "jacobian", g.len() as u64, &label, &backends, |b| {
+            posereg::on_backend!(b, b => resident(b, &[&uf], |b, [f]| {
+                b.jacobian(&JacobianParams::new(&g), f)
+            }))
+        });
+        label_and_fold_rows(c, &g, &label, &backends, &uf);
         let (coarse, factors) = posereg::pyramid::next_level_grid(&g).unwrap();
         let down = PyramidParams::new(&g, coarse.dims, factors);
         group(c, "pyramid", g.len() as u64, &label, &backends, |b| {
@@ -294,22 +358,16 @@ fn kernels(c: &mut Criterion) {
         let node_values: Vec<f32> = (0..3 * ldims.iter().product::<usize>())
             .map(|k| (k % 17) as f32 * 0.1)
             .collect();
-        group(
-            c,
-            "warp_field",
-            g.len() as u64,
-            &label,
-            &backends,
-            |b| posereg::on_backend!(b, b => b.warp_field(&node_values, ldims, step, &g)),
-        );
-        group(
-            c,
-            "compose",
-            g.len() as u64,
-            &label,
-            &backends,
-            |b| posereg::on_backend!(b, b => b.compose(&u, &u)),
-        );
+        group(c, "warp_field", g.len() as u64, &label, &backends, |b| {
+            posereg::on_backend!(b, b => resident(b, &[&node_values], |b, [l]| {
+                b.warp_field(&warp, l)
+            }))
+        });
+        group(c, "compose", g.len() as u64, &label, &backends, |b| {
+            posereg::on_backend!(b, b => resident(b, &[&uf, &uf], |b, [r, u0]| {
+                b.compose(&ComposeParams::new(&g), r, u0)
+            }))
+        });
         // Articulated initialisation: a whole-volume bone region, a small motion.
         let mask: posereg::Volume = Image::filled(g.clone(), 1.0);
         let motion = posereg::rigid::small_motion(
@@ -353,24 +411,27 @@ fn kernels(c: &mut Criterion) {
             (0..voxels * bones).map(|k| 1.0 + (k % 37) as f32).collect()
         };
         let distances = synthetic_distances(g.len());
+        let weighting = SkinWeightsParams::new(&g, bones, 2);
         group(
             c,
             "skin_weights_4_bones",
             g.len() as u64,
             &label,
             &backends,
-            |b| posereg::on_backend!(b, b => b.skin_weights(&distances, &g, bones, 2)),
+            |b| {
+                posereg::on_backend!(b, b => resident(b, &[&distances], |b, [d]| {
+                    b.skin_weights(&weighting, d)
+                }))
+            },
         );
         // Weights on the skinning grid (~2.5 mm), as the pipeline keeps them.
         let (weight_grid, _) = posereg::skinning::skinning_grid(&g);
-        let weights = CpuBackend
-            .skin_weights(
-                &synthetic_distances(weight_grid.len()),
-                &weight_grid,
-                bones,
-                2,
-            )
-            .unwrap();
+        let weights = resident(
+            &CpuBackend,
+            &[&synthetic_distances(weight_grid.len())],
+            |b, [d]| b.skin_weights(&SkinWeightsParams::new(&weight_grid, bones, 2), d),
+        )
+        .unwrap();
         let soft_tissue = vec![0.0f32; g.len()];
         let blend = posereg::abi::BoneBlend {
             motions: (0..bones)
@@ -384,13 +445,18 @@ fn kernels(c: &mut Criterion) {
             blending: posereg::abi::Blending::Linear,
             iterations: 8,
         };
+        let blending = SkinBlendParams::new(&g, &weight_grid, &g, &blend);
         group(
             c,
             "skin_blend_4_bones",
             g.len() as u64,
             &label,
             &backends,
-            |b| posereg::on_backend!(b, b => b.skin_blend(&weights, &weight_grid, &soft_tissue, &g, &g, &blend)),
+            |b| {
+                posereg::on_backend!(b, b => resident(b, &[&weights, &soft_tissue], |b, [w, s]| {
+                    Ok(b.skin_blend(&blending, w, s)?.1)
+                }))
+            },
         );
         group(c, "ssd_cells_16", g.len() as u64, &label, &backends, |b| {
             posereg::on_backend!(b, b => resident(b, &[&source.data, &target.data, &vec![1.0; g.len()]], |b, [s, t, c]| {

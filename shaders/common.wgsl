@@ -17,6 +17,12 @@ fn linear_row(row: vec4<f32>, v: vec3<f32>) -> f32 {
     return row.x * v.x + row.y * v.y + row.z * v.z;
 }
 
+// Whether continuous voxel index q lies inside a volume of `dims`: every coordinate in
+// [-0.5, n - 0.5] (ITK's rule: half a voxel beyond the outer centres).
+fn inside_source(q: vec3<f32>, dims: vec3<u32>) -> bool {
+    return all(q >= vec3<f32>(-0.5)) && all(q <= vec3<f32>(dims) - vec3<f32>(0.5));
+}
+
 // Coverage at or above which a voxel of the moving image holds data from the source scan
 // (abi::COVERED_AT): coverage is 0 or 1 at the finest level and fractional after the
 // pyramid's smoothing, which erodes it.

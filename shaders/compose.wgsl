@@ -5,15 +5,14 @@
 //
 // Bindings (group 0):
 //   0 uniform  ComposeParams
-//   1 storage  warp: array<f32>     R, 3 floats per voxel of this slab
+//   1 storage  warp: array<f32>     R, 3 floats per voxel
 //   2 storage  initial: array<f32>  u0, 3 floats per voxel of the whole grid
-//   3 storage  out: array<f32>      u, 3 floats per voxel of this slab (read_write)
-// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(depth/4)).
+//   3 storage  out: array<f32>      u, 3 floats per voxel (read_write)
+// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(nz/4)).
 
 // Keep in sync with abi::ComposeParams.
 struct ComposeParams {
-    dims: vec4<u32>,   // nx, ny, nz, z0 (first slice of this slab)
-    slab: vec4<u32>,   // depth, unused x3
+    dims: vec4<u32>,   // nx, ny, nz, unused
     mm_to_index: array<vec4<f32>, 3>,
 }
 
@@ -32,13 +31,12 @@ fn sampled_value(index: u32) -> f32 {
 @compute @workgroup_size(4, 4, 4)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let d = params.dims;
-    let depth = params.slab.x;
-    if (gid.x >= d.x || gid.y >= d.y || gid.z >= depth) {
+    if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
         return;
     }
-    let o = 3u * voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth));
+    let o = 3u * voxel_index(gid.x, gid.y, gid.z, d.xyz);
     let r = vec3<f32>(warp[o], warp[o + 1u], warp[o + 2u]);
-    let q = vec3<f32>(f32(gid.x), f32(gid.y), f32(gid.z + d.w)) + vec3<f32>(
+    let q = vec3<f32>(f32(gid.x), f32(gid.y), f32(gid.z)) + vec3<f32>(
         linear_row(params.mm_to_index[0], r),
         linear_row(params.mm_to_index[1], r),
         linear_row(params.mm_to_index[2], r),

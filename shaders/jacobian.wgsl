@@ -5,15 +5,13 @@
 //
 // Bindings (group 0):
 //   0 uniform  JacobianParams
-//   1 storage  field: array<f32>  3 floats per voxel, slices `first` .. of the volume: this
-//                                 slab plus one halo slice each side where the volume has one
-//   2 storage  det: array<f32>    1 float per voxel of this slab (read_write)
-// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(depth/4)).
+//   1 storage  field: array<f32>  3 floats per voxel
+//   2 storage  det: array<f32>    1 float per voxel (read_write)
+// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(nz/4)).
 
 // Keep in sync with abi::JacobianParams.
 struct JacobianParams {
-    dims: vec4<u32>,     // nx, ny, nz of the volume, z0 (first slice of this slab)
-    slab: vec4<u32>,     // depth, first slice held in `field`, unused, unused
+    dims: vec4<u32>,     // nx, ny, nz, unused
     mm_to_index: array<vec4<f32>, 3>,
 }
 
@@ -22,7 +20,7 @@ struct JacobianParams {
 @group(0) @binding(2) var<storage, read_write> det: array<f32>;
 
 fn displacement(i: u32, j: u32, k: u32) -> vec3<f32> {
-    let n = 3u * voxel_index(i, j, k - params.slab.y, params.dims.xyz);
+    let n = 3u * voxel_index(i, j, k, params.dims.xyz);
     return vec3<f32>(field[n], field[n + 1u], field[n + 2u]);
 }
 
@@ -40,12 +38,12 @@ fn difference(lo: vec3<f32>, hi: vec3<f32>, c: u32, n: u32) -> vec3<f32> {
 @compute @workgroup_size(4, 4, 4)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let d = params.dims;
-    if (gid.x >= d.x || gid.y >= d.y || gid.z >= params.slab.x) {
+    if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
         return;
     }
     let i = gid.x;
     let j = gid.y;
-    let k = gid.z + d.w;
+    let k = gid.z;
     let dx = difference(displacement(max(i, 1u) - 1u, j, k), displacement(min(i + 1u, d.x - 1u), j, k), i, d.x);
     let dy = difference(displacement(i, max(j, 1u) - 1u, k), displacement(i, min(j + 1u, d.y - 1u), k), j, d.y);
     let dz = difference(displacement(i, j, max(k, 1u) - 1u), displacement(i, j, min(k + 1u, d.z - 1u)), k, d.z);
@@ -56,5 +54,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let r0 = dx.x * m0 + dy.x * m1 + dz.x * m2 + vec3<f32>(1.0, 0.0, 0.0);
     let r1 = dx.y * m0 + dy.y * m1 + dz.y * m2 + vec3<f32>(0.0, 1.0, 0.0);
     let r2 = dx.z * m0 + dy.z * m1 + dz.z * m2 + vec3<f32>(0.0, 0.0, 1.0);
-    det[voxel_index(i, j, gid.z, vec3<u32>(d.x, d.y, params.slab.x))] = det3(r0, r1, r2);
+    det[voxel_index(i, j, k, d.xyz)] = det3(r0, r1, r2);
 }

@@ -7,13 +7,12 @@
 // Bindings (group 0):
 //   0 uniform  SplatParams
 //   1 storage  values: array<f32>  3 floats per voxel of the target grid, whole
-//   2 storage  out: array<f32>     3 floats per lattice node of this slab (read_write)
-// Dispatch: workgroups (ceil(lx/4), ceil(ly/4), ceil(depth/4)) over the lattice.
+//   2 storage  out: array<f32>     3 floats per lattice node (read_write)
+// Dispatch: workgroups (ceil(lx/4), ceil(ly/4), ceil(lz/4)) over the lattice.
 
 // Keep in sync with abi::SplatParams.
 struct SplatParams {
-    dims: vec4<u32>,          // lattice lx, ly, lz, z0 (first lattice slice of this slab)
-    slab: vec4<u32>,          // depth, step, unused x2
+    dims: vec4<u32>,          // lattice lx, ly, lz, step (voxels)
     volume_dims: vec4<u32>,   // target nx, ny, nz, unused
 }
 
@@ -33,13 +32,12 @@ fn weight(v: u32, a: u32, s: u32) -> f32 {
 @compute @workgroup_size(4, 4, 4)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let d = params.dims;
-    let depth = params.slab.x;
-    if (gid.x >= d.x || gid.y >= d.y || gid.z >= depth) {
+    if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
         return;
     }
-    let s = params.slab.y;
+    let s = d.w;
     let n = params.volume_dims.xyz;
-    let a = vec3<u32>(gid.x, gid.y, gid.z + d.w);
+    let a = vec3<u32>(gid.x, gid.y, gid.z);
     var sum = vec3<f32>(0.0);
     // The lattice covers the grid (its last node sits at or beyond the last voxel), so every
     // voxel lies between two nodes and these weights are exactly rbf_grad's.
@@ -57,7 +55,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    let o = 3u * voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth));
+    let o = 3u * voxel_index(gid.x, gid.y, gid.z, d.xyz);
     out[o] = sum.x;
     out[o + 1u] = sum.y;
     out[o + 2u] = sum.z;

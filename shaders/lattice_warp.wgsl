@@ -1,11 +1,10 @@
 // lattice_warp.wgsl: the non-rigid warp R interpolated from a coarse lattice; prepended to the
-// kernels that read it (rbf_grad, warp_cost), which declare `params: RbfGradParams` and
-// `lattice` (3 floats per node). Mirrored in src/cpu/rbf_grad.rs (warp_at).
+// kernels that read it (warp_field, warp_image, warp_cost), which declare `params: RbfGradParams` and
+// `lattice` (3 floats per node). Mirrored in src/cpu/warp_image.rs (warp_at).
 
 // Keep in sync with abi::RbfGradParams.
 struct RbfGradParams {
-    dims: vec4<u32>,          // nx, ny, nz, z0
-    slab: vec4<u32>,          // depth, lattice step (voxels), unused x2
+    dims: vec4<u32>,          // nx, ny, nz, lattice step (voxels)
     lattice_dims: vec4<u32>,  // lx, ly, lz, unused
     mm_to_index: array<vec4<f32>, 3>,
     gradient_to_world: array<vec4<f32>, 3>,
@@ -18,7 +17,7 @@ fn node(i: u32, j: u32, k: u32) -> vec3<f32> {
 
 // Trilinear interpolation of the lattice at voxel (i, j, k).
 fn warp_at(i: u32, j: u32, k: u32) -> vec3<f32> {
-    let s = params.slab.y;
+    let s = params.dims.w;
     let top = params.lattice_dims.xyz - vec3<u32>(1u);
     let c = vec3<u32>(i, j, k);
     let i0 = min(c / s, top);

@@ -3,12 +3,8 @@
 // defines `fn sampled_value(index: u32) -> f32` reading its source binding.
 //
 // Invariants: q is a continuous voxel index of the source. A point is inside when every
-// coordinate lies in [-0.5, n - 0.5] (ITK's rule: half a voxel beyond the outer centres);
-// neighbours beyond the edge are clamped to it. Outside points get `background`.
-
-fn inside_source(q: vec3<f32>, dims: vec3<u32>) -> bool {
-    return all(q >= vec3<f32>(-0.5)) && all(q <= vec3<f32>(dims) - vec3<f32>(0.5));
-}
+// coordinate lies in [-0.5, n - 0.5] (common.wgsl's inside_source); neighbours beyond the
+// edge are clamped to it. Outside points get `background`.
 
 fn trilinear(q: vec3<f32>, dims: vec3<u32>, background: f32) -> f32 {
     if (!inside_source(q, dims)) {

@@ -1,7 +1,7 @@
 // skin_blend.wgsl: volume skeletal deformation (paper eq. 1) inverted for pull-back resampling.
 //
 // The blend maps a source point x to B(x) = Σ_j w_j(x) M_j x (linear blend skinning of the
-// whole volume), or with slab.w = 1 to D(x) x where D(x) is the normalised blend Σ_j w_j(x) q_j
+// whole volume), or with blending 1 to D(x) x where D(x) is the normalised blend Σ_j w_j(x) q_j
 // of the motions' unit dual quaternions (a rigid motion again; see src/vsd.rs). Inside a bone (nearest voxel of the source label grid) the weights are that
 // bone's alone, so bones move exactly rigidly up to their labelled surface; elsewhere w_j is
 // trilinear from the coarser weight grid, clamped to its edge. For each target voxel
@@ -10,19 +10,20 @@
 // A = Σ_j w_j L_j (the blended linear part; the weights' own derivative is left out, which keeps
 // each step a 3×3 solve) and t the first of 1, 1/2, ... 1/16 that lowers the miss.
 // Output per voxel: u = x − p (the initial displacement field, world mm) and the residual
-// |B(x) − p| (mm), so the host can report the worst inversion.
+// |B(x) − p| (mm): where it is not small the blend was not inverted (it folds there).
 //
 // Bindings (group 0):
 //   0 uniform  SkinBlendParams (bone matrices for up to 8 bones)
 //   1 storage  weight: array<f32>  bones floats per voxel of the weight grid, whole
 //   2 storage  bone_of_voxel: array<f32>  per source label voxel: 1 + the bone's index, or 0
-//   3 storage  out: array<f32>     4 floats per target voxel of this slab (read_write)
-// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(depth/4)) over the target grid.
+//   3 storage  field: array<f32>     3 floats per target voxel: u (read_write)
+//   4 storage  residual: array<f32>  1 float per target voxel (read_write)
+// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(nz/4)) over the target grid.
 
 // Keep in sync with abi::SkinBlendParams.
 struct SkinBlendParams {
-    dims: vec4<u32>,        // target nx, ny, nz, z0
-    slab: vec4<u32>,        // depth, bones, iterations, blending (0 linear, 1 dual quaternion)
+    dims: vec4<u32>,        // target nx, ny, nz, unused
+    blend: vec4<u32>,       // bones, iterations, blending (0 linear, 1 dual quaternion), unused
     weight_dims: vec4<u32>, // weight grid nx, ny, nz, unused
     label_dims: vec4<u32>,  // source label grid nx, ny, nz, unused
     target_to_world: array<vec4<f32>, 3>,
@@ -39,7 +40,8 @@ struct SkinBlendParams {
 const CONVERGED_MM: f32 = 1e-4;
 @group(0) @binding(1) var<storage, read> weight: array<f32>;
 @group(0) @binding(2) var<storage, read> bone_of_voxel: array<f32>;
-@group(0) @binding(3) var<storage, read_write> out: array<f32>;
+@group(0) @binding(3) var<storage, read_write> field: array<f32>;
+@group(0) @binding(4) var<storage, read_write> residual: array<f32>;
 
 struct Blend {
     point: vec3<f32>,  // B(x)
@@ -51,7 +53,7 @@ struct Blend {
 // The bone whose label holds x (nearest label voxel), or `bones` when x is in soft tissue or
 // outside the label grid.
 fn bone_at(x: vec3<f32>) -> u32 {
-    let bones = params.slab.y;
+    let bones = params.blend.x;
     let n = params.label_dims.xyz;
     let q = vec3<f32>(
         affine_row(params.world_to_label[0], x),
@@ -68,7 +70,7 @@ fn bone_at(x: vec3<f32>) -> u32 {
 
 fn blend(x: vec3<f32>) -> Blend {
     let n = params.weight_dims.xyz;
-    let bones = params.slab.y;
+    let bones = params.blend.x;
     let inside = bone_at(x);
     if (inside < bones) {
         let m0 = params.forward[3u * inside];
@@ -96,7 +98,7 @@ fn blend(x: vec3<f32>) -> Blend {
     b.r0 = vec3<f32>(0.0);
     b.r1 = vec3<f32>(0.0);
     b.r2 = vec3<f32>(0.0);
-    let dual_quaternion = params.slab.w == 1u;
+    let dual_quaternion = params.blend.z == 1u;
     var real = vec4<f32>(0.0);
     var dual = vec4<f32>(0.0);
     for (var j = 0u; j < bones; j = j + 1u) {
@@ -152,12 +154,11 @@ fn dual_quaternion_motion(real_sum: vec4<f32>, dual_sum: vec4<f32>, x: vec3<f32>
 @compute @workgroup_size(4, 4, 4)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let d = params.dims;
-    let depth = params.slab.x;
-    if (gid.x >= d.x || gid.y >= d.y || gid.z >= depth) {
+    if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
         return;
     }
-    let bones = params.slab.y;
-    let v = vec3<f32>(f32(gid.x), f32(gid.y), f32(gid.z + d.w));
+    let bones = params.blend.x;
+    let v = vec3<f32>(f32(gid.x), f32(gid.y), f32(gid.z));
     let p = vec3<f32>(
         affine_row(params.target_to_world[0], v),
         affine_row(params.target_to_world[1], v),
@@ -178,7 +179,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     var err = best;
-    for (var it = 0u; it < params.slab.z && err > CONVERGED_MM; it = it + 1u) {
+    for (var it = 0u; it < params.blend.y && err > CONVERGED_MM; it = it + 1u) {
         let b = blend(x);
         let e = b.point - p;
         let det = det3(b.r0, b.r1, b.r2);
@@ -204,10 +205,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             break;
         }
     }
-    let residual = err;
-    let o = 4u * voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth));
-    out[o] = x.x - p.x;
-    out[o + 1u] = x.y - p.y;
-    out[o + 2u] = x.z - p.z;
-    out[o + 3u] = residual;
+    let o = voxel_index(gid.x, gid.y, gid.z, d.xyz);
+    field[3u * o] = x.x - p.x;
+    field[3u * o + 1u] = x.y - p.y;
+    field[3u * o + 2u] = x.z - p.z;
+    residual[o] = err;
 }

@@ -6,14 +6,14 @@
 //
 // Bindings (group 0):
 //   0 uniform  SkinWeightsParams
-//   1 storage  distance: array<f32>  bones floats per voxel (mm to each bone, 0 inside), slab
-//   2 storage  weight: array<f32>    bones floats per voxel, slab (read_write)
-// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(depth/4)).
+//   1 storage  distance: array<f32>  bones floats per voxel (mm to each bone, 0 inside)
+//   2 storage  weight: array<f32>    bones floats per voxel (read_write)
+// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(nz/4)).
 
 // Keep in sync with abi::SkinWeightsParams.
 struct SkinWeightsParams {
-    dims: vec4<u32>,   // nx, ny, nz, z0
-    slab: vec4<u32>,   // depth, bones, power (integer p), unused
+    dims: vec4<u32>,     // nx, ny, nz, unused
+    weights: vec4<u32>,  // bones, power (integer p), unused x2
 }
 
 @group(0) @binding(0) var<uniform> params: SkinWeightsParams;
@@ -23,12 +23,11 @@ struct SkinWeightsParams {
 @compute @workgroup_size(4, 4, 4)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let d = params.dims;
-    let depth = params.slab.x;
-    if (gid.x >= d.x || gid.y >= d.y || gid.z >= depth) {
+    if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
         return;
     }
-    let bones = params.slab.y;
-    let base = voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth)) * bones;
+    let bones = params.weights.x;
+    let base = voxel_index(gid.x, gid.y, gid.z, d.xyz) * bones;
     var inside = bones;
     var nearest = distance[base];
     for (var j = 0u; j < bones; j = j + 1u) {
@@ -48,7 +47,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var j = 0u; j < bones; j = j + 1u) {
         let ratio = nearest / distance[base + j];
         var raw = 1.0;
-        for (var k = 0u; k < params.slab.z; k = k + 1u) {
+        for (var k = 0u; k < params.weights.y; k = k + 1u) {
             raw = raw * ratio;
         }
         weight[base + j] = raw;

@@ -7,7 +7,7 @@
 // for lattice_splat; per row of x, Σ c (W − T)² in x order for sum_chunks.
 //
 // Bindings (group 0):
-//   0 uniform  RbfGradParams (whole grid: z0 = 0, depth = nz)
+//   0 uniform  RbfGradParams
 //   1 storage  lattice: array<f32>    3 floats (R, mm) per lattice node
 //   2 storage  moving: array<f32>     I0 on the target grid
 //   3 storage  fixed: array<f32>      the target T

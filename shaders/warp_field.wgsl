@@ -5,8 +5,8 @@
 // Bindings (group 0):
 //   0 uniform  RbfGradParams
 //   1 storage  lattice: array<f32>  3 floats (R, mm) per lattice node, whole
-//   2 storage  out: array<f32>      3 floats per voxel of this slab (read_write)
-// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(depth/4)).
+//   2 storage  out: array<f32>      3 floats per voxel (read_write)
+// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(nz/4)).
 
 @group(0) @binding(0) var<uniform> params: RbfGradParams;
 @group(0) @binding(1) var<storage, read> lattice: array<f32>;
@@ -15,12 +15,11 @@
 @compute @workgroup_size(4, 4, 4)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let d = params.dims;
-    let depth = params.slab.x;
-    if (gid.x >= d.x || gid.y >= d.y || gid.z >= depth) {
+    if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
         return;
     }
-    let r = warp_at(gid.x, gid.y, gid.z + d.w);
-    let o = 3u * voxel_index(gid.x, gid.y, gid.z, vec3<u32>(d.x, d.y, depth));
+    let r = warp_at(gid.x, gid.y, gid.z);
+    let o = 3u * voxel_index(gid.x, gid.y, gid.z, d.xyz);
     out[o] = r.x;
     out[o + 1u] = r.y;
     out[o + 2u] = r.z;

@@ -6,7 +6,7 @@
 // interpolated trilinearly (lattice_warp.wgsl), as the cost's kernels do.
 //
 // Bindings (group 0):
-//   0 uniform  RbfGradParams (whole grid: first slice 0, depth nz)
+//   0 uniform  RbfGradParams
 //   1 storage  lattice: array<f32>  3 floats (R, mm) per lattice node
 //   2 storage  moving: array<f32>   I0 on the target grid
 //   3 storage  warped: array<f32>   W, one per voxel (read_write)

@@ -9,13 +9,6 @@ use crate::error::{Error, Result};
 use crate::volume::{Affine, Grid};
 use bytemuck::{Pod, Zeroable};
 
-/// Parameter structs of kernels that can run on a slab of slices.
-pub trait SlabParams: Pod {
-    /// The same parameters for output slices z0 .. z0 + depth, with per-voxel inputs bound
-    /// from slice `first` (the slab minus its halo).
-    fn for_slab(&self, z0: u32, depth: u32, first: u32) -> Self;
-}
-
 /// How the bones' rigid motions are blended across soft tissue.
 #[derive(
     Clone,
@@ -83,9 +76,9 @@ pub enum Interpolation {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct ResampleParams {
-    /// Target nx, ny, nz, and the first slice of this slab.
+    /// Target nx, ny, nz, unused.
     pub target_dims: [u32; 4],
-    /// Source nx, ny, nz, and the number of slices in this slab.
+    /// Source nx, ny, nz, unused.
     pub source_dims: [u32; 4],
     /// Rows of (source world→index) · (target index→world): target voxel → source index.
     pub index_to_source: [[f32; 4]; 3],
@@ -141,7 +134,7 @@ impl ResampleParams {
                 source.dims[0] as u32,
                 source.dims[1] as u32,
                 source.dims[2] as u32,
-                target.dims[2] as u32,
+                0,
             ],
             index_to_source: std::array::from_fn(|r| row(&combined, r, true)),
             mm_to_source: std::array::from_fn(|r| row(&linear, r, false)),
@@ -150,14 +143,10 @@ impl ResampleParams {
             pad: [0; 2],
         }
     }
-}
 
-impl SlabParams for ResampleParams {
-    fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
-        let mut p = *self;
-        p.target_dims[3] = z0;
-        p.source_dims[3] = depth;
-        p
+    /// Voxels of the target grid.
+    pub fn voxels(&self) -> usize {
+        self.target_dims[..3].iter().map(|&n| n as usize).product()
     }
 }
 
@@ -223,60 +212,183 @@ impl GainParams {
     }
 }
 
+/// Keep in sync with `LabelCodes` in shaders/labels.wgsl: the label codes a kernel compares
+/// labels with (up to [`MAX_SKIN_BONES`]: one per bone).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct LabelCodes {
+    /// Codes in the list, unused ×3.
+    pub count: [u32; 4],
+    /// The codes, 4 per row.
+    pub list: [[u32; 4]; 2],
+}
+
+impl LabelCodes {
+    /// The codes `codes`, in order.
+    pub fn new(codes: &[u16]) -> Result<Self> {
+        if codes.len() > MAX_SKIN_BONES {
+            return Err(Error::InvalidInput(format!(
+                "a label lookup takes at most {MAX_SKIN_BONES} codes, got {}",
+                codes.len()
+            )));
+        }
+        let mut list = [[0u32; 4]; 2];
+        for (c, &code) in codes.iter().enumerate() {
+            list[c / 4][c % 4] = code as u32;
+        }
+        Ok(LabelCodes {
+            count: [codes.len() as u32, 0, 0, 0],
+            list,
+        })
+    }
+}
+
+/// Keep in sync with `LabelParams` in shaders/label_index.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct LabelParams {
+    /// nx, ny, nz of the label map, unused.
+    pub dims: [u32; 4],
+    /// The codes whose positions the kernel writes.
+    pub codes: LabelCodes,
+}
+
+impl LabelParams {
+    /// For a label map on `grid`, indexing `codes`.
+    pub fn new(grid: &Grid, codes: &[u16]) -> Result<Self> {
+        Ok(LabelParams {
+            dims: dims4(grid, 0),
+            codes: LabelCodes::new(codes)?,
+        })
+    }
+
+    /// Voxels of the label map.
+    pub fn voxels(&self) -> usize {
+        self.dims[..3].iter().map(|&n| n as usize).product()
+    }
+}
+
+/// Keep in sync with `BoneLookupParams` in shaders/bone_lookup.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct BoneLookupParams {
+    /// Target grid → source label grid, nearest voxel, background −1.
+    pub geometry: ResampleParams,
+    /// The bones' codes.
+    pub codes: LabelCodes,
+    /// Largest residual (mm) bone_at_source counts, unused ×3.
+    pub limit: [f32; 4],
+}
+
+impl BoneLookupParams {
+    /// For target voxels on `target` looking up `bones` in a label map on `labels`, counting
+    /// voxels whose residual is at most `residual_limit`.
+    pub fn new(labels: &Grid, target: &Grid, bones: &[u16], residual_limit: f32) -> Result<Self> {
+        Ok(BoneLookupParams {
+            geometry: ResampleParams::new(labels, target, -1.0, Interpolation::Nearest),
+            codes: LabelCodes::new(bones)?,
+            limit: [residual_limit, 0.0, 0.0, 0.0],
+        })
+    }
+
+    /// Voxels of the target grid.
+    pub fn voxels(&self) -> usize {
+        self.geometry.voxels()
+    }
+}
+
+/// Keep in sync with `DilateParams` in shaders/dilate.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct DilateParams {
+    /// nx, ny, nz, and the margin (voxels).
+    pub dims: [u32; 4],
+    /// Axis (0 x, 1 y, 2 z), 1 to clear the held voxels, unused ×2.
+    pub axis: [u32; 4],
+}
+
+impl DilateParams {
+    /// The passes dilating a mask on `grid` by `margin` voxels along x, y and z, the last
+    /// clearing the held voxels.
+    pub fn passes(grid: &Grid, margin: usize) -> [DilateParams; 3] {
+        std::array::from_fn(|axis| DilateParams {
+            dims: dims4(grid, margin as u32),
+            axis: [axis as u32, (axis == 2) as u32, 0, 0],
+        })
+    }
+
+    /// Voxels of the grid.
+    pub fn voxels(&self) -> usize {
+        self.dims[..3].iter().map(|&n| n as usize).product()
+    }
+}
+
+/// Voxels per chunk of the fold statistics.
+pub const FOLD_CHUNK: usize = 1024;
+
+/// Keep in sync with `FoldParams` in shaders/fold.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct FoldParams {
+    /// nx, ny, nz, unused.
+    pub dims: [u32; 4],
+    /// Voxels, voxels per chunk ([`FOLD_CHUNK`]), chunks, unused.
+    pub chunks: [u32; 4],
+    /// det J at or below which a voxel counts as folded, unused ×3.
+    pub threshold: [f32; 4],
+}
+
+impl FoldParams {
+    /// For a determinant on `grid`, folded at or below `threshold`.
+    pub fn new(grid: &Grid, threshold: f32) -> Self {
+        let voxels = grid.len();
+        FoldParams {
+            dims: dims4(grid, 0),
+            chunks: [
+                voxels as u32,
+                FOLD_CHUNK as u32,
+                voxels.div_ceil(FOLD_CHUNK) as u32,
+                0,
+            ],
+            threshold: [threshold, 0.0, 0.0, 0.0],
+        }
+    }
+
+    /// Voxels of the grid.
+    pub fn voxels(&self) -> usize {
+        self.chunks[0] as usize
+    }
+
+    /// Chunks fold_stats writes 4 floats for.
+    pub fn chunks(&self) -> usize {
+        self.chunks[2] as usize
+    }
+}
+
 /// Keep in sync with `JacobianParams` in shaders/jacobian.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct JacobianParams {
-    /// nx, ny, nz of the field's grid, and the first slice of this slab.
+    /// nx, ny, nz of the field's grid, unused.
     pub dims: [u32; 4],
-    /// Slices in this slab, the slab's first slice held in the bound field buffer (the slab
-    /// plus a one-slice halo on each side where the volume has one), unused ×2.
-    pub slab: [u32; 4],
     /// Rows of the inverse of the grid's linear part: d(index)/d(world mm).
     pub mm_to_index: [[f32; 4]; 3],
 }
 
 impl JacobianParams {
-    /// Parameters for the Jacobian of a field on `grid` (whole volume as one slab).
+    /// Voxels of the field's grid.
+    pub fn voxels(&self) -> usize {
+        self.dims[..3].iter().map(|&n| n as usize).product()
+    }
+
+    /// Parameters for the Jacobian of a field on `grid`.
     pub fn new(grid: &Grid) -> Self {
         JacobianParams {
             dims: dims4(grid, 0),
-            slab: [grid.dims[2] as u32, 0, 0, 0],
             mm_to_index: mm_to_index_rows(grid),
         }
     }
 }
-
-impl SlabParams for JacobianParams {
-    fn for_slab(&self, z0: u32, depth: u32, first: u32) -> Self {
-        let mut p = *self;
-        p.dims[3] = z0;
-        p.slab = [depth, first, 0, 0];
-        p
-    }
-}
-
-/// Parameter structs laid out as `dims: [nx, ny, nz, z0]` and `slab: [depth, …]` get their
-/// slab restriction here, once.
-macro_rules! slab_by_dims_and_slab {
-    ($($t:ty),*) => {$(
-        impl SlabParams for $t {
-            fn for_slab(&self, z0: u32, depth: u32, _first: u32) -> Self {
-                let mut p = *self;
-                p.dims[3] = z0;
-                p.slab[0] = depth;
-                p
-            }
-        }
-    )*};
-}
-slab_by_dims_and_slab!(
-    ComposeParams,
-    SkinWeightsParams,
-    SkinBlendParams,
-    RbfGradParams,
-    SplatParams
-);
 
 /// Rows 0..3 of a 4×4 affine as f32 [x, y, z, w] (w = translation).
 fn rows(m: &Affine) -> [[f32; 4]; 3] {
@@ -422,18 +534,27 @@ impl ScoreParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SkinWeightsParams {
-    /// nx, ny, nz, first slice of this slab.
+    /// nx, ny, nz, unused.
     pub dims: [u32; 4],
-    /// Slices in this slab, bones, Shepard power, unused.
-    pub slab: [u32; 4],
+    /// Bones, Shepard power, unused ×2.
+    pub weights: [u32; 4],
 }
 
 impl SkinWeightsParams {
+    /// Weights written: bones per voxel.
+    pub fn values(&self) -> usize {
+        self.dims[..3]
+            .iter()
+            .map(|&n| n as usize)
+            .product::<usize>()
+            * self.weights[0] as usize
+    }
+
     /// Weights of `bones` bones on `grid` with Shepard exponent `power`.
     pub fn new(grid: &Grid, bones: usize, power: u32) -> Self {
         SkinWeightsParams {
             dims: dims4(grid, 0),
-            slab: [grid.dims[2] as u32, bones as u32, power, 0],
+            weights: [bones as u32, power, 0, 0],
         }
     }
 }
@@ -445,10 +566,10 @@ pub const MAX_SKIN_BONES: usize = 8;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SkinBlendParams {
-    /// Target nx, ny, nz, first slice of this slab.
+    /// Target nx, ny, nz, unused.
     pub dims: [u32; 4],
-    /// Slices in this slab, bones, inversion iterations, blending (0 linear, 1 dual quaternion).
-    pub slab: [u32; 4],
+    /// Bones, inversion iterations, blending (0 linear, 1 dual quaternion), unused.
+    pub blend: [u32; 4],
     /// Weight grid nx, ny, nz, unused.
     pub weight_dims: [u32; 4],
     /// Source label grid nx, ny, nz, unused.
@@ -468,6 +589,11 @@ pub struct SkinBlendParams {
 }
 
 impl SkinBlendParams {
+    /// Voxels of the target grid.
+    pub fn voxels(&self) -> usize {
+        self.dims[..3].iter().map(|&n| n as usize).product()
+    }
+
     /// For bones moving as `blend` says (at most [`MAX_SKIN_BONES`]), weights on `weights`,
     /// bone labels on `labels`.
     pub fn new(target: &Grid, weights: &Grid, labels: &Grid, blend: &BoneBlend) -> Self {
@@ -488,12 +614,7 @@ impl SkinBlendParams {
         };
         SkinBlendParams {
             dims: dims4(target, 0),
-            slab: [
-                target.dims[2] as u32,
-                motions.len() as u32,
-                blend.iterations,
-                blending,
-            ],
+            blend: [motions.len() as u32, blend.iterations, blending, 0],
             weight_dims: dims4(weights, 0),
             label_dims: dims4(labels, 0),
             target_to_world: rows(&target.affine),
@@ -525,10 +646,8 @@ fn dual_quaternion(m: &Affine) -> [[f32; 4]; 2] {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct RbfGradParams {
-    /// Target nx, ny, nz, first slice of this slab.
+    /// Target nx, ny, nz, and the lattice step (voxels).
     pub dims: [u32; 4],
-    /// Slices in this slab, lattice step (voxels), unused ×2.
-    pub slab: [u32; 4],
     /// Lattice nodes along x, y, z, unused.
     pub lattice_dims: [u32; 4],
     /// Rows of the inverse linear part of the grid: a displacement in mm → index delta.
@@ -543,8 +662,7 @@ impl RbfGradParams {
         let l: nalgebra::Matrix3<f64> = grid.affine.fixed_view::<3, 3>(0, 0).into_owned();
         let inv = l.try_inverse().expect("validated grids are invertible");
         RbfGradParams {
-            dims: dims4(grid, 0),
-            slab: [grid.dims[2] as u32, step as u32, 0, 0],
+            dims: dims4(grid, step as u32),
             lattice_dims: [
                 lattice_dims[0] as u32,
                 lattice_dims[1] as u32,
@@ -571,10 +689,8 @@ impl RbfGradParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SplatParams {
-    /// Lattice lx, ly, lz, first lattice slice of this slab.
+    /// Lattice lx, ly, lz, and its step (voxels).
     pub dims: [u32; 4],
-    /// Lattice slices in this slab, step (voxels), unused ×2.
-    pub slab: [u32; 4],
     /// Volume nx, ny, nz, unused.
     pub volume_dims: [u32; 4],
 }
@@ -587,9 +703,8 @@ impl SplatParams {
                 lattice_dims[0] as u32,
                 lattice_dims[1] as u32,
                 lattice_dims[2] as u32,
-                0,
+                step as u32,
             ],
-            slab: [lattice_dims[2] as u32, step as u32, 0, 0],
             volume_dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, 0],
         }
     }
@@ -832,20 +947,22 @@ impl PartialsParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct ComposeParams {
-    /// nx, ny, nz of the fields' grid, and the first slice of this slab.
+    /// nx, ny, nz of the fields' grid, unused.
     pub dims: [u32; 4],
-    /// Slices in this slab, unused ×3.
-    pub slab: [u32; 4],
     /// Rows of the inverse of the grid's linear part: a displacement in mm → index delta.
     pub mm_to_index: [[f32; 4]; 3],
 }
 
 impl ComposeParams {
-    /// For fields on `grid` (whole volume as one slab).
+    /// Voxels of the fields' grid.
+    pub fn voxels(&self) -> usize {
+        self.dims[..3].iter().map(|&n| n as usize).product()
+    }
+
+    /// For fields on `grid`.
     pub fn new(grid: &Grid) -> Self {
         ComposeParams {
             dims: dims4(grid, 0),
-            slab: [grid.dims[2] as u32, 0, 0, 0],
             mm_to_index: mm_to_index_rows(grid),
         }
     }

@@ -30,7 +30,7 @@ use crate::progress::Progress;
 use crate::pyramid;
 use crate::rbf::{RbfCoefficients, RbfSystem};
 use crate::regularise::energy_params;
-use crate::volume::{Field, Grid, Volume};
+use crate::volume::Grid;
 use nalgebra::Vector3;
 
 /// Default weight of the membrane energy (AdaptiveOptions::membrane).
@@ -468,13 +468,13 @@ fn cell_costs<B: Backend>(
     Ok(fold_ssd_partials(dims, cells, &partial))
 }
 
-/// What the adaptive stage deforms: the source on the target grid.
-pub struct Moving<'a> {
+/// What the adaptive stage deforms: the source on the target grid, where the backend computes.
+pub struct Moving<'a, B: Backend> {
     /// The source (initialised, or just resampled) on the target grid.
-    pub image: &'a Volume,
+    pub image: &'a DeviceImage<B>,
     /// 1 where `image` holds data from the source scan, 0 where its sample fell outside the
     /// source's field of view (there it reads background, which is not the anatomy).
-    pub coverage: &'a Volume,
+    pub coverage: &'a DeviceImage<B>,
     /// Whether the articulated initialisation aligned it.
     pub prealigned: bool,
 }
@@ -490,21 +490,14 @@ pub struct Moving<'a> {
 /// initialisation, 1.34 → 1.59 mm).
 fn levels<B: Backend>(
     backend: &B,
-    moving: &Moving,
-    target: &Volume,
+    moving: &Moving<B>,
+    target: &DeviceImage<B>,
     count: usize,
 ) -> Result<Vec<Level<B>>> {
-    let pyramid_of = |what, image: &Volume, count| {
-        pyramid::build(
-            backend,
-            DeviceImage::upload(backend, what, image.clone())?,
-            count,
-        )
-    };
-    let fixed = pyramid_of("target", target, count)?;
+    let fixed = pyramid::build(backend, target.clone(), count)?;
     let count = fixed.len();
-    let moving_levels = pyramid_of("moving image", moving.image, count)?;
-    let covered = pyramid_of("coverage", moving.coverage, count)?;
+    let moving_levels = pyramid::build(backend, moving.image.clone(), count)?;
+    let covered = pyramid::build(backend, moving.coverage.clone(), count)?;
     Ok(fixed
         .into_iter()
         .zip(moving_levels)
@@ -521,14 +514,14 @@ fn levels<B: Backend>(
 /// displacement.
 pub fn register<B: Backend>(
     backend: &B,
-    moving: &Moving,
-    target: &Volume,
+    moving: &Moving<B>,
+    target: &DeviceImage<B>,
     pins: &[Vector3<f64>],
     options: &AdaptiveOptions,
     progress: &dyn Progress,
 ) -> Result<Adaptive> {
-    crate::backend::check_pair(moving.image, target)?;
-    crate::backend::check_pair(moving.coverage, target)?;
+    crate::backend::check_grids(&moving.image.grid, &target.grid)?;
+    crate::backend::check_grids(&moving.coverage.grid, &target.grid)?;
     options.check()?;
     let levels = levels(backend, moving, target, options.levels)?;
     let mut points: Vec<ControlPoint> = pins
@@ -752,15 +745,16 @@ impl<B: Backend> LevelRun<'_, B> {
 }
 
 impl Adaptive {
-    /// R on every voxel of `grid`, scaled by `scale`, through the same lattice interpolation
-    /// the optimiser used.
+    /// R on every voxel of `grid` (3 values per voxel, where the backend computes), scaled by
+    /// `scale`, through the same lattice interpolation the optimiser used. Only the lattice
+    /// passes the host, to be scaled.
     pub fn warp_field<B: Backend>(
         &self,
         backend: &B,
         grid: &Grid,
         lattice_mm: f64,
         scale: f64,
-    ) -> Result<Field> {
+    ) -> Result<DeviceImage<B>> {
         let lattice = Lattice::new(backend, grid, lattice_mm)?;
         let centres: Vec<Vector3<f64>> = self
             .points
@@ -773,6 +767,11 @@ impl Adaptive {
             .iter()
             .map(|v| v * scale as f32)
             .collect();
-        backend.warp_field(&values, lattice.dims, lattice.step, grid)
+        let values = backend.upload("scaled warp lattice", values)?;
+        let params = RbfGradParams::new(grid, lattice.dims, lattice.step);
+        Ok(DeviceImage {
+            data: backend.warp_field(&params, &values)?,
+            grid: grid.clone(),
+        })
     }
 }

@@ -1,21 +1,21 @@
 //! Articulated initialisation (paper §2): per-bone rigid registration coarse to fine, skinning
 //! weights, and the inverted volume skeletal deformation, giving the initial field u0.
 
-use crate::abi::Blending;
-use crate::abi::Interpolation;
+use crate::abi::{Blending, Interpolation, LabelParams, ResampleParams};
 use crate::adaptive::MAX_LEVELS;
 use crate::backend::{Backend, DeviceImage};
 use crate::check::within;
 use crate::error::{Error, Result};
+use crate::fold_repair::{FoldRepair, SourceLabels};
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::joint::{flexion_axis, rotation_about, rotation_degrees, JointAxis};
 use crate::labels as label;
 use crate::progress::Progress;
 use crate::pyramid;
 use crate::rigid::{refine, score_candidates, BoneLevel, LevelReport, RefineOptions};
-use crate::skinning::{self, distance_map, SkinningWeights};
-use crate::volume::{Affine, Field, Image, Labels, Volume};
-use crate::vsd::{initial_field, InitialField};
+use crate::skinning::{self, distance_map};
+use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
+use crate::vsd::initial_field;
 use nalgebra::{Rotation3, Unit, Vector3};
 
 /// Name of a bone label code.
@@ -128,20 +128,82 @@ pub struct BoneReport {
     pub levels: Vec<LevelReport>,
 }
 
-/// Everything the initialisation produces.
+/// What the initialisation found (its images stay where the backend computes:
+/// [`InitialImages`]).
 pub struct Initialisation {
     /// Bone motions, source → target (RAS), in `bones` order.
     pub motions: Vec<(u16, Affine)>,
     /// The flexion axis found from the labels.
     pub axis: JointAxis,
-    /// Skinning weights.
-    pub weights: SkinningWeights,
-    /// The initial field and its inversion residual.
-    pub initial: InitialField,
-    /// The source moved by the initial field, on the target grid.
-    pub initialised: Volume,
+    /// The bones skinned, in weight order.
+    pub bones: Vec<u16>,
+    /// The grid the skinning weights live on.
+    pub weight_grid: Grid,
+    /// Folds of the blend removed from the initial field.
+    pub repair: FoldRepair,
     /// Per-bone reports.
     pub reports: Vec<BoneReport>,
+}
+
+/// The initialisation's images, where the backend computes.
+pub struct InitialImages<B: Backend> {
+    /// u0: target point p → source point p + u0(p), world RAS mm (3 values per voxel).
+    pub field: DeviceImage<B>,
+    /// The blend's inversion residual per target voxel (mm).
+    pub residual: DeviceImage<B>,
+    /// The source moved by the initial field, on the target grid.
+    pub initialised: DeviceImage<B>,
+}
+
+/// The initialisation's images on the host: what `posereg init` writes.
+pub struct InitialVolumes {
+    /// u0: target point p → source point p + u0(p), world RAS mm.
+    pub field: Field,
+    /// The blend's inversion residual per target voxel (mm).
+    pub residual: Volume,
+    /// The source moved by the initial field, on the target grid.
+    pub initialised: Volume,
+}
+
+impl<B: Backend> InitialImages<B> {
+    /// Brings the three images back (one wait).
+    pub fn download(&self, backend: &B) -> Result<InitialVolumes> {
+        let mut out = backend.download(&[
+            &self.field.data,
+            &self.residual.data,
+            &self.initialised.data,
+        ])?;
+        let grid = &self.field.grid;
+        let (initialised, residual) =
+            (out.pop().unwrap_or_default(), out.pop().unwrap_or_default());
+        let field = out.pop().unwrap_or_default();
+        Ok(InitialVolumes {
+            field: Image::from_data(grid.clone(), bytemuck::cast_vec(field))?,
+            residual: Image::from_data(grid.clone(), residual)?,
+            initialised: Image::from_data(grid.clone(), initialised)?,
+        })
+    }
+}
+
+/// A pair's images where the backend computes, uploaded once for a whole registration.
+pub struct PairImages<B: Backend> {
+    /// The source (straight) scan.
+    pub source: DeviceImage<B>,
+    /// Its bone labels, codes as f32.
+    pub labels: DeviceImage<B>,
+    /// The target (bent) scan.
+    pub target: DeviceImage<B>,
+}
+
+impl<B: Backend> PairImages<B> {
+    /// Uploads the three images.
+    pub fn upload(backend: &B, source: &Volume, labels: &Labels, target: &Volume) -> Result<Self> {
+        Ok(PairImages {
+            source: DeviceImage::upload(backend, "source", source.clone())?,
+            labels: DeviceImage::upload_labels(backend, labels)?,
+            target: DeviceImage::upload(backend, "target", target.clone())?,
+        })
+    }
 }
 
 impl Initialisation {
@@ -234,21 +296,16 @@ struct Region<B: Backend> {
 impl<B: Backend> Region<B> {
     fn new(
         backend: &B,
-        labels: &Labels,
+        labels: &DeviceImage<B>,
         code: u16,
         levels: usize,
         first: usize,
         dilation_mm: f64,
     ) -> Result<Self> {
-        let indicator = Image {
+        let indicator = DeviceImage {
+            data: backend.label_index(&LabelParams::new(&labels.grid, &[code])?, &labels.data)?,
             grid: labels.grid.clone(),
-            data: labels
-                .data
-                .iter()
-                .map(|&l| (l == code) as u8 as f32)
-                .collect(),
         };
-        let indicator = DeviceImage::upload(backend, "bone indicator", indicator)?;
         let mut down = pyramid::build(backend, indicator, first + 1)?;
         let at_first = down.pop().expect("level 0 at least").download(backend)?;
         let inside: Vec<bool> = at_first.data.iter().map(|&v| v >= 0.5).collect();
@@ -360,18 +417,18 @@ fn register_bone<B: Backend>(
     ))
 }
 
-/// Runs the articulated initialisation. `given` skips the rigid stage with known motions.
+/// Runs the articulated initialisation on `pair` (`labels`: its label map on the host).
+/// `given` skips the rigid stage with known motions.
 pub fn initialise<B: Backend>(
     backend: &B,
-    source: &Volume,
+    pair: &PairImages<B>,
     labels: &Labels,
-    target: &Volume,
     options: &InitOptions,
     given: Option<&BoneTransforms>,
     progress: &dyn Progress,
-) -> Result<Initialisation> {
+) -> Result<(Initialisation, InitialImages<B>)> {
     options.check()?;
-    if !labels.grid.same_as(&source.grid, 1e-3) {
+    if !labels.grid.same_as(&pair.source.grid, 1e-3) {
         return Err(Error::InvalidInput(
             "the label map is not on the source image's grid".into(),
         ));
@@ -410,10 +467,9 @@ pub fn initialise<B: Backend>(
             })
             .collect::<Result<_>>()?;
     } else {
-        let upload = |what, image: &Volume| DeviceImage::upload(backend, what, image.clone());
         let mut pyramids = Pyramids {
-            source: pyramid::build(backend, upload("source", source)?, options.levels)?,
-            target: pyramid::build(backend, upload("target", target)?, options.levels)?,
+            source: pyramid::build(backend, pair.source.clone(), options.levels)?,
+            target: pyramid::build(backend, pair.target.clone(), options.levels)?,
         };
         let levels = pyramids.source.len().min(pyramids.target.len());
         pyramids.source.truncate(levels);
@@ -428,7 +484,14 @@ pub fn initialise<B: Backend>(
         let mut found: Vec<(u16, Affine)> = Vec::new();
         let mut reference = Affine::identity();
         for code in order {
-            let region = Region::new(backend, labels, code, levels, first, options.dilation_mm)?;
+            let region = Region::new(
+                backend,
+                &pair.labels,
+                code,
+                levels,
+                first,
+                options.dilation_mm,
+            )?;
             let is_reference = code == options.reference;
             let search = (!is_reference).then(|| candidates(&axis, &reference, options));
             let (motion, report) =
@@ -448,25 +511,56 @@ pub fn initialise<B: Backend>(
     }
     let weights = skinning::weights(backend, labels, &bones, skinning::SHEPARD_POWER)?;
     let matrices: Vec<Affine> = motions.iter().map(|m| m.1).collect();
+    let source_labels = SourceLabels {
+        host: labels,
+        device: &pair.labels,
+    };
+    let target = &pair.target.grid;
     let initial = initial_field(
         backend,
         &weights,
-        labels,
+        &source_labels,
         &matrices,
         options.blending,
-        &target.grid,
+        target,
     )?;
-    let initialised = backend.resample(source, &initial.field, 0.0, Interpolation::Linear)?;
+    let resample = ResampleParams::new(&pair.source.grid, target, 0.0, Interpolation::Linear);
+    let initialised = DeviceImage {
+        data: backend.resample(&resample, &pair.source.data, &initial.field.data)?,
+        grid: target.clone(),
+    };
     progress.step("skinning weights and volume skeletal deformation");
     progress.end();
-    Ok(Initialisation {
+    let found = Initialisation {
         motions,
         axis,
-        weights,
-        initial,
-        initialised,
+        bones: weights.bones,
+        weight_grid: weights.grid,
+        repair: initial.repair,
         reports,
-    })
+    };
+    let images = InitialImages {
+        field: initial.field,
+        residual: initial.residual,
+        initialised,
+    };
+    Ok((found, images))
+}
+
+/// [`initialise`] from host volumes to host volumes: the pair goes up once, the three images
+/// come back once (what `posereg init` writes).
+pub fn initialise_volumes<B: Backend>(
+    backend: &B,
+    source: &Volume,
+    labels: &Labels,
+    target: &Volume,
+    options: &InitOptions,
+    given: Option<&BoneTransforms>,
+    progress: &dyn Progress,
+) -> Result<(Initialisation, InitialVolumes)> {
+    let pair = PairImages::upload(backend, source, labels, target)?;
+    let (found, images) = initialise(backend, &pair, labels, options, given, progress)?;
+    Ok((found, images.download(backend)?))
 }
 
 /// A field that moves every point by one rigid motion (source → target), on `grid`: what
@@ -538,7 +632,19 @@ pub fn bend<B: Backend>(
         })
         .collect();
     let weights = skinning::weights(backend, labels, &bones, BEND_SHEPARD_POWER)?;
-    let initial = initial_field(backend, &weights, labels, &motions, blending, &source.grid)?;
+    let device_labels = DeviceImage::upload_labels(backend, labels)?;
+    let source_labels = SourceLabels {
+        host: labels,
+        device: &device_labels,
+    };
+    let initial = initial_field(
+        backend,
+        &weights,
+        &source_labels,
+        &motions,
+        blending,
+        &source.grid,
+    )?;
     let mut truth = BoneTransforms::new(
         bones
             .iter()
@@ -558,7 +664,7 @@ pub fn bend<B: Backend>(
         }),
     );
     Ok(Bend {
-        field: initial.field,
+        field: initial.field.download_field(backend)?,
         truth,
         axis,
     })

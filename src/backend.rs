@@ -2,12 +2,15 @@
 //! shaders) and its CPU twin (rayon). Host code (registration loops, commands) is written
 //! against this trait only, so every stage runs on either and the two can be compared.
 
+use crate::abi::Interpolation;
 use crate::abi::{
-    BoneBlend, EnergyParams, GainParams, Interpolation, PyramidParams, RbfGradParams,
-    RbfLatticeParams, RigidParams, ScoreParams, SplatParams, SsdParams, SumParams,
+    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FoldParams, GainParams,
+    JacobianParams, LabelParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams,
+    RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
+    SumParams,
 };
 use crate::error::Result;
-use crate::volume::{Field, Grid, Image, Volume};
+use crate::volume::{Field, Grid, Image, Labels, Volume};
 
 /// What a backend has moved between the host and the device, and how much work it launched,
 /// since it was opened. The CPU backend moves nothing and counts nothing.
@@ -57,12 +60,23 @@ impl Element for f64 {
     const WGSL: &'static str = "f64";
 }
 
-/// An image whose voxels are held where a backend computes; its grid stays on the host.
+/// An image whose voxels are held where a backend computes; its grid stays on the host. A
+/// displacement field is one too, with 3 values per voxel.
 pub struct DeviceImage<B: Backend> {
     /// Where its voxels are.
     pub grid: Grid,
-    /// One value per voxel, x fastest.
+    /// The values, x fastest (one per voxel, or three for a field).
     pub data: B::Buffer<f32>,
+}
+
+impl<B: Backend> Clone for DeviceImage<B> {
+    /// Shares the voxels (buffers are never written after the kernel that made them).
+    fn clone(&self) -> Self {
+        DeviceImage {
+            grid: self.grid.clone(),
+            data: self.data.clone(),
+        }
+    }
 }
 
 impl<B: Backend> DeviceImage<B> {
@@ -74,9 +88,32 @@ impl<B: Backend> DeviceImage<B> {
         })
     }
 
+    /// Puts a label map where `backend` computes, its codes as f32 (exact: codes are u16).
+    pub fn upload_labels(backend: &B, labels: &Labels) -> Result<Self> {
+        let codes = labels.data.iter().map(|&l| l as f32).collect();
+        Ok(DeviceImage {
+            data: backend.upload("source labels", codes)?,
+            grid: labels.grid.clone(),
+        })
+    }
+
+    /// Puts a displacement field where `backend` computes.
+    pub fn upload_field(backend: &B, what: &str, field: Field) -> Result<Self> {
+        Ok(DeviceImage {
+            data: backend.upload(what, bytemuck::cast_vec(field.data))?,
+            grid: field.grid,
+        })
+    }
+
     /// Brings it back to the host.
     pub fn download(&self, backend: &B) -> Result<Volume> {
         Image::from_data(self.grid.clone(), backend.download_one(&self.data)?)
+    }
+
+    /// Brings a displacement field back to the host.
+    pub fn download_field(&self, backend: &B) -> Result<Field> {
+        let values = backend.download_one(&self.data)?;
+        Image::from_data(self.grid.clone(), bytemuck::cast_vec(values))
     }
 }
 
@@ -109,8 +146,9 @@ pub struct CostImages<'a, T: ?Sized> {
 /// work only when something is downloaded, so a chain of kernels costs one submission and one
 /// wait.
 pub trait Backend {
-    /// An array of `T` held where this backend computes.
-    type Buffer<T: Element>;
+    /// An array of `T` held where this backend computes. Buffers are never written after the
+    /// kernel (or upload) that made them, so a clone shares one instead of copying it.
+    type Buffer<T: Element>: Clone;
 
     /// One line saying what this backend is (e.g. "gpu: NVIDIA H100 (Vulkan)", "cpu: 2 threads").
     fn describe(&self) -> String;
@@ -124,6 +162,9 @@ pub trait Backend {
     /// Brings `buffers` back to the host, after all work recorded so far, with one wait.
     fn download<T: Element>(&self, buffers: &[&Self::Buffer<T>]) -> Result<Vec<Vec<T>>>;
 
+    /// `len` zeros where kernels can read them, without an upload.
+    fn zeros(&self, what: &str, len: usize) -> Result<Self::Buffer<f32>>;
+
     /// Brings one buffer back ([`Backend::download`]).
     fn download_one<T: Element>(&self, buffer: &Self::Buffer<T>) -> Result<Vec<T>> {
         Ok(self
@@ -132,15 +173,42 @@ pub trait Backend {
             .expect("one buffer asked for"))
     }
 
-    /// Resampling of `source` at x + u(x) for every voxel x of `field`'s grid (the target
-    /// grid), trilinear or nearest; `background` where that point is outside the source.
+    /// `source` sampled at x + u(x) for every voxel x of the target grid (`field`: u, 3 floats
+    /// per voxel), trilinear or nearest; the background where that point is outside the
+    /// source (`params`).
     fn resample(
         &self,
-        source: &Volume,
-        field: &Field,
-        background: f32,
-        interpolation: Interpolation,
-    ) -> Result<Volume>;
+        params: &ResampleParams,
+        source: &Self::Buffer<f32>,
+        field: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// 1 where x + u(x) lies inside the source's field of view (sample.wgsl's rule), else 0,
+    /// for every voxel x of the target grid (`params` as for a resample).
+    fn coverage(
+        &self,
+        params: &ResampleParams,
+        field: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// Per voxel of a label map: 1 + the position of its label among `params`' codes, 0 for
+    /// any other label.
+    fn label_index(
+        &self,
+        params: &LabelParams,
+        labels: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// Per target voxel x: 1 + the position among `params`' bone codes of the source label
+    /// (nearest voxel) at x + u(x), where the voxel's `residual` is within `params`' limit;
+    /// 0 elsewhere.
+    fn bone_at_source(
+        &self,
+        params: &BoneLookupParams,
+        field: &Self::Buffer<f32>,
+        residual: &Self::Buffer<f32>,
+        labels: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
 
     /// Per-column partial sums of c (a − b)² per cell (layout of shaders/ssd_cells.wgsl, folded
     /// by metric::fold_ssd_partials): a = `images.moving`, b = `images.fixed`, c = 1 where
@@ -153,7 +221,48 @@ pub trait Backend {
 
     /// det(I + du/dx) of the map x → x + u(x) at every voxel of the field's grid: where it is
     /// ≤ 0 the map folds.
-    fn jacobian(&self, field: &Field) -> Result<Volume>;
+    fn jacobian(
+        &self,
+        params: &JacobianParams,
+        field: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// Per chunk of abi::FOLD_CHUNK voxels of a Jacobian determinant `det`: its minimum, the
+    /// voxels ≤ 0, the voxels ≤ `params`' threshold, and those of them not `held` (> 0).
+    fn fold_stats(
+        &self,
+        params: &FoldParams,
+        det: &Self::Buffer<f32>,
+        held: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// 1 on the voxels not `held` whose `det` is at or below `params`' threshold, else 0.
+    fn fold_mark(
+        &self,
+        params: &FoldParams,
+        det: &Self::Buffer<f32>,
+        held: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// One axis of a box dilation of a 0/1 `mask` (`params`), clearing the `held` voxels
+    /// when `params` says.
+    fn dilate(
+        &self,
+        params: &DilateParams,
+        mask: &Self::Buffer<f32>,
+        held: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// One sweep of local smoothing of `field` over `region`: each voxel there takes the mean
+    /// of its 27 neighbours unless that carries its source point into a bone (`labels`,
+    /// `params`' codes) it was not in.
+    fn fold_smooth(
+        &self,
+        params: &BoneLookupParams,
+        field: &Self::Buffer<f32>,
+        region: &Self::Buffer<f32>,
+        labels: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
 
     /// One pyramid step: a level smoothed and decimated (see pyramid::next_level_grid) as
     /// `params` says.
@@ -180,27 +289,23 @@ pub trait Backend {
         candidates: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
-    /// Skinning weights (bones per voxel) from distance maps (bones per voxel, mm) on `grid`.
+    /// Skinning weights (bones per voxel) from distance maps (bones per voxel, mm).
     fn skin_weights(
         &self,
-        distances: &[f32],
-        grid: &Grid,
-        bones: usize,
-        power: u32,
-    ) -> Result<Vec<f32>>;
+        params: &SkinWeightsParams,
+        distances: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
 
-    /// The inverted blend on `target`: 4 floats per voxel (u in mm, inversion residual in mm)
-    /// for bones moving and blended as `blend` says, weights (bones per voxel) on `weight_grid`, and
-    /// `bone_of_voxel` (1 + bone index, 0 for soft tissue) on the source label grid `labels`.
+    /// The inverted blend on the target grid: u (3 floats per voxel, mm) and the inversion
+    /// residual (1 float per voxel, mm) for bones moving and blended as `params` says,
+    /// `weights` (bones per voxel) on the weight grid, and `bone_of_voxel` (1 + bone index, 0
+    /// for soft tissue) on the source label grid.
     fn skin_blend(
         &self,
-        weights: &[f32],
-        weight_grid: &Grid,
-        bone_of_voxel: &[f32],
-        labels: &Grid,
-        target: &Grid,
-        blend: &BoneBlend,
-    ) -> Result<Vec<f32>>;
+        params: &SkinBlendParams,
+        weights: &Self::Buffer<f32>,
+        bone_of_voxel: &Self::Buffer<f32>,
+    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
 
     /// `moving` seen through the warp `lattice` (3 floats per node) at every voxel of the grid
     /// in `params`: W(x) = I0(x + R(x)), 0 outside.
@@ -236,18 +341,21 @@ pub trait Backend {
         moving: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
-    /// The warp R at every voxel of `grid`, interpolated from `lattice` (3 floats per node of a
-    /// lattice of `lattice_dims` nodes every `step` voxels) as the non-rigid cost does.
+    /// The warp R at every voxel of the grid in `params` (3 floats per voxel), interpolated
+    /// from `lattice` (3 floats per node) as the non-rigid cost does.
     fn warp_field(
         &self,
-        lattice: &[f32],
-        lattice_dims: [usize; 3],
-        step: usize,
-        grid: &Grid,
-    ) -> Result<Field>;
+        params: &RbfGradParams,
+        lattice: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
 
     /// The total field u = R + u0 ∘ (id + R) of a warp R and an initial field u0 on one grid.
-    fn compose(&self, warp: &Field, initial: &Field) -> Result<Field>;
+    fn compose(
+        &self,
+        params: &ComposeParams,
+        warp: &Self::Buffer<f32>,
+        initial: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
 
     /// The warp R at every lattice node (3 f32 per node), the cubic RBF `spline` (f64, layout
     /// of abi::spline_buffer) evaluated in f64 at nodes placed by `geometry`
@@ -319,11 +427,6 @@ pub fn total<B: Backend>(backend: &B, params: &SumParams, values: &B::Buffer<f32
     Ok(backend.download_one(&sums)?.iter().sum())
 }
 
-/// Checks two images (volumes or fields) combined voxel by voxel share a grid.
-pub fn check_pair<T, U>(a: &Image<T>, b: &Image<U>) -> Result<()> {
-    check_grids(&a.grid, &b.grid)
-}
-
 /// Checks the grids of two images combined voxel by voxel are the same.
 pub fn check_grids(a: &Grid, b: &Grid) -> Result<()> {
     if a.same_as(b, 1e-4) {
@@ -336,9 +439,35 @@ pub fn check_grids(a: &Grid, b: &Grid) -> Result<()> {
     }
 }
 
-/// `volume` sampled on `grid` without any displacement (trilinear, 0 outside): the unregistered
-/// source seen on the target's grid.
-pub fn resample_onto<B: Backend>(backend: &B, volume: &Volume, grid: &Grid) -> Result<Volume> {
-    let zero = crate::volume::Image::filled(grid.clone(), [0.0f32; 3]);
-    backend.resample(volume, &zero, 0.0, Interpolation::Linear)
+/// `image` sampled on `grid` without any displacement (trilinear, 0 outside): the
+/// unregistered source seen on the target's grid.
+pub fn resample_onto<B: Backend>(
+    backend: &B,
+    image: &DeviceImage<B>,
+    grid: &Grid,
+) -> Result<DeviceImage<B>> {
+    let params = ResampleParams::new(&image.grid, grid, 0.0, Interpolation::Linear);
+    let still = backend.zeros("zero displacement", 3 * grid.len())?;
+    Ok(DeviceImage {
+        data: backend.resample(&params, &image.data, &still)?,
+        grid: grid.clone(),
+    })
+}
+
+/// `source` resampled through `field` (on the target grid) for a command working on volumes
+/// from disk: both go where the backend computes, the result comes back.
+pub fn resample_volume<B: Backend>(
+    backend: &B,
+    source: &Volume,
+    field: &Field,
+    background: f32,
+    interpolation: Interpolation,
+) -> Result<Volume> {
+    let params = ResampleParams::new(&source.grid, &field.grid, background, interpolation);
+    let image = DeviceImage::upload(backend, "volume to resample", source.clone())?;
+    let field_on_device = DeviceImage::upload_field(backend, "displacement field", field.clone())?;
+    Image::from_data(
+        field.grid.clone(),
+        backend.download_one(&backend.resample(&params, &image.data, &field_on_device.data)?)?,
+    )
 }

@@ -98,7 +98,8 @@ mod tests {
             };
             // The moving image is aligned: it is its own warped image.
             let target = DeviceImage::upload(&CpuBackend, "target", target).unwrap();
-            let gained = gain(&CpuBackend, &moving.data, &target, &moving.data, 20.0).unwrap();
+            let moving_data = std::sync::Arc::new(moving.data.clone());
+            let gained = gain(&CpuBackend, &moving_data, &target, &moving_data, 20.0).unwrap();
             let g: Vec<f32> = gained
                 .iter()
                 .zip(&moving.data)

@@ -1,13 +1,12 @@
 //! The whole pipeline, generic over the backend: articulated initialisation (optional), the
 //! adaptive cubic-RBF stage, the composed field, a fold check, and the source resampled once.
 
-use crate::abi::Interpolation;
+use crate::abi::{BoneLookupParams, ComposeParams, Interpolation, ResampleParams};
 use crate::adaptive::{self, Adaptive, AdaptiveOptions, Moving};
-use crate::articulated::{initialise, InitOptions, Initialisation};
-use crate::backend::{resample_onto, Backend, Traffic};
+use crate::articulated::{initialise, InitOptions, InitialImages, Initialisation, PairImages};
+use crate::backend::{resample_onto, Backend, DeviceImage, Traffic};
 use crate::error::Result;
-use crate::evaluate::seen_by_both;
-use crate::fold_repair::{maps_into_bone, unfold_registration, FoldRepair};
+use crate::fold_repair::{determinant, unfold_registration, FoldRepair, Folds, SourceLabels};
 use crate::progress::Progress;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
 use nalgebra::Vector3;
@@ -64,7 +63,7 @@ const MAX_PINS_PER_BONE: usize = 64;
 
 /// What a registration produces.
 pub struct Registration {
-    /// The articulated initialisation, when run.
+    /// What the articulated initialisation found, when run.
     pub init: Option<Initialisation>,
     /// The adaptive stage.
     pub adaptive: Adaptive,
@@ -72,6 +71,8 @@ pub struct Registration {
     pub field: Field,
     /// The source resampled once through it.
     pub warped: Volume,
+    /// The field's Jacobian determinant per target voxel.
+    pub jacobian: Volume,
     /// Smallest Jacobian determinant of the field over the target.
     pub min_jacobian: f32,
     /// Share of target voxels with determinant ≤ 0.
@@ -90,11 +91,11 @@ pub struct Registration {
 /// Bytes moved and work launched by each stage of a registration (zero on the CPU backend).
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct StageTraffic {
-    /// Articulated initialisation.
+    /// Articulated initialisation, with the upload of the pair.
     pub initialisation: Traffic,
     /// Adaptive RBF stage.
     pub adaptive: Traffic,
-    /// Composition, fold check and the final resampling.
+    /// Composition, fold check, the final resampling and the download of the outputs.
     pub finish: Traffic,
     /// The three together.
     pub total: Traffic,
@@ -111,71 +112,102 @@ pub struct StageTimes {
     pub finish: f64,
 }
 
-/// Up to `per_bone` points on each bone's surface in the target: boundary voxels of the region
-/// that the initial field maps into the bone, spread by farthest-point sampling.
-pub fn bone_pins(
-    initial: &Field,
-    labels: &Labels,
+/// Up to `per_bone` points on each of `bones`' surface in the target: boundary voxels of the
+/// region whose source point the initial field puts in that bone, spread by farthest-point
+/// sampling. The bone at each voxel's source point is looked up where the backend computes;
+/// that map (one value per voxel) comes back for the boundaries and the sampling.
+pub fn bone_pins<B: Backend>(
+    backend: &B,
+    pair: &PairImages<B>,
+    initial: &InitialImages<B>,
     bones: &[u16],
     per_bone: usize,
-) -> Vec<Vector3<f64>> {
-    let grid = &initial.grid;
-    let d = grid.dims;
+) -> Result<Vec<Vector3<f64>>> {
+    let grid = &initial.field.grid;
+    let lookup = BoneLookupParams::new(&pair.labels.grid, grid, bones, f32::MAX)?;
+    let bone_of = backend.bone_at_source(
+        &lookup,
+        &initial.field.data,
+        &initial.residual.data,
+        &pair.labels.data,
+    )?;
+    let bone_of = backend.download_one(&bone_of)?;
     let mut pins = Vec::new();
-    for &bone in bones {
-        let inside = maps_into_bone(initial, labels, &[bone]);
-        let boundary: Vec<usize> = (0..grid.len())
-            .filter(|&n| {
-                if !inside[n] {
-                    return false;
-                }
-                let (i, j, k) = (n % d[0], (n / d[0]) % d[1], n / (d[0] * d[1]));
-                let neighbours = [
-                    (i > 0).then(|| n - 1),
-                    (i + 1 < d[0]).then(|| n + 1),
-                    (j > 0).then(|| n - d[0]),
-                    (j + 1 < d[1]).then(|| n + d[0]),
-                    (k > 0).then(|| n - d[0] * d[1]),
-                    (k + 1 < d[2]).then(|| n + d[0] * d[1]),
-                ];
-                neighbours.iter().any(|m| m.is_some_and(|m| !inside[m]))
-            })
-            .collect();
-        let points: Vec<Vector3<f64>> = boundary.iter().map(|&n| grid.world_of(n)).collect();
-        let Some(first) = points.first() else {
-            continue;
-        };
-        let mut chosen = vec![*first];
-        let mut nearest: Vec<f64> = points.iter().map(|p| (p - first).norm()).collect();
-        while chosen.len() < per_bone {
-            let (k, far) =
-                nearest
-                    .iter()
-                    .enumerate()
-                    .fold((0, 0.0), |b, (k, &v)| if v > b.1 { (k, v) } else { b });
-            if far < 1e-6 {
-                break;
-            }
-            chosen.push(points[k]);
-            for (m, p) in points.iter().enumerate() {
-                nearest[m] = nearest[m].min((p - points[k]).norm());
-            }
-        }
-        pins.extend(chosen);
+    for index in 1..=bones.len() {
+        let inside: Vec<bool> = bone_of.iter().map(|&b| b == index as f32).collect();
+        pins.extend(spread(&surface_points(grid, &inside), per_bone));
     }
-    pins
+    Ok(pins)
 }
 
-/// 1 on the voxels of `field`'s grid whose source point (p + u) lies inside `source`'s field of
-/// view, else 0.
-pub fn coverage(field: &Field, source: &Grid) -> Volume {
-    Image {
-        grid: field.grid.clone(),
-        data: seen_by_both(field, source, -0.5)
-            .into_iter()
-            .map(|inside| inside as u8 as f32)
-            .collect(),
+/// World positions of the voxels of `inside` with a 6-neighbour outside it.
+fn surface_points(grid: &Grid, inside: &[bool]) -> Vec<Vector3<f64>> {
+    let d = grid.dims;
+    (0..grid.len())
+        .filter(|&n| {
+            if !inside[n] {
+                return false;
+            }
+            let (i, j, k) = (n % d[0], (n / d[0]) % d[1], n / (d[0] * d[1]));
+            let neighbours = [
+                (i > 0).then(|| n - 1),
+                (i + 1 < d[0]).then(|| n + 1),
+                (j > 0).then(|| n - d[0]),
+                (j + 1 < d[1]).then(|| n + d[0]),
+                (k > 0).then(|| n - d[0] * d[1]),
+                (k + 1 < d[2]).then(|| n + d[0] * d[1]),
+            ];
+            neighbours.iter().any(|m| m.is_some_and(|m| !inside[m]))
+        })
+        .map(|n| grid.world_of(n))
+        .collect()
+}
+
+/// Up to `count` of `points`, each farthest from those chosen before it, from the first.
+fn spread(points: &[Vector3<f64>], count: usize) -> Vec<Vector3<f64>> {
+    let Some(first) = points.first() else {
+        return Vec::new();
+    };
+    let mut chosen = vec![*first];
+    let mut nearest: Vec<f64> = points.iter().map(|p| (p - first).norm()).collect();
+    while chosen.len() < count {
+        let (k, far) = nearest
+            .iter()
+            .enumerate()
+            .fold((0, 0.0), |b, (k, &v)| if v > b.1 { (k, v) } else { b });
+        if far < 1e-6 {
+            break;
+        }
+        chosen.push(points[k]);
+        for (m, p) in points.iter().enumerate() {
+            nearest[m] = nearest[m].min((p - points[k]).norm());
+        }
     }
+    chosen
+}
+
+/// `source` seen on `grid` without any displacement: the unregistered source on the target's
+/// grid (uploaded, resampled where the backend computes, brought back).
+pub fn unregistered<B: Backend>(backend: &B, source: &Volume, grid: &Grid) -> Result<Volume> {
+    let image = DeviceImage::upload(backend, "source", source.clone())?;
+    resample_onto(backend, &image, grid)?.download(backend)
+}
+
+/// The initial images when the articulated initialisation is skipped: no displacement, and
+/// the source just resampled onto the target's grid.
+fn no_initialisation<B: Backend>(backend: &B, pair: &PairImages<B>) -> Result<InitialImages<B>> {
+    let grid = &pair.target.grid;
+    let zeros = |what, per_voxel| -> Result<DeviceImage<B>> {
+        Ok(DeviceImage {
+            data: backend.zeros(what, per_voxel * grid.len())?,
+            grid: grid.clone(),
+        })
+    };
+    Ok(InitialImages {
+        field: zeros("zero displacement", 3)?,
+        residual: zeros("zero residual", 1)?,
+        initialised: resample_onto(backend, &pair.source, grid)?,
+    })
 }
 
 /// Registers `source` (with its bone `labels`) to `target`.
@@ -187,83 +219,83 @@ pub fn register<B: Backend>(
     options: &RegisterOptions,
     progress: &dyn Progress,
 ) -> Result<Registration> {
+    register_observed(
+        backend,
+        source,
+        labels,
+        target,
+        options,
+        progress,
+        &mut |_| Ok(()),
+    )
+}
+
+/// [`register`], handing the initialisation's images (where the backend computes) to
+/// `observe` before the adaptive stage: what a caller measures the initial field on.
+pub fn register_observed<B: Backend>(
+    backend: &B,
+    source: &Volume,
+    labels: &Labels,
+    target: &Volume,
+    options: &RegisterOptions,
+    progress: &dyn Progress,
+    observe: &mut dyn FnMut(&InitialImages<B>) -> Result<()>,
+) -> Result<Registration> {
     let clock = std::time::Instant::now();
     let at_start = backend.traffic();
     options.check()?;
-    let (init, initial, moving) = match options.initialise.then_some(&options.init) {
+    let pair = PairImages::upload(backend, source, labels, target)?;
+    let (init, images) = match options.initialise.then_some(&options.init) {
         Some(init_options) => {
-            let init = initialise(
-                backend,
-                source,
-                labels,
-                target,
-                init_options,
-                None,
-                progress,
-            )?;
-            let field = init.initial.field.clone();
-            let moving = init.initialised.clone();
-            (Some(init), field, moving)
+            let (found, images) = initialise(backend, &pair, labels, init_options, None, progress)?;
+            (Some(found), images)
         }
-        None => {
-            let moving = resample_onto(backend, source, &target.grid)?;
-            (
-                None,
-                Image::filled(target.grid.clone(), [0.0f32; 3]),
-                moving,
-            )
-        }
+        None => (None, no_initialisation(backend, &pair)?),
     };
+    observe(&images)?;
     let pins = match &init {
         Some(i) if options.pins_per_bone > 0 => {
-            bone_pins(&initial, labels, &i.weights.bones, options.pins_per_bone)
+            bone_pins(backend, &pair, &images, &i.bones, options.pins_per_bone)?
         }
         _ => Vec::new(),
     };
     let initialisation = clock.elapsed().as_secs_f64();
     let after_init = backend.traffic();
-    let coverage = coverage(&initial, &source.grid);
+    let coverage = ResampleParams::new(&pair.source.grid, &target.grid, 0.0, Interpolation::Linear);
+    let coverage = DeviceImage {
+        data: backend.coverage(&coverage, &images.field.data)?,
+        grid: target.grid.clone(),
+    };
     let adaptive = adaptive::register(
         backend,
         &Moving {
-            image: &moving,
+            image: &images.initialised,
             coverage: &coverage,
             prealigned: init.is_some(),
         },
-        target,
+        &pair.target,
         &pins,
         &options.adaptive,
         progress,
     )?;
     let adaptive_seconds = clock.elapsed().as_secs_f64() - initialisation;
     let after_adaptive = backend.traffic();
-    // Step control: the added warp itself must not fold; while it does, shrink it. Folds of
-    // the initial field (skinning at large angles) are carried into the total field and
-    // reported, but are not the warp's to undo. (Counting the total field's folds instead
-    // threw away 94% of a good warp at 60° over one voxel sampled differently inside the
-    // initial field's fold: 1.34 → 1.77 mm.)
     progress.begin("composition and resampling", 1);
-    let folds = |det: &Volume| det.data.iter().filter(|&&v| v <= 0.0).count();
-    let mut scale = 1.0;
-    let warp = loop {
-        let warp =
-            adaptive.warp_field(backend, &target.grid, options.adaptive.lattice_mm, scale)?;
-        if folds(&backend.jacobian(&warp)?) == 0 || scale < 0.1 {
-            break warp;
-        }
-        scale *= 0.5;
+    let bones = init.as_ref().map_or(&[][..], |i| &i.bones[..]);
+    let labels = SourceLabels {
+        host: labels,
+        device: &pair.labels,
     };
-    let mut field = backend.compose(&warp, &initial)?;
-    let mut det = backend.jacobian(&field)?;
-    // Only a field that folds is unfolded: the others keep their bits.
-    let mut unfolding = FoldRepair::default();
-    if det.data.iter().any(|&d| d <= 0.0) {
-        let bones = init.as_ref().map_or(&[][..], |i| &i.weights.bones[..]);
-        unfolding = unfold_registration(backend, &mut field, &det, labels, bones)?;
-        det = backend.jacobian(&field)?;
-    }
-    let warped = backend.resample(source, &field, 0.0, Interpolation::Linear)?;
-    progress.step(&format!("warp scale {scale}"));
+    let finished = finish(
+        backend,
+        &pair,
+        &labels,
+        &images.field,
+        &adaptive,
+        bones,
+        options.adaptive.lattice_mm,
+    )?;
+    progress.step(&format!("warp scale {}", finished.scale));
     progress.end();
     let timings = StageTimes {
         initialisation,
@@ -277,19 +309,84 @@ pub fn register<B: Backend>(
         finish: at_end - after_adaptive,
         total: at_end - at_start,
     };
-    let min_jacobian = det.data.iter().cloned().fold(f32::INFINITY, f32::min);
-    let folded_share = folds(&det) as f64 / det.data.len() as f64;
+    let voxels = target.grid.len() as f64;
     Ok(Registration {
         init,
         adaptive,
-        field,
-        warped,
-        min_jacobian,
-        folded_share,
-        warp_scale: scale,
-        unfolding,
+        field: finished.field,
+        warped: finished.warped,
+        jacobian: finished.jacobian,
+        min_jacobian: finished.folds.min,
+        folded_share: finished.folds.folded as f64 / voxels,
+        warp_scale: finished.scale,
+        unfolding: finished.unfolding,
         timings,
         traffic,
+    })
+}
+
+/// The outputs of a registration, on the host.
+struct Finished {
+    field: Field,
+    warped: Volume,
+    jacobian: Volume,
+    folds: Folds,
+    scale: f64,
+    unfolding: FoldRepair,
+}
+
+/// The total field of the adaptive warp and the `initial` field, unfolded where it folds, and
+/// the source resampled once through it; the field, the warped source and the Jacobian come
+/// back together.
+///
+/// Step control: the added warp itself must not fold; while it does, it is shrunk. Folds of
+/// the initial field (skinning at large angles) are carried into the total field and
+/// unfolded there, but are not the warp's to undo. (Counting the total field's folds instead
+/// threw away 94% of a good warp at 60° over one voxel sampled differently inside the initial
+/// field's fold: 1.34 → 1.77 mm.)
+fn finish<B: Backend>(
+    backend: &B,
+    pair: &PairImages<B>,
+    labels: &SourceLabels<B>,
+    initial: &DeviceImage<B>,
+    adaptive: &Adaptive,
+    bones: &[u16],
+    lattice_mm: f64,
+) -> Result<Finished> {
+    let grid = &pair.target.grid;
+    let nothing_held = backend.zeros("nothing held", grid.len())?;
+    let mut scale = 1.0;
+    let warp = loop {
+        let warp = adaptive.warp_field(backend, grid, lattice_mm, scale)?;
+        let (_, folds) = determinant(backend, &warp, &nothing_held)?;
+        if folds.folded == 0 || scale < 0.1 {
+            break warp;
+        }
+        scale *= 0.5;
+    };
+    let mut field = DeviceImage {
+        data: backend.compose(&ComposeParams::new(grid), &warp.data, &initial.data)?,
+        grid: grid.clone(),
+    };
+    let (mut det, mut folds) = determinant(backend, &field, &nothing_held)?;
+    // Only a field that folds is unfolded: the others keep their bits.
+    let mut unfolding = FoldRepair::default();
+    if folds.folded > 0 {
+        (field, unfolding) = unfold_registration(backend, field, &det, &folds, labels, bones)?;
+        (det, folds) = determinant(backend, &field, &nothing_held)?;
+    }
+    let resample = ResampleParams::new(&pair.source.grid, grid, 0.0, Interpolation::Linear);
+    let warped = backend.resample(&resample, &pair.source.data, &field.data)?;
+    let mut out = backend.download(&[&field.data, &warped, &det])?;
+    let (jacobian, warped) = (out.pop().unwrap_or_default(), out.pop().unwrap_or_default());
+    let field = out.pop().unwrap_or_default();
+    Ok(Finished {
+        field: Image::from_data(grid.clone(), bytemuck::cast_vec(field))?,
+        warped: Image::from_data(grid.clone(), warped)?,
+        jacobian: Image::from_data(grid.clone(), jacobian)?,
+        folds,
+        scale,
+        unfolding,
     })
 }
 

@@ -1,11 +1,49 @@
 //! Trilinear and nearest sampling of a volume at a continuous voxel index, by hand: the CPU
-//! twin of shaders/sample.wgsl, which the CPU kernels use, and the one sampling the host's
-//! own per-point work (pictures, points) shares with them.
+//! twin of shaders/sample.wgsl (and of the lookups in geometry.wgsl, labels.wgsl and
+//! bone_lookup.wgsl), which the CPU kernels use, and the one sampling the host's own per-point
+//! work (pictures, points, the fold repair's host step) shares with them.
+
+use crate::abi::{BoneLookupParams, LabelCodes, ResampleParams};
 
 /// Flat index of voxel (i, j, k) in an x-fastest volume of size dims (common.wgsl's
 /// voxel_index).
 pub fn voxel_index(i: u32, j: u32, k: u32, dims: [u32; 3]) -> u32 {
     i + dims[0] * (j + dims[1] * k)
+}
+
+/// One row of a 3x4 affine applied to a point, summed left to right (common.wgsl).
+pub fn affine_row(row: [f32; 4], p: [f32; 3]) -> f32 {
+    row[0] * p[0] + row[1] * p[1] + row[2] * p[2] + row[3]
+}
+
+/// One row of a 3x3 linear map applied to a vector (common.wgsl).
+pub fn linear_row(row: [f32; 4], v: [f32; 3]) -> f32 {
+    row[0] * v[0] + row[1] * v[1] + row[2] * v[2]
+}
+
+/// The continuous source index of target voxel p's point displaced by u (world mm)
+/// (geometry.wgsl).
+pub fn source_index(g: &ResampleParams, p: [f32; 3], u: [f32; 3]) -> [f32; 3] {
+    std::array::from_fn(|r| affine_row(g.index_to_source[r], p) + linear_row(g.mm_to_source[r], u))
+}
+
+/// 1 + the position of `label` in `codes`, 0 when it is none of them or negative (labels.wgsl).
+pub fn code_index(codes: &LabelCodes, label: f32) -> u32 {
+    if label < 0.0 {
+        return 0;
+    }
+    let code = label as u32;
+    (0..codes.count[0])
+        .find(|&c| codes.list[(c / 4) as usize][(c % 4) as usize] == code)
+        .map_or(0, |c| c + 1)
+}
+
+/// code_index of the source label (`labels`, codes as f32) nearest to target voxel p
+/// displaced by u (mm); 0 outside the label map (bone_lookup.wgsl).
+pub fn bone_at(params: &BoneLookupParams, labels: &[f32], p: [f32; 3], u: [f32; 3]) -> u32 {
+    let q = source_index(&params.geometry, p, u);
+    let g = params.geometry.source_dims;
+    code_index(&params.codes, nearest(labels, q, [g[0], g[1], g[2]], -1.0))
 }
 
 /// True when q lies within half a voxel of the outer voxel centres on every axis.

@@ -12,6 +12,13 @@ const WARP_SAMPLE: (&str, &str) = (
     include_str!("../shaders/warp_sample.wgsl"),
 );
 const RBF_NODES: (&str, &str) = ("rbf_nodes.wgsl", include_str!("../shaders/rbf_nodes.wgsl"));
+const GEOMETRY: (&str, &str) = ("geometry.wgsl", include_str!("../shaders/geometry.wgsl"));
+const LABELS: (&str, &str) = ("labels.wgsl", include_str!("../shaders/labels.wgsl"));
+const BONE_LOOKUP: (&str, &str) = (
+    "bone_lookup.wgsl",
+    include_str!("../shaders/bone_lookup.wgsl"),
+);
+const FOLD: (&str, &str) = ("fold.wgsl", include_str!("../shaders/fold.wgsl"));
 const GAIN: (&str, &str) = ("gain.wgsl", include_str!("../shaders/gain.wgsl"));
 const SUM_PARTIALS: (&str, &str) = (
     "sum_partials.wgsl",
@@ -25,7 +32,81 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             SAMPLE,
+            GEOMETRY,
             ("resample.wgsl", include_str!("../shaders/resample.wgsl")),
+        ],
+    ),
+    (
+        "coverage",
+        &[
+            COMMON,
+            GEOMETRY,
+            ("coverage.wgsl", include_str!("../shaders/coverage.wgsl")),
+        ],
+    ),
+    (
+        "label_index",
+        &[
+            COMMON,
+            LABELS,
+            (
+                "label_index.wgsl",
+                include_str!("../shaders/label_index.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "bone_at_source",
+        &[
+            COMMON,
+            SAMPLE,
+            GEOMETRY,
+            LABELS,
+            BONE_LOOKUP,
+            (
+                "bone_at_source.wgsl",
+                include_str!("../shaders/bone_at_source.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "fold_stats",
+        &[
+            COMMON,
+            FOLD,
+            (
+                "fold_stats.wgsl",
+                include_str!("../shaders/fold_stats.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "fold_mark",
+        &[
+            COMMON,
+            FOLD,
+            ("fold_mark.wgsl", include_str!("../shaders/fold_mark.wgsl")),
+        ],
+    ),
+    (
+        "dilate",
+        &[
+            COMMON,
+            ("dilate.wgsl", include_str!("../shaders/dilate.wgsl")),
+        ],
+    ),
+    (
+        "fold_smooth",
+        &[
+            COMMON,
+            SAMPLE,
+            GEOMETRY,
+            LABELS,
+            BONE_LOOKUP,
+            (
+                "fold_smooth.wgsl",
+                include_str!("../shaders/fold_smooth.wgsl"),
+            ),
         ],
     ),
     (

@@ -10,6 +10,7 @@
 //! enough to bind whole on any device; they are interpolated trilinearly, so a bone is exactly
 //! rigid except within one skinning voxel of its surface.
 
+use crate::abi::SkinWeightsParams;
 use crate::backend::Backend;
 use crate::error::{Error, Result};
 use crate::volume::{Affine, Grid, Labels};
@@ -24,15 +25,14 @@ pub const SKIN_SPACING_MM: f64 = 2.5;
 /// in the initial field, min det −0.76 against −0.42).
 pub const SHEPARD_POWER: u32 = 4;
 
-/// Weights of several bones on a grid.
-#[derive(Clone, Debug)]
-pub struct SkinningWeights {
+/// Weights of several bones on a grid, where the backend computes.
+pub struct SkinningWeights<B: Backend> {
     /// Where the weights are.
     pub grid: Grid,
     /// Bone label codes, in weight order.
     pub bones: Vec<u16>,
     /// bones.len() floats per voxel, x fastest.
-    pub data: Vec<f32>,
+    pub data: B::Buffer<f32>,
 }
 
 /// How much farther than it is a bone's soft tissue "feels": distances to a bone are scaled by
@@ -156,7 +156,7 @@ pub fn weights<B: Backend>(
     labels: &Labels,
     bones: &[u16],
     power: u32,
-) -> Result<SkinningWeights> {
+) -> Result<SkinningWeights<B>> {
     crate::abi::check_bone_count(bones.len())?;
     let (grid, stride) = skinning_grid(&labels.grid);
     let src = &labels.grid;
@@ -192,7 +192,9 @@ pub fn weights<B: Backend>(
     let packed: Vec<f32> = (0..grid.len())
         .flat_map(|n| maps.iter().map(move |m| m[n]))
         .collect();
-    let data = backend.skin_weights(&packed, &grid, bones.len(), power)?;
+    let distances = backend.upload("bone distance maps", packed)?;
+    let params = SkinWeightsParams::new(&grid, bones.len(), power);
+    let data = backend.skin_weights(&params, &distances)?;
     Ok(SkinningWeights {
         grid,
         bones: bones.to_vec(),

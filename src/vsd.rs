@@ -9,23 +9,23 @@
 //! rigid motions, so tissue between the bones turns by a blended angle about a blended axis
 //! and keeps its distance to the joint).
 
-use crate::abi::{Blending, BoneBlend};
-use crate::backend::Backend;
+use crate::abi::{check_bone_count, Blending, BoneBlend, LabelParams, SkinBlendParams};
+use crate::backend::{Backend, DeviceImage};
 use crate::error::Result;
-use crate::fold_repair::{repair_folds, FoldRepair};
+use crate::fold_repair::{repair_folds, FoldRepair, SourceLabels};
 use crate::skinning::SkinningWeights;
-use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
+use crate::volume::{Affine, Grid};
 
 /// Newton-like inversion steps per voxel.
 pub const INVERSION_ITERATIONS: u32 = 30;
 
-/// The initial field and how well the blend was inverted.
-pub struct InitialField {
-    /// u0: target point p → source point p + u0(p), world RAS mm.
-    pub field: Field,
+/// The initial field and how well the blend was inverted, where the backend computes.
+pub struct InitialField<B: Backend> {
+    /// u0: target point p → source point p + u0(p), world RAS mm (3 values per voxel).
+    pub field: DeviceImage<B>,
     /// |B(p + u0(p)) − p| per target voxel (mm): 0 where the inversion is exact.
-    pub residual: Volume,
-    /// Folds of the blend removed by local smoothing.
+    pub residual: DeviceImage<B>,
+    /// Folds of the blend removed.
     pub repair: FoldRepair,
 }
 
@@ -33,40 +33,35 @@ pub struct InitialField {
 /// source `labels` make each bone exactly rigid up to its labelled surface.
 pub fn initial_field<B: Backend>(
     backend: &B,
-    weights: &SkinningWeights,
-    labels: &Labels,
+    weights: &SkinningWeights<B>,
+    labels: &SourceLabels<B>,
     motions: &[Affine],
     blending: Blending,
     target: &Grid,
-) -> Result<InitialField> {
+) -> Result<InitialField<B>> {
+    check_bone_count(motions.len())?;
+    let grid = &labels.device.grid;
     // 1 + the weight index of the bone each source label voxel belongs to; 0 for soft tissue.
-    let bone_of_voxel: Vec<f32> = labels
-        .data
-        .iter()
-        .map(|l| {
-            weights
-                .bones
-                .iter()
-                .position(|b| b == l)
-                .map_or(0.0, |j| (j + 1) as f32)
-        })
-        .collect();
-    let out = backend.skin_blend(
-        &weights.data,
-        &weights.grid,
-        &bone_of_voxel,
-        &labels.grid,
-        target,
-        &BoneBlend {
-            motions: motions.to_vec(),
-            blending,
-            iterations: INVERSION_ITERATIONS,
-        },
+    let bone_of_voxel = backend.label_index(
+        &LabelParams::new(grid, &weights.bones)?,
+        &labels.device.data,
     )?;
-    let field = out.chunks_exact(4).map(|c| [c[0], c[1], c[2]]).collect();
-    let residual = Image::from_data(target.clone(), out.chunks_exact(4).map(|c| c[3]).collect())?;
-    let mut field = Image::from_data(target.clone(), field)?;
-    let repair = repair_folds(backend, &mut field, &residual, labels, &weights.bones)?;
+    let blend = BoneBlend {
+        motions: motions.to_vec(),
+        blending,
+        iterations: INVERSION_ITERATIONS,
+    };
+    let params = SkinBlendParams::new(target, &weights.grid, grid, &blend);
+    let (field, residual) = backend.skin_blend(&params, &weights.data, &bone_of_voxel)?;
+    let field = DeviceImage {
+        grid: target.clone(),
+        data: field,
+    };
+    let residual = DeviceImage {
+        grid: target.clone(),
+        data: residual,
+    };
+    let (field, repair) = repair_folds(backend, field, &residual, labels, &weights.bones)?;
     Ok(InitialField {
         field,
         residual,

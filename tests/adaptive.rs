@@ -11,7 +11,7 @@ use posereg::evaluate::{field_error, FieldError};
 use posereg::labels as label;
 use posereg::metric::correlation;
 use posereg::phantom::{generate, Phantom, PhantomSize, PhantomSpec};
-use posereg::register::{register, RegisterOptions, Registration};
+use posereg::register::{register_observed, RegisterOptions, Registration};
 use posereg::Backend;
 
 fn pair(size: PhantomSize, flexion: f64) -> (Phantom, Phantom) {
@@ -46,22 +46,26 @@ fn register_and_score<B: Backend>(
     name: &str,
 ) -> Scored {
     let (source, target) = pair(size, flexion);
-    let result = register(
+    let mut initial = None;
+    let result = register_observed(
         backend,
         &source.image,
         &source.labels,
         &target.image,
         options,
         &Silent,
+        &mut |images| {
+            initial = Some(images.field.download_field(backend)?);
+            Ok(())
+        },
     )
     .unwrap();
     let mask = evaluation_mask(&source, &target);
     let inside = |n: usize| mask[n];
     let error = field_error(&result.field, &target.truth_field, inside).unwrap();
-    let initial_error = result
-        .init
-        .as_ref()
-        .map(|init| field_error(&init.initial.field, &target.truth_field, inside).unwrap());
+    let initial_error = initial
+        .filter(|_| result.init.is_some())
+        .map(|field| field_error(&field, &target.truth_field, inside).unwrap());
     let correlation = correlation(&result.warped.data, &target.image.data, inside);
     let points = result.adaptive.points.len();
     eprintln!(

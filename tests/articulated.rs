@@ -4,8 +4,11 @@ mod common;
 
 use posereg::progress::Silent;
 
+use common::{host_determinant, resample_volume};
 use posereg::abi::Interpolation;
-use posereg::articulated::{initialise, rigid_field, InitOptions, Initialisation};
+use posereg::articulated::{
+    initialise_volumes, rigid_field, InitOptions, InitialVolumes, Initialisation,
+};
 use posereg::cpu::CpuBackend;
 use posereg::labels as label;
 use posereg::metric::{correlation, dice};
@@ -64,16 +67,15 @@ fn bone_overlap<B: Backend>(
     backend: &B,
     s: &Phantom,
     b: &Phantom,
-    init: &Initialisation,
+    images: &InitialVolumes,
 ) -> Vec<(u16, f64, f64)> {
     let pull = |v: &posereg::Volume, f: &posereg::Field| {
-        backend
-            .resample(v, f, 0.0, Interpolation::Linear)
+        resample_volume(backend, v, f, 0.0, Interpolation::Linear)
             .unwrap()
             .data
     };
     let all: posereg::Volume = Image::filled(s.labels.grid.clone(), 1.0);
-    let seen: Vec<bool> = pull(&all, &init.initial.field)
+    let seen: Vec<bool> = pull(&all, &images.field)
         .iter()
         .map(|&v| v >= 1.0)
         .collect();
@@ -96,7 +98,7 @@ fn bone_overlap<B: Backend>(
                     .map(|(v, s)| *s && *v >= 0.5)
                     .collect()
             };
-            let moved = inside(pull(&indicator, &init.initial.field));
+            let moved = inside(pull(&indicator, &images.field));
             let by_truth = inside(pull(&indicator, &b.truth_field));
             let labels: Vec<bool> = b
                 .labels
@@ -120,7 +122,7 @@ fn check<B: Backend>(
     name: &str,
     s: &Phantom,
     b: &Phantom,
-    init: &Initialisation,
+    (init, images): &(Initialisation, InitialVolumes),
     check_label_dice: bool,
 ) -> String {
     let degrees = b.truth.extra["flexion_axis"]["degrees"].as_f64().unwrap();
@@ -148,7 +150,7 @@ fn check<B: Backend>(
         );
     }
     // Bones of the initialised source overlap the target bones.
-    for (code, against_labels, against_truth) in bone_overlap(backend, s, b, init) {
+    for (code, against_labels, against_truth) in bone_overlap(backend, s, b, images) {
         summary += &format!(" dice{code} {against_labels:.3} (vs truth-moved {against_truth:.3})");
         // Every bone, the patella included at 60° and 90° where the blend folds beside it (0.973
         // and 0.966 measured: the fold repair no longer smooths soft tissue into the bone).
@@ -166,9 +168,8 @@ fn check<B: Backend>(
     // The initial field does not fold in the soft tissue. The blend itself does beyond about
     // 30° (beside the patella, behind the knee); the repair smooths most of it away and pushes
     // what is pinned by a bone until det J > 0.05 (src/fold_repair.rs).
-    let det = backend.jacobian(&init.initial.field).unwrap();
+    let det = host_determinant(backend, &images.field).unwrap();
     let soft: Vec<f32> = det
-        .data
         .iter()
         .zip(&b.labels.data)
         .filter(|(_, &l)| l == label::SOFT_TISSUE)
@@ -176,7 +177,7 @@ fn check<B: Backend>(
         .collect();
     let folded = soft.iter().filter(|&&d| d <= 0.0).count();
     let least = soft.iter().cloned().fold(f32::INFINITY, f32::min);
-    let repair = &init.initial.repair;
+    let repair = &init.repair;
     summary += &format!(
         " folds of the blend {} -> {} (min det in soft tissue {least:.3})",
         repair.folded_before, repair.folded_after
@@ -188,16 +189,16 @@ fn check<B: Backend>(
     // Closer to the target than aligning the femur alone.
     let body = |n: usize| b.labels.data[n] != label::OUTSIDE;
     let femur = init.motions.iter().find(|m| m.0 == label::FEMUR).unwrap().1;
-    let femur_only = backend
-        .resample(
-            &s.image,
-            &rigid_field(&femur, &b.image.grid).unwrap(),
-            0.0,
-            Interpolation::Linear,
-        )
-        .unwrap();
+    let femur_only = resample_volume(
+        backend,
+        &s.image,
+        &rigid_field(&femur, &b.image.grid).unwrap(),
+        0.0,
+        Interpolation::Linear,
+    )
+    .unwrap();
     let r_femur = correlation(&femur_only.data, &b.image.data, body);
-    let r_init = correlation(&init.initialised.data, &b.image.data, body);
+    let r_init = correlation(&images.initialised.data, &b.image.data, body);
     summary += &format!(" corr femur-only {r_femur:.3} init {r_init:.3}");
     if degrees > 0.0 {
         assert!(r_init > r_femur, "{summary}");
@@ -207,7 +208,7 @@ fn check<B: Backend>(
 
 fn run_all<B: Backend>(backend: &B, name: &str) {
     for degrees in ANGLES {
-        let init = initialise(
+        let init = initialise_volumes(
             backend,
             &straight().image,
             &straight().labels,
@@ -255,7 +256,7 @@ fn at_the_papers_resolution_bones_overlap_the_target_labels() {
     let s = paper(0.0, 100);
     for degrees in [60.0, 90.0] {
         let b = paper(degrees, 7 + degrees as u64);
-        let init = initialise(
+        let init = initialise_volumes(
             &CpuBackend,
             &s.image,
             &s.labels,
@@ -272,7 +273,7 @@ fn at_the_papers_resolution_bones_overlap_the_target_labels() {
 #[test]
 fn given_transforms_skip_the_rigid_stage() {
     let b = bent(60.0);
-    let init = initialise(
+    let (init, _) = initialise_volumes(
         &CpuBackend,
         &straight().image,
         &straight().labels,
@@ -302,7 +303,7 @@ fn missing_bones_are_refused() {
         bones: vec![label::FEMUR, 9],
         ..Default::default()
     };
-    let err = initialise(
+    let err = initialise_volumes(
         &CpuBackend,
         &s.image,
         &s.labels,

@@ -2,12 +2,13 @@
 //! reproducible.
 
 use posereg::abi::Interpolation;
+use posereg::backend::resample_volume;
 use posereg::cpu::CpuBackend;
+use posereg::fold_repair::host_determinant;
 use posereg::metric::{correlation, dice};
 use posereg::phantom::anatomy::{label, BONES};
 use posereg::phantom::{generate, Phantom, PhantomSize, PhantomSpec};
 use posereg::volume::Image;
-use posereg::Backend;
 use rayon::prelude::*;
 use std::sync::OnceLock;
 
@@ -71,14 +72,14 @@ fn away_from_borders(dims: [usize; 3], margin: usize) -> impl Fn(usize) -> bool 
 #[test]
 fn straight_image_through_the_truth_field_reproduces_the_bent_image() {
     let (straight, bent) = pair();
-    let warped = CpuBackend
-        .resample(
-            &straight.image,
-            &bent.truth_field,
-            0.0,
-            Interpolation::Linear,
-        )
-        .unwrap();
+    let warped = resample_volume(
+        &CpuBackend,
+        &straight.image,
+        &bent.truth_field,
+        0.0,
+        Interpolation::Linear,
+    )
+    .unwrap();
     let inner = away_from_borders(bent.image.grid.dims, 3);
     let seen = seen_in_both(straight, bent, 3.0);
     let inside_body = |n: usize| bent.labels.data[n] != label::OUTSIDE && inner(n) && seen[n];
@@ -120,9 +121,9 @@ fn bone_labels_follow_the_truth_with_dice_at_least_098() {
             .map(|(l, s)| *s && *l == code)
             .collect();
         let mapped_through = |field: &posereg::Field| -> Vec<bool> {
-            let pulled = CpuBackend
-                .resample(&indicator, field, 0.0, Interpolation::Linear)
-                .unwrap();
+            let pulled =
+                resample_volume(&CpuBackend, &indicator, field, 0.0, Interpolation::Linear)
+                    .unwrap();
             pulled
                 .data
                 .iter()
@@ -255,9 +256,9 @@ fn flexion_never_folds_inside_the_body() {
         (PhantomSize::Paper, 120.0),
     ];
     let check = |bent: &Phantom, name: String| {
-        let det = CpuBackend.jacobian(&bent.truth_field).unwrap();
+        let det = host_determinant(&CpuBackend, &bent.truth_field).unwrap();
         let body = body_voxels(bent);
-        let folded = body.iter().filter(|&&n| det.data[n] <= 0.0).count();
+        let folded = body.iter().filter(|&&n| det[n] <= 0.0).count();
         eprintln!("{name}: {folded} of {} body voxels folded", body.len());
         assert_eq!(folded, 0, "{name}: grid voxels fold");
     };

@@ -9,6 +9,7 @@ use posereg::backend::DeviceImage;
 use posereg::cpu::CpuBackend;
 use posereg::volume::{Affine, Grid, Image};
 use posereg::Backend;
+use std::sync::Arc;
 
 /// A linear ramp with dyadic coefficients: every value and every trilinear weight used below
 /// is exactly representable in f32, so trilinear interpolation of it is exact, not approximate.
@@ -31,14 +32,14 @@ fn trilinear_of_a_linear_ramp_is_exact() {
     let source = ramp(&grid);
     // A shift in eighths of a voxel keeps every coordinate and weight dyadic.
     let shift = [0.125f32, -0.375, 0.25];
-    let warped = CpuBackend
-        .resample(
-            &source,
-            &constant_field(&grid, shift),
-            -1.0,
-            Interpolation::Linear,
-        )
-        .unwrap();
+    let warped = resample_volume(
+        &CpuBackend,
+        &source,
+        &constant_field(&grid, shift),
+        -1.0,
+        Interpolation::Linear,
+    )
+    .unwrap();
     let [nx, ny, nz] = grid.dims;
     let mut inside = 0;
     for k in 0..nz {
@@ -86,9 +87,14 @@ fn ramp_through_oblique_grids_matches_the_world_ramp() {
     .unwrap();
     let source = ramp(&source_grid);
     let field = constant_field(&target_grid, [0.7, -0.4, 1.1]);
-    let warped = CpuBackend
-        .resample(&source, &field, f32::MIN, Interpolation::Linear)
-        .unwrap();
+    let warped = resample_volume(
+        &CpuBackend,
+        &source,
+        &field,
+        f32::MIN,
+        Interpolation::Linear,
+    )
+    .unwrap();
     let to_source = source_grid.world_to_voxel_affine();
     let mut checked = 0;
     for k in 0..7 {
@@ -126,14 +132,14 @@ fn integer_voxel_shift_moves_values_exactly() {
     .unwrap();
     let source = smooth_volume(&grid, 3);
     // 4 mm along x is exactly 2 voxels of 2 mm.
-    let warped = CpuBackend
-        .resample(
-            &source,
-            &constant_field(&grid, [4.0, 0.0, 0.0]),
-            -7.0,
-            Interpolation::Linear,
-        )
-        .unwrap();
+    let warped = resample_volume(
+        &CpuBackend,
+        &source,
+        &constant_field(&grid, [4.0, 0.0, 0.0]),
+        -7.0,
+        Interpolation::Linear,
+    )
+    .unwrap();
     for k in 0..8 {
         for j in 0..9 {
             for i in 0..10 {
@@ -153,14 +159,14 @@ fn integer_voxel_shift_moves_values_exactly() {
 fn points_fully_outside_get_the_background() {
     let grid = oblique_grid([7, 6, 5]);
     let source = smooth_volume(&grid, 1);
-    let warped = CpuBackend
-        .resample(
-            &source,
-            &constant_field(&grid, [500.0, 0.0, 0.0]),
-            42.0,
-            Interpolation::Linear,
-        )
-        .unwrap();
+    let warped = resample_volume(
+        &CpuBackend,
+        &source,
+        &constant_field(&grid, [500.0, 0.0, 0.0]),
+        42.0,
+        Interpolation::Linear,
+    )
+    .unwrap();
     assert!(warped.data.iter().all(|&v| v == 42.0));
 }
 
@@ -226,8 +232,8 @@ fn jacobian_of_a_linear_field_is_its_determinant() {
     )
     .unwrap();
     let expected = (nalgebra::Matrix3::identity() + b).determinant();
-    let det = CpuBackend.jacobian(&field).unwrap();
-    for v in &det.data {
+    let det = host_determinant(&CpuBackend, &field).unwrap();
+    for v in &det {
         assert!((*v as f64 - expected).abs() < 1e-4, "{v} vs {expected}");
     }
     // A fold: x -> -x along the first index axis (u = -2x) has a negative determinant.
@@ -242,10 +248,8 @@ fn jacobian_of_a_linear_field_is_its_determinant() {
             .collect(),
     )
     .unwrap();
-    assert!(CpuBackend
-        .jacobian(&flip)
+    assert!(host_determinant(&CpuBackend, &flip)
         .unwrap()
-        .data
         .iter()
         .all(|&v| v < 0.0));
 }
@@ -256,23 +260,23 @@ fn nearest_neighbour_keeps_label_codes() {
     let labels: posereg::Volume =
         Image::from_data(grid.clone(), (0..120).map(|i| (i % 5) as f32).collect()).unwrap();
     // A shift of 0.4 voxel rounds back to the same voxel; 0.6 to the next one.
-    let same = CpuBackend
-        .resample(
-            &labels,
-            &constant_field(&grid, [0.4, 0.0, 0.0]),
-            0.0,
-            Interpolation::Nearest,
-        )
-        .unwrap();
+    let same = resample_volume(
+        &CpuBackend,
+        &labels,
+        &constant_field(&grid, [0.4, 0.0, 0.0]),
+        0.0,
+        Interpolation::Nearest,
+    )
+    .unwrap();
     assert_eq!(same.data, labels.data);
-    let next = CpuBackend
-        .resample(
-            &labels,
-            &constant_field(&grid, [0.6, 0.0, 0.0]),
-            99.0,
-            Interpolation::Nearest,
-        )
-        .unwrap();
+    let next = resample_volume(
+        &CpuBackend,
+        &labels,
+        &constant_field(&grid, [0.6, 0.0, 0.0]),
+        99.0,
+        Interpolation::Nearest,
+    )
+    .unwrap();
     for (n, v) in next.data.iter().enumerate() {
         // The last column lands 0.1 voxel beyond the half-voxel margin: background.
         let expected = if n % 6 == 5 { 99.0 } else { labels.data[n + 1] };
@@ -369,9 +373,7 @@ fn skin_blend_inverts_a_common_rigid_motion_exactly() {
     let distances: Vec<f32> = (0..grid.len() * bones)
         .map(|k| 1.0 + (k % 13) as f32)
         .collect();
-    let weights = CpuBackend
-        .skin_weights(&distances, &grid, bones, 4)
-        .unwrap();
+    let weights = skin_weights(&CpuBackend, &distances, &grid, bones, 4).unwrap();
     for w in weights.chunks(bones) {
         assert!(
             (w.iter().sum::<f32>() - 1.0).abs() < 1e-5,
@@ -396,9 +398,16 @@ fn skin_blend_inverts_a_common_rigid_motion_exactly() {
             blending,
             iterations: 4,
         };
-        let out = CpuBackend
-            .skin_blend(&weights, &grid, &bone_of_voxel, &grid, &target, &blend)
-            .unwrap();
+        let out = skin_blend(
+            &CpuBackend,
+            &weights,
+            &grid,
+            &bone_of_voxel,
+            &grid,
+            &target,
+            &blend,
+        )
+        .unwrap();
         for n in 0..target.len() {
             let w = target.world_of(n);
             let q = inv * nalgebra::Vector4::new(w[0], w[1], w[2], 1.0);
@@ -422,7 +431,7 @@ fn dual_quaternion_blending_turns_halfway_where_linear_blending_shortens_the_rad
     )
     .unwrap();
     let distances = vec![2.0f32; grid.len() * 2];
-    let weights = CpuBackend.skin_weights(&distances, &grid, 2, 2).unwrap();
+    let weights = skin_weights(&CpuBackend, &distances, &grid, 2, 2).unwrap();
     let theta = 70f64.to_radians();
     let turn = |angle: f64| {
         nalgebra::Rotation3::from_axis_angle(&nalgebra::Vector3::z_axis(), angle).to_homogeneous()
@@ -447,9 +456,16 @@ fn dual_quaternion_blending_turns_halfway_where_linear_blending_shortens_the_rad
             blending,
             iterations: 30,
         };
-        let out = CpuBackend
-            .skin_blend(&weights, &grid, &soft_tissue, &grid, &grid, &blend)
-            .unwrap();
+        let out = skin_blend(
+            &CpuBackend,
+            &weights,
+            &grid,
+            &soft_tissue,
+            &grid,
+            &grid,
+            &blend,
+        )
+        .unwrap();
         let mut worst = 0.0f64;
         for n in 0..grid.len() {
             let p = grid.world_of(n);
@@ -468,9 +484,7 @@ fn skin_weights_are_one_inside_their_bone() {
     let bones = 3;
     let mut distances = vec![5.0f32; grid.len() * bones];
     distances[7 * bones + 1] = 0.0; // voxel 7 is inside bone 1
-    let w = CpuBackend
-        .skin_weights(&distances, &grid, bones, 4)
-        .unwrap();
+    let w = skin_weights(&CpuBackend, &distances, &grid, bones, 4).unwrap();
     assert_eq!(&w[7 * bones..8 * bones], &[0.0, 1.0, 0.0]);
     // Equal distances: equal shares.
     assert!((w[0] - 1.0 / 3.0).abs() < 1e-6);
@@ -508,7 +522,10 @@ fn lattice_splat_is_the_adjoint_of_the_lattice_interpolation() {
         }
     }
     let splat = CpuBackend
-        .lattice_splat(&posereg::abi::SplatParams::new(ldims, step, grid.dims), &v)
+        .lattice_splat(
+            &posereg::abi::SplatParams::new(ldims, step, grid.dims),
+            &Arc::new(v.clone()),
+        )
         .unwrap();
     let rhs: f64 = splat
         .iter()
@@ -535,10 +552,11 @@ fn rbf_cost_gradient_matches_finite_differences() {
     use posereg::rbf::RbfSystem;
     let b = CpuBackend;
     let grid = Grid::new([24, 20, 18], Affine::identity()).unwrap();
-    let moving = smooth_volume(&grid, 41).data;
-    let fixed = smooth_volume(&grid, 42).data;
+    let moving = Arc::new(smooth_volume(&grid, 41).data);
+    let fixed = Arc::new(smooth_volume(&grid, 42).data);
     // A band without source data: its residuals are left out of the cost.
-    let covered: Vec<f32> = (0..grid.len()).map(|n| (n % 24 > 3) as u8 as f32).collect();
+    let covered: Arc<Vec<f32>> =
+        Arc::new((0..grid.len()).map(|n| (n % 24 > 3) as u8 as f32).collect());
     let images = CostImages {
         moving: &moving,
         fixed: &fixed,
@@ -556,14 +574,14 @@ fn rbf_cost_gradient_matches_finite_differences() {
     let step = 3;
     let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
     let shape = RbfLatticeParams::new(ldims, step, centres.len());
-    let geometry = lattice_geometry(&grid);
+    let geometry = Arc::new(lattice_geometry(&grid));
     let voxels = grid.len() as f64;
     let spacing = [step as f64; 3];
     let energy =
         posereg::regularise::energy_params(ldims, spacing, 40.0, 200.0, (1.0 / voxels) as f32);
     let evaluate = |values: &[Vector3<f64>]| {
         let coef = system.coefficients(values).unwrap();
-        let spline = spline_buffer(&coef.affine, &positions, &coef.lambda);
+        let spline = Arc::new(spline_buffer(&coef.affine, &positions, &coef.lambda));
         let warp = b.rbf_lattice(&shape, &geometry, &spline).unwrap();
         let (per_voxel, rows) = b
             .warp_cost(&RbfGradParams::new(&grid, ldims, step), &warp, &images)
@@ -654,7 +672,11 @@ fn lattice_interpolation_error_of_a_cubic_rbf_warp_is_small() {
         stages: Vec::new(),
         evaluations: Default::default(),
     };
-    let field = adaptive.warp_field(&CpuBackend, &grid, 5.0, 1.0).unwrap();
+    let field = adaptive
+        .warp_field(&CpuBackend, &grid, 5.0, 1.0)
+        .unwrap()
+        .download_field(&CpuBackend)
+        .unwrap();
     let (mut worst, mut sum) = (0.0f64, 0.0f64);
     for n in 0..grid.len() {
         let w = grid.world_of(n);
@@ -685,9 +707,9 @@ fn lattice_energy(
     let params = posereg::regularise::energy_params(dims, spacing, m, b, 0.0);
     let zero = vec![0.0f32; values.len()];
     let (gradient, terms) = CpuBackend
-        .lattice_energy(&params, &values.to_vec(), &zero)
+        .lattice_energy(&params, &Arc::new(values.to_vec()), &Arc::new(zero))
         .unwrap();
-    (terms.iter().map(|&e| e as f64).sum(), gradient)
+    (terms.iter().map(|&e| e as f64).sum(), gradient.to_vec())
 }
 
 const ENERGY_DIMS: [usize; 3] = [4, 5, 3];
@@ -821,8 +843,8 @@ fn rbf_lattice_is_the_host_evaluation_rounded_once() {
     let got = CpuBackend
         .rbf_lattice(
             &RbfLatticeParams::new(ldims, step, centres.len()),
-            &lattice_geometry(&grid),
-            &spline_buffer(&coef.affine, &positions, &coef.lambda),
+            &Arc::new(lattice_geometry(&grid)),
+            &Arc::new(spline_buffer(&coef.affine, &positions, &coef.lambda)),
         )
         .unwrap();
     let nodes: Vec<Vector3<f64>> = (0..ldims.iter().product::<usize>())

@@ -2,9 +2,10 @@
 //! has the same size in Rust and WGSL.
 
 use posereg::abi::{
-    ComposeParams, EnergyParams, GainParams, JacobianParams, PartialsParams, PyramidParams,
-    RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams,
-    SkinWeightsParams, SplatParams, SsdParams, SumParams,
+    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FoldParams, GainParams,
+    JacobianParams, LabelParams, PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams,
+    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
+    SsdParams, SumParams,
 };
 use posereg::shaders::{locate, source, KERNELS};
 use std::mem::size_of;
@@ -67,7 +68,7 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
-    let pairs: [(&str, &str, usize); 22] = [
+    let pairs: [(&str, &str, usize); 29] = [
         ("warp_image", "RbfGradParams", size_of::<RbfGradParams>()),
         ("gain_terms", "GainParams", size_of::<GainParams>()),
         ("gain_ratio", "GainParams", size_of::<GainParams>()),
@@ -99,6 +100,21 @@ fn abi_structs_match_their_wgsl_twins() {
         ),
         ("lattice_splat", "SplatParams", size_of::<SplatParams>()),
         ("resample", "ResampleParams", size_of::<ResampleParams>()),
+        ("coverage", "ResampleParams", size_of::<ResampleParams>()),
+        ("label_index", "LabelParams", size_of::<LabelParams>()),
+        (
+            "bone_at_source",
+            "BoneLookupParams",
+            size_of::<BoneLookupParams>(),
+        ),
+        ("fold_stats", "FoldParams", size_of::<FoldParams>()),
+        ("fold_mark", "FoldParams", size_of::<FoldParams>()),
+        ("dilate", "DilateParams", size_of::<DilateParams>()),
+        (
+            "fold_smooth",
+            "BoneLookupParams",
+            size_of::<BoneLookupParams>(),
+        ),
         ("jacobian", "JacobianParams", size_of::<JacobianParams>()),
         ("ssd_cells", "SsdParams", size_of::<SsdParams>()),
         ("pyramid", "PyramidParams", size_of::<PyramidParams>()),
@@ -136,20 +152,25 @@ fn abi_structs_match_their_wgsl_twins() {
 
 #[test]
 fn locate_maps_assembled_lines_back_to_files() {
+    // A line of the shared geometry.wgsl and one of the kernel's own file.
     let src = source("resample");
-    let n = src
-        .lines()
-        .position(|l| l.contains("struct ResampleParams"))
-        .unwrap()
-        + 1;
-    let (file, line) = locate("resample", n);
-    assert_eq!(file, "resample.wgsl");
-    let text = include_str!("../shaders/resample.wgsl");
-    assert!(text
-        .lines()
-        .nth(line - 1)
-        .unwrap()
-        .contains("struct ResampleParams"));
+    for (marker, want, text) in [
+        (
+            "struct ResampleParams",
+            "geometry.wgsl",
+            include_str!("../shaders/geometry.wgsl"),
+        ),
+        (
+            "var<uniform> params: ResampleParams",
+            "resample.wgsl",
+            include_str!("../shaders/resample.wgsl"),
+        ),
+    ] {
+        let n = src.lines().position(|l| l.contains(marker)).unwrap() + 1;
+        let (file, line) = locate("resample", n);
+        assert_eq!(file, want);
+        assert!(text.lines().nth(line - 1).unwrap().contains(marker));
+    }
 }
 
 #[test]

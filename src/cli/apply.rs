@@ -7,10 +7,10 @@
 use super::fields::{check_on_field_grid, interpolation, load_moving, registration_field};
 use super::progress::Reporter;
 use clap::Args;
+use posereg::backend::resample_volume;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::{check_output_file, NIFTI_NAMES};
-use posereg::Backend;
 use std::path::PathBuf;
 
 /// Arguments of `posereg apply`.
@@ -39,7 +39,7 @@ pub fn run(args: &ApplyArgs, device: DeviceChoice, reporter: &Reporter) -> anyho
     let image = load_moving(&args.image, args.nearest, &field)?;
     let (opened, line) = open_backend(device)?;
     reporter.say(&line);
-    let moved = posereg::on_backend!(opened, backend => backend.resample(&image, &field, 0.0, interpolation(args.nearest)))?;
+    let moved = posereg::on_backend!(opened, backend => resample_volume(backend, &image, &field, 0.0, interpolation(args.nearest)))?;
     let dtype = if args.nearest {
         DataType::I32
     } else {

@@ -6,11 +6,11 @@ use clap::Args;
 use posereg::abi::Blending;
 use posereg::abi::Interpolation;
 use posereg::articulated::bend;
+use posereg::backend::resample_volume;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::save_field;
 use posereg::io::nifti::{load_labels, load_volume, save_labels, save_volume, DataType};
 use posereg::joint::JointAxis;
-use posereg::Backend;
 use posereg::Error;
 use std::path::PathBuf;
 
@@ -88,12 +88,12 @@ pub fn run(args: &BendArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         args.blending,
     ))?;
     let out = |name: &str| args.output.join(name);
-    let target = posereg::on_backend!(opened, backend => backend.resample(&source, &bent.field, 0.0, Interpolation::Linear))?;
+    let target = posereg::on_backend!(opened, backend => resample_volume(backend, &source, &bent.field, 0.0, Interpolation::Linear))?;
     let label_values: posereg::Volume = posereg::Image {
         grid: labels.grid.clone(),
         data: labels.data.iter().map(|&l| l as f32).collect(),
     };
-    let target_labels = posereg::on_backend!(opened, backend => backend.resample(&label_values, &bent.field, 0.0, Interpolation::Nearest))?;
+    let target_labels = posereg::on_backend!(opened, backend => resample_volume(backend, &label_values, &bent.field, 0.0, Interpolation::Nearest))?;
     save_volume(&out("target.nii.gz"), &target, DataType::F32)?;
     save_labels(
         &out("target_labels.nii.gz"),

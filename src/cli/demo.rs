@@ -5,7 +5,6 @@
 use super::progress::Reporter;
 use clap::Args;
 use posereg::articulated::bone_name;
-use posereg::backend::resample_onto;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::evaluate::field_error;
 use posereg::io::config::load_options;
@@ -15,7 +14,7 @@ use posereg::joint::rotation_degrees;
 use posereg::labels as label;
 use posereg::metric::correlation;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
-use posereg::register::{register, RegisterOptions};
+use posereg::register::{register_observed, unregistered, RegisterOptions};
 use std::path::PathBuf;
 
 /// Arguments of `posereg demo`.
@@ -62,13 +61,19 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     let target = generate(&posereg::cpu::CpuBackend, &spec(args.flexion, 2))?;
     println!("registering ...");
     let started = std::time::Instant::now();
-    let result = posereg::on_backend!(opened, backend => register(
+    // The initial field, brought back for its error against the truth.
+    let mut initial_field = None;
+    let result = posereg::on_backend!(opened, backend => register_observed(
         backend,
         &source.image,
         &source.labels,
         &target.image,
         &options,
         reporter,
+        &mut |images| {
+            initial_field = Some(images.field.download_field(backend)?);
+            Ok(())
+        },
     ))?;
     let seconds = started.elapsed().as_secs_f64();
 
@@ -85,7 +90,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         .axis_point
         .as_dvec3()
         .to_array();
-    let unregistered = posereg::on_backend!(opened, backend => resample_onto(backend, &source.image, &target.image.grid))?;
+    let unregistered = posereg::on_backend!(opened, backend => unregistered(backend, &source.image, &target.image.grid))?;
     posereg::quicklook::save(
         &out("quicklook.png"),
         &target.image,
@@ -127,8 +132,8 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     let zero = posereg::Image::filled(target.image.grid.clone(), [0.0f32; 3]);
     let before = field_error(&zero, &target.truth_field, body)?;
     let after = field_error(&result.field, &target.truth_field, body)?;
-    if let Some(init) = &result.init {
-        let initial = field_error(&init.initial.field, &target.truth_field, body)?;
+    if let Some(initial_field) = &initial_field.filter(|_| result.init.is_some()) {
+        let initial = field_error(initial_field, &target.truth_field, body)?;
         println!(
             "after the articulated initialisation: mean error {:.2} mm, within 2 voxels {:.1}%",
             initial.mean_mm,

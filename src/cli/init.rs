@@ -5,8 +5,10 @@ use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
 use posereg::abi::Interpolation;
-use posereg::articulated::{bone_name, initialise, present_bones, rigid_field, InitOptions};
-use posereg::backend::resample_onto;
+use posereg::articulated::{
+    bone_name, initialise_volumes, present_bones, rigid_field, InitOptions,
+};
+use posereg::backend::resample_volume;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::inputs::{check_bones, load_pair, Pair, PairPaths};
 use posereg::io::field::save_field;
@@ -15,7 +17,7 @@ use posereg::io::transform::BoneTransforms;
 use posereg::io::{prepare_output_folder, OutputFolder};
 use posereg::joint::rotation_degrees;
 use posereg::metric::correlation;
-use posereg::Backend;
+use posereg::register::unregistered;
 use posereg::Error;
 use std::path::{Path, PathBuf};
 
@@ -131,7 +133,7 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     let (opened, line) = open_backend(device)?;
     reporter.say(&line);
     let started = std::time::Instant::now();
-    let init = posereg::on_backend!(opened, backend => initialise(
+    let (init, images) = posereg::on_backend!(opened, backend => initialise_volumes(
         backend,
         &source,
         &labels,
@@ -147,7 +149,7 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         serde_json::json!({
             "method": "shepard inverse-distance",
             "power": posereg::skinning::SHEPARD_POWER,
-            "grid_dims": init.weights.grid.dims,
+            "grid_dims": init.weight_grid.dims,
         }),
     );
     transforms.extra.insert(
@@ -161,13 +163,10 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         .extra
         .insert("bones_report".into(), serde_json::to_value(&init.reports)?);
     transforms.save(&args.pair.output.join("init.json"))?;
-    save_field(
-        &args.pair.output.join("init_field.nii.gz"),
-        &init.initial.field,
-    )?;
+    save_field(&args.pair.output.join("init_field.nii.gz"), &images.field)?;
     save_volume(
         &args.pair.output.join("initialised.nii.gz"),
-        &init.initialised,
+        &images.initialised,
         DataType::F32,
     )?;
 
@@ -178,7 +177,7 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         .map(|m| m.1);
     let body = |n: usize| target.data[n] > 0.0;
     let corr_identity = correlation(
-        &posereg::on_backend!(opened, backend => resample_onto(backend, &source, &target.grid))?
+        &posereg::on_backend!(opened, backend => unregistered(backend, &source, &target.grid))?
             .data,
         &target.data,
         body,
@@ -203,17 +202,18 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
             rotation_degrees(m)
         );
     }
-    let residual = &init.initial.residual.data;
+    let residual = &images.residual.data;
     let worst = residual.iter().cloned().fold(0.0f32, f32::max);
     println!("  blend inversion residual: worst {worst:.3} mm");
-    let repair = &init.initial.repair;
+    let repair = &init.repair;
     println!(
         "  folds (det J <= 0.05): {} in the blend, {} after {} smoothing rounds and {} unfolding steps",
         repair.folded_before, repair.folded_after, repair.rounds, repair.unfold_steps
     );
     println!("  correlation with target: identity {corr_identity:.4}");
     if let Some(reference) = reference {
-        let femur_only = posereg::on_backend!(opened, backend => backend.resample(
+        let femur_only = posereg::on_backend!(opened, backend => resample_volume(
+            backend,
             &source,
             &rigid_field(&reference, &target.grid)?,
             0.0,
@@ -226,7 +226,7 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     }
     println!(
         "                             initialised {:.4}",
-        correlation(&init.initialised.data, &target.data, body)
+        correlation(&images.initialised.data, &target.data, body)
     );
     println!("written to {}", args.pair.output.display());
     Ok(())

@@ -6,7 +6,6 @@ use super::init::PairArgs;
 use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
-use posereg::backend::resample_onto;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::inputs::{check_settings, Pair};
 use posereg::io::config::{load_options, options_toml};
@@ -14,9 +13,8 @@ use posereg::io::field::save_field;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::levels::PerLevel;
 use posereg::metric::correlation;
-use posereg::register::{register, RegisterOptions};
+use posereg::register::{register, unregistered, RegisterOptions};
 use posereg::result_checks::{result_checks, Check, Correlations};
-use posereg::Backend;
 use posereg::Error;
 use std::path::PathBuf;
 
@@ -120,12 +118,11 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
     let out = |name: &str| args.pair.output.join(name);
     save_volume(&out("warped.nii.gz"), &result.warped, DataType::F32)?;
     save_field(&out("field.nii.gz"), &result.field)?;
-    let det = posereg::on_backend!(opened, backend => backend.jacobian(&result.field))?;
-    save_volume(&out("jacobian.nii.gz"), &det, DataType::F32)?;
+    save_volume(&out("jacobian.nii.gz"), &result.jacobian, DataType::F32)?;
     let transform = result.transforms(&options);
     transform.save(&out("transform.json"))?;
     let before =
-        posereg::on_backend!(opened, backend => resample_onto(backend, &source, &target.grid))?;
+        posereg::on_backend!(opened, backend => unregistered(backend, &source, &target.grid))?;
     let body = |n: usize| target.data[n] > 0.0;
     let correlations = Correlations {
         before: correlation(&before.data, &target.data, body),
@@ -140,7 +137,7 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
         "options": options,
         "initialisation": result.init.as_ref().map(|i| serde_json::json!({
             "bones": i.reports,
-            "fold_repair": i.initial.repair,
+            "fold_repair": i.repair,
         })),
         "adaptive_stages": result.adaptive.stages,
         "control_points": result.adaptive.points.len(),

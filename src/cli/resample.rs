@@ -3,11 +3,11 @@
 use super::fields::{check_on_field_grid, interpolation, load_moving};
 use super::progress::Reporter;
 use clap::Args;
+use posereg::backend::resample_volume;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::io::field::load_field;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::{check_output_file, NIFTI_NAMES};
-use posereg::Backend;
 use std::path::PathBuf;
 
 /// Arguments of `posereg resample`.
@@ -50,7 +50,8 @@ pub fn run(args: &ResampleArgs, device: DeviceChoice, reporter: &Reporter) -> an
     let source = load_moving(&args.source, args.nearest, &field)?;
     let (opened, line) = open_backend(device)?;
     reporter.say(&line);
-    let warped = posereg::on_backend!(opened, backend => backend.resample(
+    let warped = posereg::on_backend!(opened, backend => resample_volume(
+        backend,
         &source,
         &field,
         args.background,

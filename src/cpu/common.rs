@@ -1,16 +1,6 @@
 //! CPU twin of shaders/common.wgsl: same names, same order of operations.
 
-pub use crate::sample::voxel_index;
-
-/// One row of a 3x4 affine applied to a point, summed left to right.
-pub fn affine_row(row: [f32; 4], p: [f32; 3]) -> f32 {
-    row[0] * p[0] + row[1] * p[1] + row[2] * p[2] + row[3]
-}
-
-/// One row of a 3x3 linear map applied to a vector.
-pub fn linear_row(row: [f32; 4], v: [f32; 3]) -> f32 {
-    row[0] * v[0] + row[1] * v[1] + row[2] * v[2]
-}
+pub use crate::sample::{affine_row, linear_row, source_index, voxel_index};
 
 /// Coverage at or above which a voxel holds data from the source scan.
 pub fn is_covered(coverage: f32) -> bool {
@@ -55,4 +45,9 @@ pub fn solve3(
         Vec3::new(r2.x, r2.y, e.z),
     );
     Vec3::new(sx, sy, sz) / det
+}
+
+/// The dims of a params struct's [nx, ny, nz, _] as u32s.
+pub fn dims3(dims: [u32; 4]) -> [u32; 3] {
+    [dims[0], dims[1], dims[2]]
 }

@@ -5,10 +5,10 @@ use crate::abi::ComposeParams;
 use crate::sample::trilinear_with_gradient;
 use rayon::prelude::*;
 
-/// Fills `out` (3 floats per voxel of the slab) with u = R + u0 ∘ (id + R), `warp` holding R
-/// for the slab and `initial` u0 for the whole grid (3 floats per voxel each).
+/// Fills `out` (3 floats per voxel) with u = R + u0 ∘ (id + R), `warp` holding R and
+/// `initial` u0 (3 floats per voxel each).
 pub fn compose(params: &ComposeParams, warp: &[f32], initial: &[f32], out: &mut [f32]) {
-    let [nx, ny, nz, z0] = params.dims;
+    let [nx, ny, nz, _] = params.dims;
     let d = [nx, ny, nz];
     // The shader reads one component at a time through sampled_value; here each is a volume.
     let components: Vec<Vec<f32>> = (0..3)
@@ -17,7 +17,7 @@ pub fn compose(params: &ComposeParams, warp: &[f32], initial: &[f32], out: &mut 
     out.par_chunks_mut(3 * (nx * ny) as usize)
         .enumerate()
         .for_each(|(zl, slice)| {
-            let k = zl as u32 + z0;
+            let k = zl as u32;
             for j in 0..ny {
                 for i in 0..nx {
                     let o = 3 * (i + nx * j) as usize;

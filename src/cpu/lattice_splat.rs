@@ -16,10 +16,9 @@ fn weight(v: u32, a: u32, s: u32) -> f32 {
     (1.0 - (v as f32 / s as f32 - a as f32).abs()).max(0.0)
 }
 
-/// Fills `out` (3 floats per lattice node of the slab) with Σ_x w_n(x) values(x).
+/// Fills `out` (3 floats per lattice node) with Σ_x w_n(x) values(x).
 pub fn lattice_splat(params: &SplatParams, values: &[f32], out: &mut [f32]) {
-    let [lx, ly, _, z0] = params.dims;
-    let s = params.slab[1];
+    let [lx, ly, _, s] = params.dims;
     let n = [
         params.volume_dims[0],
         params.volume_dims[1],
@@ -28,7 +27,7 @@ pub fn lattice_splat(params: &SplatParams, values: &[f32], out: &mut [f32]) {
     out.par_chunks_mut((3 * lx * ly) as usize)
         .enumerate()
         .for_each(|(zl, slice)| {
-            let c = zl as u32 + z0;
+            let c = zl as u32;
             for b in 0..ly {
                 for a in 0..lx {
                     let mut sum = [0.0f32; 3];

@@ -4,8 +4,11 @@
 
 pub mod common;
 pub mod compose;
+pub mod coverage;
+pub mod fold;
 pub mod gain;
 pub mod jacobian;
+pub mod labels;
 pub mod lattice_energy;
 pub mod lattice_splat;
 pub mod pyramid;
@@ -24,16 +27,17 @@ pub mod warp_field;
 pub mod warp_image;
 
 use crate::abi::{
-    BoneBlend, ComposeParams, EnergyParams, GainParams, Interpolation, JacobianParams,
-    PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
-    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
+    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FoldParams, GainParams,
+    JacobianParams, LabelParams, PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams,
+    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
+    SsdParams, SumParams,
 };
-use crate::backend::{check_pair, Backend, BoneImages, CostImages, Element, Traffic};
+use crate::backend::{Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::Result;
-use crate::volume::{Field, Grid, Image, Volume};
+use std::sync::Arc;
 
 /// The bone images as slices, for the twins.
-fn slices<'a>(images: &BoneImages<'a, Vec<f32>>) -> BoneImages<'a, [f32]> {
+fn slices<'a>(images: &BoneImages<'a, Arc<Vec<f32>>>) -> BoneImages<'a, [f32]> {
     BoneImages {
         source: images.source.as_slice(),
         mask: images.mask.as_slice(),
@@ -42,7 +46,7 @@ fn slices<'a>(images: &BoneImages<'a, Vec<f32>>) -> BoneImages<'a, [f32]> {
 }
 
 /// The cost images as slices, for the twins.
-fn as_slices<'a>(images: &CostImages<'a, Vec<f32>>) -> CostImages<'a, [f32]> {
+fn as_slices<'a>(images: &CostImages<'a, Arc<Vec<f32>>>) -> CostImages<'a, [f32]> {
     CostImages {
         moving: images.moving.as_slice(),
         fixed: images.fixed.as_slice(),
@@ -50,18 +54,29 @@ fn as_slices<'a>(images: &CostImages<'a, Vec<f32>>) -> CostImages<'a, [f32]> {
     }
 }
 
+/// A new buffer of `len` values, filled by `twin`.
+fn filled<T: Element>(len: usize, twin: impl FnOnce(&mut [T])) -> Result<Arc<Vec<T>>> {
+    let mut out = vec![T::zeroed(); len];
+    twin(&mut out);
+    Ok(Arc::new(out))
+}
+
 /// Runs every kernel on the host's cores.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct CpuBackend;
 
 impl Backend for CpuBackend {
-    type Buffer<T: Element> = Vec<T>;
+    type Buffer<T: Element> = Arc<Vec<T>>;
 
-    fn upload<T: Element>(&self, _what: &str, data: Vec<T>) -> Result<Vec<T>> {
-        Ok(data)
+    fn upload<T: Element>(&self, _what: &str, data: Vec<T>) -> Result<Arc<Vec<T>>> {
+        Ok(Arc::new(data))
     }
 
-    fn download<T: Element>(&self, buffers: &[&Vec<T>]) -> Result<Vec<Vec<T>>> {
+    fn zeros(&self, _what: &str, len: usize) -> Result<Arc<Vec<f32>>> {
+        Ok(Arc::new(vec![0.0; len]))
+    }
+
+    fn download<T: Element>(&self, buffers: &[&Arc<Vec<T>>]) -> Result<Vec<Vec<T>>> {
         Ok(buffers.iter().map(|b| b.to_vec()).collect())
     }
 
@@ -75,184 +90,232 @@ impl Backend for CpuBackend {
 
     fn resample(
         &self,
-        source: &Volume,
-        field: &Field,
-        background: f32,
-        interpolation: Interpolation,
-    ) -> Result<Volume> {
-        let params = ResampleParams::new(&source.grid, &field.grid, background, interpolation);
-        let mut warped = vec![0.0f32; field.grid.len()];
-        resample::resample(
-            &params,
-            &source.data,
-            bytemuck::cast_slice(&field.data),
-            &mut warped,
-        );
-        Ok(Image {
-            grid: field.grid.clone(),
-            data: warped,
+        params: &ResampleParams,
+        source: &Arc<Vec<f32>>,
+        field: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| {
+            resample::resample(params, source, field, out)
         })
     }
 
-    fn ssd_cells(&self, params: &SsdParams, images: &CostImages<Vec<f32>>) -> Result<Vec<f32>> {
-        let mut partial = vec![0.0f32; params.partials()];
-        ssd_cells::ssd_cells(params, &as_slices(images), &mut partial);
-        Ok(partial)
-    }
-
-    fn jacobian(&self, field: &Field) -> Result<Volume> {
-        let params = JacobianParams::new(&field.grid);
-        let mut det = vec![0.0f32; field.grid.len()];
-        jacobian::jacobian(&params, bytemuck::cast_slice(&field.data), &mut det);
-        Ok(Image {
-            grid: field.grid.clone(),
-            data: det,
+    fn coverage(&self, params: &ResampleParams, field: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| {
+            coverage::coverage(params, field, out)
         })
     }
 
-    fn pyramid_level(&self, params: &PyramidParams, input: &Vec<f32>) -> Result<Vec<f32>> {
-        let mut data = vec![0.0f32; params.output_len()];
-        pyramid::pyramid(params, input, &mut data);
-        Ok(data)
+    fn label_index(&self, params: &LabelParams, labels: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| {
+            labels::label_index(params, labels, out)
+        })
     }
 
-    fn rigid_sums(&self, params: &RigidParams, images: &BoneImages<Vec<f32>>) -> Result<Vec<f32>> {
-        let mut partial = vec![0.0f32; params.columns() * crate::abi::RIGID_SUMS];
-        rigid_gn::rigid_gn(params, &slices(images), &mut partial);
-        Ok(partial)
+    fn bone_at_source(
+        &self,
+        params: &BoneLookupParams,
+        field: &Arc<Vec<f32>>,
+        residual: &Arc<Vec<f32>>,
+        labels: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| {
+            labels::bone_at_source(params, field, residual, labels, out)
+        })
+    }
+
+    fn ssd_cells(
+        &self,
+        params: &SsdParams,
+        images: &CostImages<Arc<Vec<f32>>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.partials(), |out| {
+            ssd_cells::ssd_cells(params, &as_slices(images), out)
+        })
+    }
+
+    fn jacobian(&self, params: &JacobianParams, field: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| {
+            jacobian::jacobian(params, field, out)
+        })
+    }
+
+    fn fold_stats(
+        &self,
+        params: &FoldParams,
+        det: &Arc<Vec<f32>>,
+        held: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(4 * params.chunks(), |out| {
+            fold::fold_stats(params, det, held, out)
+        })
+    }
+
+    fn fold_mark(
+        &self,
+        params: &FoldParams,
+        det: &Arc<Vec<f32>>,
+        held: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| {
+            fold::fold_mark(params, det, held, out)
+        })
+    }
+
+    fn dilate(
+        &self,
+        params: &DilateParams,
+        mask: &Arc<Vec<f32>>,
+        held: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| fold::dilate(params, mask, held, out))
+    }
+
+    fn fold_smooth(
+        &self,
+        params: &BoneLookupParams,
+        field: &Arc<Vec<f32>>,
+        region: &Arc<Vec<f32>>,
+        labels: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(3 * params.voxels(), |out| {
+            fold::fold_smooth(params, field, region, labels, out)
+        })
+    }
+
+    fn pyramid_level(
+        &self,
+        params: &PyramidParams,
+        input: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.output_len(), |out| {
+            pyramid::pyramid(params, input, out)
+        })
+    }
+
+    fn rigid_sums(
+        &self,
+        params: &RigidParams,
+        images: &BoneImages<Arc<Vec<f32>>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.columns() * crate::abi::RIGID_SUMS, |out| {
+            rigid_gn::rigid_gn(params, &slices(images), out)
+        })
     }
 
     fn rigid_scores(
         &self,
         params: &ScoreParams,
-        images: &BoneImages<Vec<f32>>,
-        candidates: &Vec<f32>,
-    ) -> Result<Vec<f32>> {
-        let mut partial = vec![0.0f32; params.columns() * params.candidates() * 2];
-        rigid_score::rigid_score(params, &slices(images), candidates, &mut partial);
-        Ok(partial)
+        images: &BoneImages<Arc<Vec<f32>>>,
+        candidates: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.columns() * params.candidates() * 2, |out| {
+            rigid_score::rigid_score(params, &slices(images), candidates, out)
+        })
     }
 
     fn skin_weights(
         &self,
-        distances: &[f32],
-        grid: &Grid,
-        bones: usize,
-        power: u32,
-    ) -> Result<Vec<f32>> {
-        let params = SkinWeightsParams::new(grid, bones, power);
-        let mut weights = vec![0.0f32; distances.len()];
-        skin_weights::skin_weights(&params, distances, &mut weights);
-        Ok(weights)
+        params: &SkinWeightsParams,
+        distances: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.values(), |out| {
+            skin_weights::skin_weights(params, distances, out)
+        })
     }
 
     fn skin_blend(
         &self,
-        weights: &[f32],
-        weight_grid: &Grid,
-        bone_of_voxel: &[f32],
-        labels: &Grid,
-        target: &Grid,
-        blend: &BoneBlend,
-    ) -> Result<Vec<f32>> {
-        crate::abi::check_bone_count(blend.motions.len())?;
-        let params = SkinBlendParams::new(target, weight_grid, labels, blend);
-        let mut out = vec![0.0f32; 4 * target.len()];
-        skin_blend::skin_blend(&params, weights, bone_of_voxel, &mut out);
-        Ok(out)
+        params: &SkinBlendParams,
+        weights: &Arc<Vec<f32>>,
+        bone_of_voxel: &Arc<Vec<f32>>,
+    ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
+        let mut field = vec![0.0f32; 3 * params.voxels()];
+        let mut residual = vec![0.0f32; params.voxels()];
+        skin_blend::skin_blend(params, weights, bone_of_voxel, &mut field, &mut residual);
+        Ok((Arc::new(field), Arc::new(residual)))
     }
 
     fn warp_image(
         &self,
         params: &RbfGradParams,
-        lattice: &Vec<f32>,
-        moving: &Vec<f32>,
-    ) -> Result<Vec<f32>> {
-        let mut warped = vec![0.0f32; params.voxels()];
-        warp_image::warp_image(params, lattice, moving, &mut warped);
-        Ok(warped)
+        lattice: &Arc<Vec<f32>>,
+        moving: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| {
+            warp_image::warp_image(params, lattice, moving, out)
+        })
     }
 
     fn gain_terms(
         &self,
         params: &GainParams,
-        warped: &Vec<f32>,
-        target: &Vec<f32>,
-    ) -> Result<(Vec<f32>, Vec<f32>)> {
+        warped: &Arc<Vec<f32>>,
+        target: &Arc<Vec<f32>>,
+    ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
         let mut product = vec![0.0f32; params.voxels()];
         let mut energy = vec![0.0f32; params.voxels()];
         gain::gain_terms(warped, target, &mut product, &mut energy);
-        Ok((product, energy))
+        Ok((Arc::new(product), Arc::new(energy)))
     }
 
     fn gain_ratio(
         &self,
         params: &GainParams,
-        product: &Vec<f32>,
-        energy: &Vec<f32>,
-    ) -> Result<Vec<f32>> {
-        let mut gain = vec![0.0f32; params.voxels()];
-        gain::gain_ratio(params, product, energy, &mut gain);
-        Ok(gain)
+        product: &Arc<Vec<f32>>,
+        energy: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| {
+            gain::gain_ratio(params, product, energy, out)
+        })
     }
 
     fn gain_apply(
         &self,
         params: &GainParams,
-        gain: &Vec<f32>,
-        moving: &Vec<f32>,
-    ) -> Result<Vec<f32>> {
-        let mut gained = vec![0.0f32; params.voxels()];
-        gain::gain_apply(params, gain, moving, &mut gained);
-        Ok(gained)
+        gain: &Arc<Vec<f32>>,
+        moving: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| {
+            gain::gain_apply(params, gain, moving, out)
+        })
     }
 
-    fn warp_field(
+    fn warp_field(&self, params: &RbfGradParams, lattice: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
+        filled(3 * params.voxels(), |out| {
+            warp_field::warp_field(params, lattice, out)
+        })
+    }
+
+    fn compose(
         &self,
-        lattice: &[f32],
-        lattice_dims: [usize; 3],
-        step: usize,
-        grid: &Grid,
-    ) -> Result<Field> {
-        let params = RbfGradParams::new(grid, lattice_dims, step);
-        let mut out = vec![0.0f32; 3 * grid.len()];
-        warp_field::warp_field(&params, lattice, &mut out);
-        Image::from_data(grid.clone(), bytemuck::cast_slice(&out).to_vec())
-    }
-
-    fn compose(&self, warp: &Field, initial: &Field) -> Result<Field> {
-        check_pair(warp, initial)?;
-        let params = ComposeParams::new(&warp.grid);
-        let mut out = vec![0.0f32; 3 * warp.grid.len()];
-        compose::compose(
-            &params,
-            bytemuck::cast_slice(&warp.data),
-            bytemuck::cast_slice(&initial.data),
-            &mut out,
-        );
-        Image::from_data(warp.grid.clone(), bytemuck::cast_slice(&out).to_vec())
+        params: &ComposeParams,
+        warp: &Arc<Vec<f32>>,
+        initial: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(3 * params.voxels(), |out| {
+            compose::compose(params, warp, initial, out)
+        })
     }
 
     fn rbf_lattice(
         &self,
         params: &RbfLatticeParams,
-        geometry: &Vec<f64>,
-        spline: &Vec<f64>,
-    ) -> Result<Vec<f32>> {
-        let mut values = vec![0.0f32; 3 * params.nodes()];
-        rbf_lattice::rbf_lattice(params, geometry, spline, &mut values);
-        Ok(values)
+        geometry: &Arc<Vec<f64>>,
+        spline: &Arc<Vec<f64>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(3 * params.nodes(), |out| {
+            rbf_lattice::rbf_lattice(params, geometry, spline, out)
+        })
     }
 
     fn warp_cost(
         &self,
         params: &RbfGradParams,
-        lattice: &Vec<f32>,
-        images: &CostImages<Vec<f32>>,
-    ) -> Result<(Vec<f32>, Vec<f32>)> {
-        let [nx, ny, nz, _] = params.dims.map(|n| n as usize);
-        let mut gradient = vec![0.0f32; 3 * nx * ny * nz];
-        let mut rows = vec![0.0f32; ny * nz];
+        lattice: &Arc<Vec<f32>>,
+        images: &CostImages<Arc<Vec<f32>>>,
+    ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
+        let mut gradient = vec![0.0f32; 3 * params.voxels()];
+        let mut rows = vec![0.0f32; params.rows()];
         warp_cost::warp_cost(
             params,
             lattice,
@@ -260,41 +323,45 @@ impl Backend for CpuBackend {
             &mut gradient,
             &mut rows,
         );
-        Ok((gradient, rows))
+        Ok((Arc::new(gradient), Arc::new(rows)))
     }
 
-    fn lattice_splat(&self, params: &SplatParams, values: &Vec<f32>) -> Result<Vec<f32>> {
+    fn lattice_splat(&self, params: &SplatParams, values: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
         let nodes: usize = params.dims[..3].iter().map(|&n| n as usize).product();
-        let mut out = vec![0.0f32; 3 * nodes];
-        lattice_splat::lattice_splat(params, values, &mut out);
-        Ok(out)
+        filled(3 * nodes, |out| {
+            lattice_splat::lattice_splat(params, values, out)
+        })
     }
 
     fn lattice_energy(
         &self,
         params: &EnergyParams,
-        lattice: &Vec<f32>,
-        splat: &Vec<f32>,
-    ) -> Result<(Vec<f32>, Vec<f32>)> {
+        lattice: &Arc<Vec<f32>>,
+        splat: &Arc<Vec<f32>>,
+    ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
         let mut gradient = vec![0.0f32; 3 * params.nodes()];
         let mut energy = vec![0.0f32; params.nodes()];
         lattice_energy::lattice_energy(params, lattice, splat, &mut gradient, &mut energy);
-        Ok((gradient, energy))
+        Ok((Arc::new(gradient), Arc::new(energy)))
     }
 
     fn rbf_adjoint(
         &self,
         params: &RbfLatticeParams,
-        geometry: &Vec<f64>,
-        spline: &Vec<f64>,
-        node_gradient: &Vec<f32>,
-    ) -> Result<Vec<f64>> {
-        let mut partials = vec![0.0f64; 3 * params.rows() * params.chunks()];
-        rbf_adjoint::rbf_adjoint(params, geometry, spline, node_gradient, &mut partials);
-        Ok(partials)
+        geometry: &Arc<Vec<f64>>,
+        spline: &Arc<Vec<f64>>,
+        node_gradient: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f64>>> {
+        filled(3 * params.rows() * params.chunks(), |out| {
+            rbf_adjoint::rbf_adjoint(params, geometry, spline, node_gradient, out)
+        })
     }
 
-    fn sum_partials<T: Element>(&self, partials: &Vec<T>, values: usize) -> Result<Vec<f64>> {
+    fn sum_partials<T: Element>(
+        &self,
+        partials: &Arc<Vec<T>>,
+        values: usize,
+    ) -> Result<Arc<Vec<f64>>> {
         let mut sums: Option<Vec<f64>> = None;
         for pass in PartialsParams::passes(values, partials.len() / values.max(1)) {
             let mut out = vec![0.0f64; pass.groups() * values];
@@ -304,12 +371,12 @@ impl Backend for CpuBackend {
             }
             sums = Some(out);
         }
-        Ok(sums.expect("at least one pass"))
+        Ok(Arc::new(sums.expect("at least one pass")))
     }
 
-    fn sum_chunks(&self, params: &SumParams, values: &Vec<f32>) -> Result<Vec<f64>> {
-        let mut sums = vec![0.0f64; params.chunks()];
-        sum_chunks::sum_chunks(params, values, &mut sums);
-        Ok(sums)
+    fn sum_chunks(&self, params: &SumParams, values: &Arc<Vec<f32>>) -> Result<Arc<Vec<f64>>> {
+        filled(params.chunks(), |out| {
+            sum_chunks::sum_chunks(params, values, out)
+        })
     }
 }

@@ -1,15 +1,14 @@
 //! CPU twin of shaders/resample.wgsl: one target slice per rayon task.
 
-use super::common::{affine_row, linear_row, voxel_index};
+use super::common::{source_index, voxel_index};
 use crate::abi::ResampleParams;
 use crate::sample::{nearest, trilinear};
 use rayon::prelude::*;
 
-/// Fills `warped` (one value per voxel of the slab `params` describes) from `source` and the
-/// slab's packed field (3 floats per voxel).
+/// Fills `warped` (one value per target voxel) from `source` and the packed field (3 floats
+/// per target voxel).
 pub fn resample(params: &ResampleParams, source: &[f32], field: &[f32], warped: &mut [f32]) {
-    let [nx, ny, _, z0] = params.target_dims;
-    let depth = params.source_dims[3];
+    let [nx, ny, nz, _] = params.target_dims;
     let source_dims = [
         params.source_dims[0],
         params.source_dims[1],
@@ -23,13 +22,10 @@ pub fn resample(params: &ResampleParams, source: &[f32], field: &[f32], warped: 
             let zl = zl as u32;
             for y in 0..ny {
                 for x in 0..nx {
-                    let local = voxel_index(x, y, zl, [nx, ny, depth]) as usize;
-                    let p = [x as f32, y as f32, (zl + z0) as f32];
+                    let local = voxel_index(x, y, zl, [nx, ny, nz]) as usize;
+                    let p = [x as f32, y as f32, zl as f32];
                     let u = [field[3 * local], field[3 * local + 1], field[3 * local + 2]];
-                    let q: [f32; 3] = std::array::from_fn(|r| {
-                        affine_row(params.index_to_source[r], p)
-                            + linear_row(params.mm_to_source[r], u)
-                    });
+                    let q = source_index(params, p, u);
                     out[local - zl as usize * slice] = if params.nearest == 1 {
                         nearest(source, q, source_dims, params.background)
                     } else {

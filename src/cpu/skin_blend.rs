@@ -21,7 +21,7 @@ fn row(r: [f32; 4]) -> Vec3 {
 }
 
 fn bone_at(params: &SkinBlendParams, bone_of_voxel: &[f32], x: Vec3) -> u32 {
-    let bones = params.slab[1];
+    let bones = params.blend[0];
     let n = [
         params.label_dims[0],
         params.label_dims[1],
@@ -48,7 +48,7 @@ fn blend(params: &SkinBlendParams, weight: &[f32], bone_of_voxel: &[f32], x: Vec
         params.weight_dims[1],
         params.weight_dims[2],
     ];
-    let bones = params.slab[1];
+    let bones = params.blend[0];
     let xa = x.to_array();
     let inside = bone_at(params, bone_of_voxel, x);
     if inside < bones {
@@ -81,7 +81,7 @@ fn blend(params: &SkinBlendParams, weight: &[f32], bone_of_voxel: &[f32], x: Vec
         r1: Vec3::ZERO,
         r2: Vec3::ZERO,
     };
-    let dual_quaternion = params.slab[3] == 1;
+    let dual_quaternion = params.blend[2] == 1;
     let mut real = Vec4::ZERO;
     let mut dual = Vec4::ZERO;
     for j in 0..bones {
@@ -152,22 +152,26 @@ fn dual_quaternion_motion(real_sum: Vec4, dual_sum: Vec4, x: Vec3) -> Blend {
     }
 }
 
-/// Fills `out` (4 floats per target voxel of the slab: u and the inversion residual);
+/// Fills `field` (3 floats per target voxel: u) and `residual` (1 float per target voxel);
 /// `bone_of_voxel` holds 1 + the bone index (0 for soft tissue) per source label voxel.
 pub fn skin_blend(
     params: &SkinBlendParams,
     weight: &[f32],
     bone_of_voxel: &[f32],
-    out: &mut [f32],
+    field: &mut [f32],
+    residual: &mut [f32],
 ) {
-    let [nx, ny, _, z0] = params.dims;
-    let bones = params.slab[1];
-    out.par_chunks_mut((4 * nx * ny) as usize)
+    let [nx, ny, _, _] = params.dims;
+    let bones = params.blend[0];
+    let slice = (nx * ny) as usize;
+    field
+        .par_chunks_mut(3 * slice)
+        .zip(residual.par_chunks_mut(slice))
         .enumerate()
-        .for_each(|(zl, slice)| {
+        .for_each(|(zl, (field, residual))| {
             for j in 0..ny {
                 for i in 0..nx {
-                    let v = [i as f32, j as f32, (zl as u32 + z0) as f32];
+                    let v = [i as f32, j as f32, zl as f32];
                     let p = Vec3::from_array(std::array::from_fn(|r| {
                         affine_row(params.target_to_world[r], v)
                     }));
@@ -190,7 +194,7 @@ pub fn skin_blend(
                     }
                     let mut err = best;
                     let mut it = 0;
-                    while it < params.slab[2] && err > CONVERGED_MM {
+                    while it < params.blend[1] && err > CONVERGED_MM {
                         it += 1;
                         let b = blend(params, weight, bone_of_voxel, x);
                         let e = b.point - p;
@@ -218,9 +222,9 @@ pub fn skin_blend(
                             break;
                         }
                     }
-                    let residual = err;
-                    let o = 4 * (i + nx * j) as usize;
-                    slice[o..o + 4].copy_from_slice(&[x.x - p.x, x.y - p.y, x.z - p.z, residual]);
+                    let v = (i + nx * j) as usize;
+                    field[3 * v..3 * v + 3].copy_from_slice(&[x.x - p.x, x.y - p.y, x.z - p.z]);
+                    residual[v] = err;
                 }
             }
         });

@@ -3,10 +3,10 @@
 use crate::abi::SkinWeightsParams;
 use rayon::prelude::*;
 
-/// Fills `weight` (bones per voxel) from `distance` (bones per voxel), for one slab.
+/// Fills `weight` (bones per voxel) from `distance` (bones per voxel).
 pub fn skin_weights(params: &SkinWeightsParams, distance: &[f32], weight: &mut [f32]) {
-    let bones = params.slab[1] as usize;
-    let power = params.slab[2];
+    let bones = params.weights[0] as usize;
+    let power = params.weights[1];
     weight
         .par_chunks_mut(bones)
         .zip(distance.par_chunks(bones))

@@ -4,13 +4,13 @@ use super::warp_image::warp_at;
 use crate::abi::RbfGradParams;
 use rayon::prelude::*;
 
-/// Fills `out` (3 floats per voxel of the slab) with the warp interpolated from `lattice`.
+/// Fills `out` (3 floats per voxel) with the warp interpolated from `lattice`.
 pub fn warp_field(params: &RbfGradParams, lattice: &[f32], out: &mut [f32]) {
-    let [nx, ny, _, z0] = params.dims;
+    let [nx, ny, _, _] = params.dims;
     out.par_chunks_mut(3 * (nx * ny) as usize)
         .enumerate()
         .for_each(|(zl, slice)| {
-            let k = zl as u32 + z0;
+            let k = zl as u32;
             for j in 0..ny {
                 for i in 0..nx {
                     let o = 3 * (i + nx * j) as usize;

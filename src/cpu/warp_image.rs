@@ -19,7 +19,7 @@ fn node(params: &RbfGradParams, lattice: &[f32], i: u32, j: u32, k: u32) -> Vec3
 
 /// Trilinear interpolation of the lattice at voxel (i, j, k).
 pub fn warp_at(params: &RbfGradParams, lattice: &[f32], i: u32, j: u32, k: u32) -> Vec3 {
-    let s = params.slab[1];
+    let s = params.dims[3];
     let top = [
         params.lattice_dims[0] - 1,
         params.lattice_dims[1] - 1,

@@ -130,3 +130,9 @@ impl Kernel {
 pub fn groups(n: usize, size: u32) -> u32 {
     n.div_ceil(size as usize) as u32
 }
+
+/// Workgroups of `size`³ covering a grid of `dims` ([nx, ny, nz, _] as the parameter structs
+/// hold it).
+pub fn cover(dims: [u32; 4], size: u32) -> [u32; 3] {
+    [dims[0], dims[1], dims[2]].map(|n| groups(n as usize, size))
+}

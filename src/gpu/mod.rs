@@ -1,53 +1,50 @@
-//! The GPU backend: wgpu compute shaders, one host file per kernel.
+//! The GPU backend: wgpu compute shaders, one host file per group of kernels.
 //!
-//! Kernels on resident buffers (resident.rs: the pyramid, the rigid, non-rigid and gain kernels)
-//! bind whole volumes; one that does not fit the device's binding limit gets a clear error
-//! naming the size and the limit. The kernels still called on host volumes (resample, jacobian,
-//! skinning, warp_field, compose: run.rs) upload them in slabs of whole z-slices, so no binding
-//! exceeds `max_storage_buffer_binding_size` and no dispatch exceeds 65535 workgroups per
-//! dimension.
+//! Data stays on the device (resident.rs): every kernel binds whole buffers and records its
+//! dispatch into one pending command encoder, submitted when something is downloaded. A
+//! buffer beyond the device's binding limit gets a `DeviceLimit` error naming it (buffer.rs),
+//! and a dispatch beyond the workgroup limit a clear error (kernel.rs).
 
 pub mod buffer;
 pub mod context;
 pub mod field;
+pub mod fold;
 pub mod jacobian;
 pub mod kernel;
+pub mod labels;
 pub mod nonrigid;
 pub mod pyramid;
 pub mod resample;
 pub mod resident;
 pub mod rigid;
-pub mod run;
 pub mod skinning;
 
 use crate::abi::{
-    BoneBlend, ComposeParams, EnergyParams, GainParams, Interpolation, JacobianParams,
-    PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams,
-    SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
+    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FoldParams, GainParams,
+    JacobianParams, LabelParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams,
+    RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
+    SumParams,
 };
-use crate::backend::{check_pair, Backend, BoneImages, CostImages, Element, Traffic};
-use crate::error::{Error, Result};
-use crate::volume::{Field, Grid, Image, Volume};
+use crate::backend::{Backend, BoneImages, CostImages, Element, Traffic};
+use crate::error::Result;
 use context::GpuContext;
 use kernel::Kernel;
 use resident::GpuBuffer;
 
-/// A run of whole slices z0 .. z0 + depth processed in one dispatch.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Slab {
-    /// First slice.
-    pub z0: usize,
-    /// Number of slices.
-    pub depth: usize,
-}
-
 /// The bind group layout of every kernel, by name (the names of crate::shaders::KERNELS).
 pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
+    ("bone_at_source", labels::BONE_BINDINGS),
     ("compose", field::COMPOSE_BINDINGS),
+    ("coverage", resample::COVERAGE_BINDINGS),
+    ("dilate", fold::FOLD_BINDINGS),
+    ("fold_mark", fold::FOLD_BINDINGS),
+    ("fold_smooth", fold::SMOOTH_BINDINGS),
+    ("fold_stats", fold::FOLD_BINDINGS),
     ("gain_apply", nonrigid::GAIN_BINDINGS),
     ("gain_ratio", nonrigid::GAIN_BINDINGS),
     ("gain_terms", nonrigid::GAIN_TERMS_BINDINGS),
     ("jacobian", jacobian::BINDINGS),
+    ("label_index", labels::INDEX_BINDINGS),
     ("lattice_energy", nonrigid::ENERGY_BINDINGS),
     ("lattice_splat", nonrigid::SPLAT_BINDINGS),
     ("pyramid", pyramid::BINDINGS),
@@ -80,6 +77,20 @@ fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
 pub struct Kernels {
     /// shaders/resample.wgsl
     pub resample: Kernel,
+    /// shaders/coverage.wgsl
+    pub coverage: Kernel,
+    /// shaders/label_index.wgsl
+    pub label_index: Kernel,
+    /// shaders/bone_at_source.wgsl
+    pub bone_at_source: Kernel,
+    /// shaders/fold_stats.wgsl
+    pub fold_stats: Kernel,
+    /// shaders/fold_mark.wgsl
+    pub fold_mark: Kernel,
+    /// shaders/dilate.wgsl
+    pub dilate: Kernel,
+    /// shaders/fold_smooth.wgsl
+    pub fold_smooth: Kernel,
     /// shaders/ssd_cells.wgsl
     pub ssd_cells: Kernel,
     /// shaders/jacobian.wgsl
@@ -129,7 +140,6 @@ pub struct GpuBackend {
     ctx: GpuContext,
     /// The compiled kernels.
     pub kernels: Kernels,
-    max_slab_voxels: Option<usize>,
     peak_dispatch_bytes: std::sync::atomic::AtomicU64,
     /// Work recorded and not yet submitted (see resident.rs).
     pending: std::sync::Mutex<Option<wgpu::CommandEncoder>>,
@@ -146,6 +156,13 @@ impl GpuBackend {
         Ok(GpuBackend {
             kernels: Kernels {
                 resample: compile(&ctx, "resample")?,
+                coverage: compile(&ctx, "coverage")?,
+                label_index: compile(&ctx, "label_index")?,
+                bone_at_source: compile(&ctx, "bone_at_source")?,
+                fold_stats: compile(&ctx, "fold_stats")?,
+                fold_mark: compile(&ctx, "fold_mark")?,
+                dilate: compile(&ctx, "dilate")?,
+                fold_smooth: compile(&ctx, "fold_smooth")?,
                 ssd_cells: compile(&ctx, "ssd_cells")?,
                 jacobian: compile(&ctx, "jacobian")?,
                 pyramid: compile(&ctx, "pyramid")?,
@@ -169,17 +186,9 @@ impl GpuBackend {
                 compose: compile(&ctx, "compose")?,
             },
             ctx,
-            max_slab_voxels: None,
             peak_dispatch_bytes: Default::default(),
             pending: Default::default(),
         })
-    }
-
-    /// Caps the voxels per slab below what the device limits allow (for tests of the slab
-    /// path, and to bound peak device memory).
-    pub fn with_max_slab_voxels(mut self, voxels: usize) -> Self {
-        self.max_slab_voxels = Some(voxels.max(1));
-        self
     }
 
     /// The device this backend runs on.
@@ -187,8 +196,8 @@ impl GpuBackend {
         &self.ctx
     }
 
-    /// Largest total of buffer bytes bound to one dispatch so far: the device memory a
-    /// registration needs at once (buffers are released after each call).
+    /// Largest total of buffer bytes bound to one dispatch so far: a lower bound on the device
+    /// memory a registration needs at once.
     pub fn peak_dispatch_bytes(&self) -> u64 {
         self.peak_dispatch_bytes
             .load(std::sync::atomic::Ordering::Relaxed)
@@ -198,44 +207,6 @@ impl GpuBackend {
     pub(crate) fn note_dispatch_bytes(&self, bytes: u64) {
         self.peak_dispatch_bytes
             .fetch_max(bytes, std::sync::atomic::Ordering::Relaxed);
-    }
-
-    /// Splits `dims` into slabs whose per-voxel buffers (`bytes_per_voxel` for the largest,
-    /// holding the slab plus `halo` extra slices) fit the device's binding limits, the optional
-    /// cap, and the workgroup count limit.
-    pub fn plan_slabs(
-        &self,
-        dims: [usize; 3],
-        bytes_per_voxel: usize,
-        halo: usize,
-    ) -> Result<Vec<Slab>> {
-        let slice = dims[0] * dims[1];
-        let limit = self
-            .ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(self.ctx.limits.max_buffer_size);
-        let fits = (limit / bytes_per_voxel as u64) as usize;
-        if slice * (1 + halo) > fits {
-            return Err(Error::DeviceLimit {
-                what: format!("one {}×{} slice", dims[0], dims[1]),
-                needed: (slice * bytes_per_voxel) as u64,
-                limit,
-                limit_name: "max_storage_buffer_binding_size",
-            });
-        }
-        let cap = self.max_slab_voxels.unwrap_or(usize::MAX).min(fits);
-        let max_depth = (cap / slice)
-            .saturating_sub(halo)
-            .max(1)
-            .min(self.ctx.limits.max_compute_workgroups_per_dimension as usize);
-        Ok((0..dims[2])
-            .step_by(max_depth)
-            .map(|z0| Slab {
-                z0,
-                depth: max_depth.min(dims[2] - z0),
-            })
-            .collect())
     }
 }
 
@@ -258,21 +229,36 @@ impl Backend for GpuBackend {
         self.ctx.counters.read()
     }
 
+    fn zeros(&self, what: &str, len: usize) -> Result<GpuBuffer<f32>> {
+        // wgpu fills new buffers with zeros: nothing to upload.
+        self.output_buffer(what, len)
+    }
+
     fn resample(
         &self,
-        source: &Volume,
-        field: &Field,
-        background: f32,
-        interpolation: Interpolation,
-    ) -> Result<Volume> {
-        let params = ResampleParams::new(&source.grid, &field.grid, background, interpolation);
-        let data = resample::resample(
-            self,
-            &params,
-            &source.data,
-            bytemuck::cast_slice(&field.data),
-        )?;
-        Image::from_data(field.grid.clone(), data)
+        params: &ResampleParams,
+        source: &GpuBuffer<f32>,
+        field: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_resample(params, source, field)
+    }
+
+    fn coverage(&self, params: &ResampleParams, field: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
+        self.record_coverage(params, field)
+    }
+
+    fn label_index(&self, params: &LabelParams, labels: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
+        self.record_label_index(params, labels)
+    }
+
+    fn bone_at_source(
+        &self,
+        params: &BoneLookupParams,
+        field: &GpuBuffer<f32>,
+        residual: &GpuBuffer<f32>,
+        labels: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_bone_at_source(params, field, residual, labels)
     }
 
     fn ssd_cells(
@@ -283,10 +269,45 @@ impl Backend for GpuBackend {
         self.record_ssd_cells(params, images)
     }
 
-    fn jacobian(&self, field: &Field) -> Result<Volume> {
-        let params = JacobianParams::new(&field.grid);
-        let data = jacobian::jacobian(self, &params, bytemuck::cast_slice(&field.data))?;
-        Image::from_data(field.grid.clone(), data)
+    fn jacobian(&self, params: &JacobianParams, field: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
+        self.record_jacobian(params, field)
+    }
+
+    fn fold_stats(
+        &self,
+        params: &FoldParams,
+        det: &GpuBuffer<f32>,
+        held: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_fold_stats(params, det, held)
+    }
+
+    fn fold_mark(
+        &self,
+        params: &FoldParams,
+        det: &GpuBuffer<f32>,
+        held: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_fold_mark(params, det, held)
+    }
+
+    fn dilate(
+        &self,
+        params: &DilateParams,
+        mask: &GpuBuffer<f32>,
+        held: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_dilate(params, mask, held)
+    }
+
+    fn fold_smooth(
+        &self,
+        params: &BoneLookupParams,
+        field: &GpuBuffer<f32>,
+        region: &GpuBuffer<f32>,
+        labels: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_fold_smooth(params, field, region, labels)
     }
 
     fn pyramid_level(
@@ -316,26 +337,19 @@ impl Backend for GpuBackend {
 
     fn skin_weights(
         &self,
-        distances: &[f32],
-        grid: &Grid,
-        bones: usize,
-        power: u32,
-    ) -> Result<Vec<f32>> {
-        skinning::skin_weights(self, &SkinWeightsParams::new(grid, bones, power), distances)
+        params: &SkinWeightsParams,
+        distances: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_skin_weights(params, distances)
     }
 
     fn skin_blend(
         &self,
-        weights: &[f32],
-        weight_grid: &Grid,
-        bone_of_voxel: &[f32],
-        labels: &Grid,
-        target: &Grid,
-        blend: &BoneBlend,
-    ) -> Result<Vec<f32>> {
-        crate::abi::check_bone_count(blend.motions.len())?;
-        let params = SkinBlendParams::new(target, weight_grid, labels, blend);
-        skinning::skin_blend(self, &params, weights, bone_of_voxel)
+        params: &SkinBlendParams,
+        weights: &GpuBuffer<f32>,
+        bone_of_voxel: &GpuBuffer<f32>,
+    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
+        self.record_skin_blend(params, weights, bone_of_voxel)
     }
 
     fn warp_image(
@@ -376,26 +390,19 @@ impl Backend for GpuBackend {
 
     fn warp_field(
         &self,
-        lattice: &[f32],
-        lattice_dims: [usize; 3],
-        step: usize,
-        grid: &Grid,
-    ) -> Result<Field> {
-        let params = RbfGradParams::new(grid, lattice_dims, step);
-        let out = field::warp_field(self, &params, lattice)?;
-        Image::from_data(grid.clone(), bytemuck::cast_slice(&out).to_vec())
+        params: &RbfGradParams,
+        lattice: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_warp_field(params, lattice)
     }
 
-    fn compose(&self, warp: &Field, initial: &Field) -> Result<Field> {
-        check_pair(warp, initial)?;
-        let params = ComposeParams::new(&warp.grid);
-        let out = field::compose(
-            self,
-            &params,
-            bytemuck::cast_slice(&warp.data),
-            bytemuck::cast_slice(&initial.data),
-        )?;
-        Image::from_data(warp.grid.clone(), bytemuck::cast_slice(&out).to_vec())
+    fn compose(
+        &self,
+        params: &ComposeParams,
+        warp: &GpuBuffer<f32>,
+        initial: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_compose(params, warp, initial)
     }
 
     fn rbf_lattice(

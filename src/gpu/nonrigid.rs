@@ -3,7 +3,7 @@
 //! at once: a volume whose per-voxel gradient (12 bytes a voxel) exceeds the device's binding
 //! limit gets a `DeviceLimit` error naming it.
 
-use super::kernel::{groups, Binding};
+use super::kernel::{cover, groups, Binding};
 use super::resident::GpuBuffer;
 use super::GpuBackend;
 use crate::abi::{
@@ -38,10 +38,6 @@ pub const GAIN_TERMS_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite, Re
 /// gain_ratio and gain_apply bindings.
 pub const GAIN_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
 
-fn cover(dims: [u32; 3], size: u32) -> [u32; 3] {
-    dims.map(|n| groups(n as usize, size))
-}
-
 impl GpuBackend {
     /// shaders/rbf_lattice.wgsl
     pub fn record_rbf_lattice(
@@ -51,12 +47,12 @@ impl GpuBackend {
         spline: &GpuBuffer<f64>,
     ) -> Result<GpuBuffer<f32>> {
         let values = self.output_buffer("warp at the lattice nodes", 3 * params.nodes())?;
-        let l = [params.lattice[0], params.lattice[1], params.lattice[2]];
+
         self.record(
             &self.kernels.rbf_lattice,
             params,
             &[geometry.raw(), spline.raw(), values.raw()],
-            cover(l, 4),
+            cover(params.lattice, 4),
         )?;
         Ok(values)
     }
@@ -93,14 +89,13 @@ impl GpuBackend {
         params: &SplatParams,
         values: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
-        let l = [params.dims[0], params.dims[1], params.dims[2]];
-        let nodes = l.iter().map(|&n| n as usize).product::<usize>();
+        let nodes: usize = params.dims[..3].iter().map(|&n| n as usize).product();
         let out = self.output_buffer("gradient at the lattice nodes", 3 * nodes)?;
         self.record(
             &self.kernels.lattice_splat,
             params,
             &[values.raw(), out.raw()],
-            cover(l, 4),
+            cover(params.dims, 4),
         )?;
         Ok(out)
     }
@@ -118,7 +113,7 @@ impl GpuBackend {
             &self.kernels.lattice_energy,
             params,
             &[lattice.raw(), splat.raw(), gradient.raw(), energy.raw()],
-            cover([params.dims[0], params.dims[1], params.dims[2]], 4),
+            cover(params.dims, 4),
         )?;
         Ok((gradient, energy))
     }
@@ -203,7 +198,7 @@ impl GpuBackend {
             &self.kernels.warp_image,
             params,
             &[lattice.raw(), moving.raw(), warped.raw()],
-            cover([params.dims[0], params.dims[1], params.dims[2]], 4),
+            cover(params.dims, 4),
         )?;
         Ok(warped)
     }
@@ -242,7 +237,7 @@ impl GpuBackend {
             &self.kernels.gain_terms,
             params,
             &[warped.raw(), target.raw(), product.raw(), energy.raw()],
-            [groups(params.voxels(), 64), 1, 1],
+            cover(params.dims, 4),
         )?;
         Ok((product, energy))
     }
@@ -259,7 +254,7 @@ impl GpuBackend {
             &self.kernels.gain_ratio,
             params,
             &[product.raw(), energy.raw(), gain.raw()],
-            [groups(params.voxels(), 64), 1, 1],
+            cover(params.dims, 4),
         )?;
         Ok(gain)
     }
@@ -276,7 +271,7 @@ impl GpuBackend {
             &self.kernels.gain_apply,
             params,
             &[gain.raw(), moving.raw(), gained.raw()],
-            cover([params.dims[0], params.dims[1], params.dims[2]], 4),
+            cover(params.dims, 4),
         )?;
         Ok(gained)
     }

@@ -1,42 +1,49 @@
-//! Host side of shaders/resample.wgsl.
+//! Host side of shaders/resample.wgsl and shaders/coverage.wgsl.
 
-use super::kernel::{groups, Binding};
-use super::run::{run_slabs, Input};
+use super::kernel::{cover, Binding};
+use super::resident::GpuBuffer;
 use super::GpuBackend;
 use crate::abi::ResampleParams;
 use crate::error::Result;
 
-/// Bindings in the order the shader declares them.
-pub const BINDINGS: &[Binding] = &[
-    Binding::Uniform,
-    Binding::Read,
-    Binding::Read,
-    Binding::ReadWrite,
-];
+use Binding::{Read, ReadWrite, Uniform};
 
-/// Resamples slab by slab; returns the warped values of every target voxel, x fastest.
-pub fn resample(
-    gpu: &GpuBackend,
-    params: &ResampleParams,
-    source: &[f32],
-    field: &[f32],
-) -> Result<Vec<f32>> {
-    let dims = [0, 1, 2].map(|a| params.target_dims[a] as usize);
-    run_slabs(
-        gpu,
-        &gpu.kernels.resample,
-        params,
-        &[
-            Input::Whole("source volume", source),
-            Input::PerVoxel {
-                what: "displacement field",
-                data: field,
-                per_voxel: 3,
-                halo: 0,
-            },
-        ],
-        dims,
-        dims[0] * dims[1],
-        |depth| [groups(dims[0], 4), groups(dims[1], 4), groups(depth, 4)],
-    )
+/// resample bindings in the order the shader declares them.
+pub const BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
+/// coverage bindings.
+pub const COVERAGE_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
+
+impl GpuBackend {
+    /// The source sampled through the field at every target voxel.
+    pub fn record_resample(
+        &self,
+        params: &ResampleParams,
+        source: &GpuBuffer<f32>,
+        field: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let warped = self.output_buffer("resampled image", params.voxels())?;
+        self.record(
+            &self.kernels.resample,
+            params,
+            &[source.raw(), field.raw(), warped.raw()],
+            cover(params.target_dims, 4),
+        )?;
+        Ok(warped)
+    }
+
+    /// 1 where a target voxel's source point is inside the source, else 0.
+    pub fn record_coverage(
+        &self,
+        params: &ResampleParams,
+        field: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let covered = self.output_buffer("coverage", params.voxels())?;
+        self.record(
+            &self.kernels.coverage,
+            params,
+            &[field.raw(), covered.raw()],
+            cover(params.target_dims, 4),
+        )?;
+        Ok(covered)
+    }
 }

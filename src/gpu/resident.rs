@@ -19,6 +19,17 @@ pub struct GpuBuffer<T> {
     _element: PhantomData<T>,
 }
 
+impl<T> Clone for GpuBuffer<T> {
+    /// Another handle to the same device buffer.
+    fn clone(&self) -> Self {
+        GpuBuffer {
+            buffer: self.buffer.clone(),
+            len: self.len,
+            _element: PhantomData,
+        }
+    }
+}
+
 impl<T: Element> GpuBuffer<T> {
     /// Elements held.
     pub fn len(&self) -> usize {

@@ -13,7 +13,7 @@ pub mod shapes;
 
 use crate::backend::Backend;
 use crate::error::{Error, Result};
-use crate::fold_repair::unfold;
+use crate::fold_repair::{host_determinant, unfold};
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
 use acquisition::{add_rician_noise, BiasField};
@@ -207,9 +207,10 @@ fn unfolded<B: Backend>(backend: &B, grid: &Grid, straight: Vec<Vec3>) -> Result
         .map(|(n, q)| displacement(n, *q))
         .collect();
     let mut field = Image::from_data(grid.clone(), sampled)?;
-    unfold(backend, &mut field, &rigid, &|n, u| {
+    let det = host_determinant(backend, &field)?;
+    unfold(&mut field, det, &rigid, &|n, u| {
         in_bone(world_of(grid, n) + Vec3::from_array(u))
-    })?;
+    });
     Ok(straight
         .into_iter()
         .enumerate()

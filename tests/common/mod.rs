@@ -144,3 +144,45 @@ pub fn cell_ssd<B: posereg::Backend>(
     let partial = backend.download_one(&partial).unwrap();
     posereg::metric::fold_ssd_partials(dims, cells, &partial)
 }
+
+#[allow(unused_imports)]
+pub use posereg::backend::resample_volume;
+#[allow(unused_imports)]
+pub use posereg::fold_repair::host_determinant;
+
+/// Skinning weights from host distances (bones per voxel), brought back.
+pub fn skin_weights<B: posereg::Backend>(
+    backend: &B,
+    distances: &[f32],
+    grid: &Grid,
+    bones: usize,
+    power: u32,
+) -> posereg::Result<Vec<f32>> {
+    let params = posereg::abi::SkinWeightsParams::new(grid, bones, power);
+    let distances = backend.upload("distances", distances.to_vec())?;
+    backend.download_one(&backend.skin_weights(&params, &distances)?)
+}
+
+/// The inverted blend from host inputs, brought back as 4 floats per target voxel (u, then the
+/// residual).
+pub fn skin_blend<B: posereg::Backend>(
+    backend: &B,
+    weights: &[f32],
+    weight_grid: &Grid,
+    bone_of_voxel: &[f32],
+    labels: &Grid,
+    target: &Grid,
+    blend: &posereg::abi::BoneBlend,
+) -> posereg::Result<Vec<f32>> {
+    let params = posereg::abi::SkinBlendParams::new(target, weight_grid, labels, blend);
+    let weights = backend.upload("weights", weights.to_vec())?;
+    let bone_of_voxel = backend.upload("bone of voxel", bone_of_voxel.to_vec())?;
+    let (field, residual) = backend.skin_blend(&params, &weights, &bone_of_voxel)?;
+    let mut host = backend.download(&[&field, &residual])?;
+    let (residual, field) = (host.pop().unwrap(), host.pop().unwrap());
+    Ok(field
+        .chunks(3)
+        .zip(residual)
+        .flat_map(|(u, r)| [u[0], u[1], u[2], r])
+        .collect())
+}

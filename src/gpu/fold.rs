@@ -1,0 +1,86 @@
+//! Host side of shaders/fold_stats.wgsl, shaders/fold_mark.wgsl, shaders/dilate.wgsl and
+//! shaders/fold_smooth.wgsl.
+
+use super::kernel::{cover, groups, Binding};
+use super::resident::GpuBuffer;
+use super::GpuBackend;
+use crate::abi::{BoneLookupParams, DilateParams, FoldParams};
+use crate::error::Result;
+
+use Binding::{Read, ReadWrite, Uniform};
+
+/// fold_stats, fold_mark and dilate bindings in the order the shaders declare them.
+pub const FOLD_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
+/// fold_smooth bindings.
+pub const SMOOTH_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, ReadWrite];
+
+impl GpuBackend {
+    /// 4 floats of fold statistics per chunk.
+    pub fn record_fold_stats(
+        &self,
+        params: &FoldParams,
+        det: &GpuBuffer<f32>,
+        held: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let stats = self.output_buffer("fold statistics", 4 * params.chunks())?;
+        self.record(
+            &self.kernels.fold_stats,
+            params,
+            &[det.raw(), held.raw(), stats.raw()],
+            [groups(params.chunks(), 64), 1, 1],
+        )?;
+        Ok(stats)
+    }
+
+    /// The folded voxels not held.
+    pub fn record_fold_mark(
+        &self,
+        params: &FoldParams,
+        det: &GpuBuffer<f32>,
+        held: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let mark = self.output_buffer("folded voxels", params.voxels())?;
+        self.record(
+            &self.kernels.fold_mark,
+            params,
+            &[det.raw(), held.raw(), mark.raw()],
+            cover(params.dims, 4),
+        )?;
+        Ok(mark)
+    }
+
+    /// One axis of a box dilation.
+    pub fn record_dilate(
+        &self,
+        params: &DilateParams,
+        mask: &GpuBuffer<f32>,
+        held: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let out = self.output_buffer("dilated mask", params.voxels())?;
+        self.record(
+            &self.kernels.dilate,
+            params,
+            &[mask.raw(), held.raw(), out.raw()],
+            cover(params.dims, 4),
+        )?;
+        Ok(out)
+    }
+
+    /// One smoothing sweep over the region.
+    pub fn record_fold_smooth(
+        &self,
+        params: &BoneLookupParams,
+        field: &GpuBuffer<f32>,
+        region: &GpuBuffer<f32>,
+        labels: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let out = self.output_buffer("smoothed field", 3 * params.voxels())?;
+        self.record(
+            &self.kernels.fold_smooth,
+            params,
+            &[field.raw(), region.raw(), labels.raw(), out.raw()],
+            cover(params.geometry.target_dims, 4),
+        )?;
+        Ok(out)
+    }
+}
