@@ -8,9 +8,10 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use posereg::abi::{
-    pack_candidates, BoneLookupParams, ComposeParams, DilateParams, FoldParams, GainParams,
-    Interpolation, JacobianParams, LabelParams, PyramidParams, RbfGradParams, ResampleParams,
-    RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SsdParams, SumParams, RIGID_SUMS,
+    pack_candidates, BoneLookupParams, ComposeParams, DilateParams, EdtParams, GainParams,
+    Interpolation, JacobianParams, LabelParams, MomentsParams, PyramidParams, RbfGradParams,
+    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SsdParams,
+    SumParams, ThresholdParams, RIGID_SUMS,
 };
 use posereg::backend::{BoneImages, CostImages};
 use posereg::cpu::CpuBackend;
@@ -156,15 +157,15 @@ fn label_and_fold_rows(
     let det: Vec<f32> = (0..g.len())
         .map(|n| if n % 50 == 0 { -0.1 } else { 1.0 })
         .collect();
-    let folds = FoldParams::new(g, 0.05);
+    let folds = ThresholdParams::new(g, 0.05);
     group(c, "fold_stats", g.len() as u64, label, backends, |b| {
         posereg::on_backend!(b, b => resident(b, &[&det, &zeros], |b, [d, h]| {
             b.fold_stats(&folds, d, h)
         }))
     });
-    group(c, "fold_mark", g.len() as u64, label, backends, |b| {
+    group(c, "mark_at_most", g.len() as u64, label, backends, |b| {
         posereg::on_backend!(b, b => resident(b, &[&det, &zeros], |b, [d, h]| {
-            b.fold_mark(&folds, d, h)
+            b.mark_at_most(&folds, d, h)
         }))
     });
     let marked: Vec<f32> = det.iter().map(|&d| (d <= 0.05) as u8 as f32).collect();
@@ -177,6 +178,31 @@ fn label_and_fold_rows(
         }))
     });
     let region: Vec<f32> = (0..g.len()).map(|n| (n % 5 == 0) as u8 as f32).collect();
+    if let Ok(passes) = EdtParams::passes(g, 2) {
+        group(
+            c,
+            "edt_2_regions_3_passes",
+            g.len() as u64,
+            label,
+            backends,
+            |b| {
+                posereg::on_backend!(b, b => resident(b, &[&labels], |b, [l]| {
+                    let x = b.edt(&passes[0], l)?;
+                    let y = b.edt(&passes[1], &x)?;
+                    b.edt(&passes[2], &y)
+                }))
+            },
+        );
+    }
+    let moments = MomentsParams::new(g, 0.5);
+    group(
+        c,
+        "moments",
+        g.len() as u64,
+        label,
+        backends,
+        |b| posereg::on_backend!(b, b => resident(b, &[&region], |b, [r]| b.moments(&moments, r))),
+    );
     group(c, "fold_smooth", g.len() as u64, label, backends, |b| {
         posereg::on_backend!(b, b => resident(b, &[field, &region, &labels], |b, [f, r, l]| {
             b.fold_smooth(&lookup, f, r, l)
@@ -411,7 +437,7 @@ fn kernels(c: &mut Criterion) {
             (0..voxels * bones).map(|k| 1.0 + (k % 37) as f32).collect()
         };
         let distances = synthetic_distances(g.len());
-        let weighting = SkinWeightsParams::new(&g, bones, 2);
+        let weighting = SkinWeightsParams::new(&g, &vec![1.0; bones], 2);
         group(
             c,
             "skin_weights_4_bones",
@@ -429,7 +455,12 @@ fn kernels(c: &mut Criterion) {
         let weights = resident(
             &CpuBackend,
             &[&synthetic_distances(weight_grid.len())],
-            |b, [d]| b.skin_weights(&SkinWeightsParams::new(&weight_grid, bones, 2), d),
+            |b, [d]| {
+                b.skin_weights(
+                    &SkinWeightsParams::new(&weight_grid, &vec![1.0; bones], 2),
+                    d,
+                )
+            },
         )
         .unwrap();
         let soft_tissue = vec![0.0f32; g.len()];

@@ -5,13 +5,13 @@
 // for a chunk's 1024 voxels).
 //
 // Bindings (group 0):
-//   0 uniform  FoldParams (fold.wgsl)
+//   0 uniform  ThresholdParams (threshold.wgsl)
 //   1 storage  det: array<f32>    1 float per voxel
 //   2 storage  held: array<f32>   1 float per voxel (> 0: held)
 //   3 storage  stats: array<f32>  4 floats per chunk (read_write)
 // Dispatch: workgroups (ceil(chunks / 64), 1, 1).
 
-@group(0) @binding(0) var<uniform> params: FoldParams;
+@group(0) @binding(0) var<uniform> params: ThresholdParams;
 @group(0) @binding(1) var<storage, read> det: array<f32>;
 @group(0) @binding(2) var<storage, read> held: array<f32>;
 @group(0) @binding(3) var<storage, read_write> stats: array<f32>;

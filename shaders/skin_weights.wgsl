@@ -6,7 +6,8 @@
 //
 // Bindings (group 0):
 //   0 uniform  SkinWeightsParams
-//   1 storage  distance: array<f32>  bones floats per voxel (mm to each bone, 0 inside)
+//   1 storage  distance: array<f32>  one volume per bone (mm to the bone, 0 inside), the
+//                                    distance maps of shaders/edt.wgsl
 //   2 storage  weight: array<f32>    bones floats per voxel (read_write)
 // Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(nz/4)).
 
@@ -14,11 +15,17 @@
 struct SkinWeightsParams {
     dims: vec4<u32>,     // nx, ny, nz, unused
     weights: vec4<u32>,  // bones, power (integer p), unused x2
+    reach: array<vec4<f32>, 2>,  // per bone, the factor its distances are scaled by
 }
 
 @group(0) @binding(0) var<uniform> params: SkinWeightsParams;
 @group(0) @binding(1) var<storage, read> distance: array<f32>;
 @group(0) @binding(2) var<storage, read_write> weight: array<f32>;
+
+// Bone j's distance at voxel v, scaled by its reach.
+fn scaled_distance(j: u32, v: u32, voxels: u32) -> f32 {
+    return distance[j * voxels + v] * params.reach[j / 4u][j % 4u];
+}
 
 @compute @workgroup_size(4, 4, 4)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -27,11 +34,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let bones = params.weights.x;
-    let base = voxel_index(gid.x, gid.y, gid.z, d.xyz) * bones;
+    let v = voxel_index(gid.x, gid.y, gid.z, d.xyz);
+    let voxels = d.x * d.y * d.z;
+    let base = v * bones;
     var inside = bones;
-    var nearest = distance[base];
+    var nearest = scaled_distance(0u, v, voxels);
     for (var j = 0u; j < bones; j = j + 1u) {
-        let dj = distance[base + j];
+        let dj = scaled_distance(j, v, voxels);
         if (dj <= 0.0 && inside == bones) {
             inside = j;
         }
@@ -45,7 +54,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     var total = 0.0;
     for (var j = 0u; j < bones; j = j + 1u) {
-        let ratio = nearest / distance[base + j];
+        let ratio = nearest / scaled_distance(j, v, voxels);
         var raw = 1.0;
         for (var k = 0u; k < params.weights.y; k = k + 1u) {
             raw = raw * ratio;

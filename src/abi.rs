@@ -146,7 +146,7 @@ impl ResampleParams {
 
     /// Voxels of the target grid.
     pub fn voxels(&self) -> usize {
-        self.target_dims[..3].iter().map(|&n| n as usize).product()
+        count(&self.target_dims)
     }
 }
 
@@ -264,7 +264,7 @@ impl LabelParams {
 
     /// Voxels of the label map.
     pub fn voxels(&self) -> usize {
-        self.dims[..3].iter().map(|&n| n as usize).product()
+        count(&self.dims)
     }
 }
 
@@ -319,37 +319,112 @@ impl DilateParams {
 
     /// Voxels of the grid.
     pub fn voxels(&self) -> usize {
-        self.dims[..3].iter().map(|&n| n as usize).product()
+        count(&self.dims)
     }
 }
 
-/// Voxels per chunk of the fold statistics.
-pub const FOLD_CHUNK: usize = 1024;
+/// Longest line an edt pass takes: the shader keeps a line's envelope in private arrays.
+pub const MAX_EDT_LINE: usize = 1024;
 
-/// Keep in sync with `FoldParams` in shaders/fold.wgsl.
+/// Keep in sync with `EdtParams` in shaders/edt.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
-pub struct FoldParams {
+pub struct EdtParams {
+    /// nx, ny, nz, and the axis of this pass (0 x, 1 y, 2 z).
+    pub dims: [u32; 4],
+    /// mm between samples along x, y, z, unused.
+    pub spacing: [f32; 4],
+    /// Volumes in the stack, 1 on the first pass (its input is one volume whose values round to
+    /// the stack index + 1 on each region), 1 on the last (square roots), unused.
+    pub stack: [u32; 4],
+}
+
+impl EdtParams {
+    /// The x, y and z passes of the distance maps (mm) on `grid` to the regions 1 ..= `volumes`
+    /// of a label index map (or, for one volume, of a 0/1 indicator); refuses grids with a
+    /// line longer than [`MAX_EDT_LINE`].
+    pub fn passes(grid: &Grid, volumes: usize) -> Result<[EdtParams; 3]> {
+        if let Some(&longest) = grid.dims.iter().max().filter(|&&n| n > MAX_EDT_LINE) {
+            return Err(Error::InvalidInput(format!(
+                "distance maps take grids of at most {MAX_EDT_LINE} voxels along an axis, got {longest}"
+            )));
+        }
+        let h = grid.spacing();
+        Ok(std::array::from_fn(|axis| EdtParams {
+            dims: dims4(grid, axis as u32),
+            spacing: [h[0] as f32, h[1] as f32, h[2] as f32, 0.0],
+            stack: [volumes as u32, (axis == 0) as u32, (axis == 2) as u32, 0],
+        }))
+    }
+
+    /// Values written: volumes × voxels.
+    pub fn values(&self) -> usize {
+        self.stack[0] as usize * count(&self.dims)
+    }
+
+    /// Lines along the other two axes (each a workgroup dimension).
+    pub fn lines(&self) -> [usize; 2] {
+        let d = self.dims.map(|n| n as usize);
+        match d[3] {
+            0 => [d[1], d[2]],
+            1 => [d[0], d[2]],
+            _ => [d[0], d[1]],
+        }
+    }
+}
+
+/// Keep in sync with `MomentsParams` in shaders/moments.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct MomentsParams {
     /// nx, ny, nz, unused.
     pub dims: [u32; 4],
-    /// Voxels, voxels per chunk ([`FOLD_CHUNK`]), chunks, unused.
+    /// Voxels, voxels per chunk ([`STATS_CHUNK`]), chunks, unused.
     pub chunks: [u32; 4],
-    /// det J at or below which a voxel counts as folded, unused ×3.
+    /// Value at or above which a voxel counts, unused ×3.
+    pub threshold: [f32; 4],
+    /// Voxel index → world (mm).
+    pub index_to_world: [[f32; 4]; 3],
+}
+
+impl MomentsParams {
+    /// For the voxels of a map on `grid` at or above `threshold`.
+    pub fn new(grid: &Grid, threshold: f32) -> Self {
+        MomentsParams {
+            dims: dims4(grid, 0),
+            chunks: chunking(grid.len(), STATS_CHUNK, 0),
+            threshold: [threshold, 0.0, 0.0, 0.0],
+            index_to_world: rows(&grid.affine),
+        }
+    }
+
+    /// Chunks the kernel writes 4 values for.
+    pub fn chunks(&self) -> usize {
+        self.chunks[2] as usize
+    }
+}
+
+/// Voxels per chunk of the fold statistics and the moments.
+pub const STATS_CHUNK: usize = 1024;
+
+/// Keep in sync with `ThresholdParams` in shaders/threshold.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ThresholdParams {
+    /// nx, ny, nz, unused.
+    pub dims: [u32; 4],
+    /// Voxels, voxels per chunk ([`STATS_CHUNK`]), chunks, unused.
+    pub chunks: [u32; 4],
+    /// The threshold (det J for the folds, mm for a distance), unused ×3.
     pub threshold: [f32; 4],
 }
 
-impl FoldParams {
-    /// For a determinant on `grid`, folded at or below `threshold`.
+impl ThresholdParams {
+    /// For a value per voxel of `grid` compared with `threshold`.
     pub fn new(grid: &Grid, threshold: f32) -> Self {
-        let voxels = grid.len();
-        FoldParams {
+        ThresholdParams {
             dims: dims4(grid, 0),
-            chunks: [
-                voxels as u32,
-                FOLD_CHUNK as u32,
-                voxels.div_ceil(FOLD_CHUNK) as u32,
-                0,
-            ],
+            chunks: chunking(grid.len(), STATS_CHUNK, 0),
             threshold: [threshold, 0.0, 0.0, 0.0],
         }
     }
@@ -378,7 +453,7 @@ pub struct JacobianParams {
 impl JacobianParams {
     /// Voxels of the field's grid.
     pub fn voxels(&self) -> usize {
-        self.dims[..3].iter().map(|&n| n as usize).product()
+        count(&self.dims)
     }
 
     /// Parameters for the Jacobian of a field on `grid`.
@@ -411,6 +486,21 @@ fn mm_to_index_rows(grid: &Grid) -> [[f32; 4]; 3] {
             0.0,
         ]
     })
+}
+
+/// nx · ny · nz of a parameter struct's [nx, ny, nz, _].
+fn count(dims: &[u32; 4]) -> usize {
+    dims[..3].iter().map(|&n| n as usize).product()
+}
+
+/// [values, values per chunk, chunks, w]: how a reduction splits `values` into chunks.
+fn chunking(values: usize, per_chunk: usize, w: u32) -> [u32; 4] {
+    [
+        values as u32,
+        per_chunk as u32,
+        values.div_ceil(per_chunk) as u32,
+        w,
+    ]
 }
 
 fn dims4(g: &Grid, w: u32) -> [u32; 4] {
@@ -446,7 +536,7 @@ impl PyramidParams {
 
     /// Voxels of the output level.
     pub fn output_len(&self) -> usize {
-        self.dims[..3].iter().map(|&n| n as usize).product()
+        count(&self.dims)
     }
 }
 
@@ -538,24 +628,29 @@ pub struct SkinWeightsParams {
     pub dims: [u32; 4],
     /// Bones, Shepard power, unused ×2.
     pub weights: [u32; 4],
+    /// Per bone, the factor its distances are scaled by (skinning::reach_scale), 4 per row.
+    pub reach: [[f32; 4]; 2],
 }
 
 impl SkinWeightsParams {
-    /// Weights written: bones per voxel.
-    pub fn values(&self) -> usize {
-        self.dims[..3]
-            .iter()
-            .map(|&n| n as usize)
-            .product::<usize>()
-            * self.weights[0] as usize
-    }
-
-    /// Weights of `bones` bones on `grid` with Shepard exponent `power`.
-    pub fn new(grid: &Grid, bones: usize, power: u32) -> Self {
+    /// Weights on `grid` with Shepard exponent `power`, one bone per entry of `reach` (at most
+    /// [`MAX_SKIN_BONES`]).
+    pub fn new(grid: &Grid, reach: &[f32], power: u32) -> Self {
+        assert!(reach.len() <= MAX_SKIN_BONES, "checked by the caller");
+        let mut rows = [[0.0f32; 4]; 2];
+        for (j, &r) in reach.iter().enumerate() {
+            rows[j / 4][j % 4] = r;
+        }
         SkinWeightsParams {
             dims: dims4(grid, 0),
-            weights: [bones as u32, power, 0, 0],
+            weights: [reach.len() as u32, power, 0, 0],
+            reach: rows,
         }
+    }
+
+    /// Weights written: bones per voxel.
+    pub fn values(&self) -> usize {
+        count(&self.dims) * self.weights[0] as usize
     }
 }
 
@@ -591,7 +686,7 @@ pub struct SkinBlendParams {
 impl SkinBlendParams {
     /// Voxels of the target grid.
     pub fn voxels(&self) -> usize {
-        self.dims[..3].iter().map(|&n| n as usize).product()
+        count(&self.dims)
     }
 
     /// For bones moving as `blend` says (at most [`MAX_SKIN_BONES`]), weights on `weights`,
@@ -676,7 +771,7 @@ impl RbfGradParams {
 
     /// Voxels of the target grid.
     pub fn voxels(&self) -> usize {
-        self.dims[..3].iter().map(|&n| n as usize).product()
+        count(&self.dims)
     }
 
     /// Rows of x (ny · nz): warp_cost writes one sum per row.
@@ -707,6 +802,11 @@ impl SplatParams {
             ],
             volume_dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, 0],
         }
+    }
+
+    /// Nodes of the lattice.
+    pub fn nodes(&self) -> usize {
+        count(&self.dims)
     }
 }
 
@@ -757,7 +857,7 @@ impl RbfLatticeParams {
 
     /// Nodes in the lattice.
     pub fn nodes(&self) -> usize {
-        self.lattice[..3].iter().map(|&n| n as usize).product()
+        count(&self.lattice)
     }
 
     /// Control points.
@@ -805,12 +905,7 @@ impl SumParams {
     /// Sums of `values` values in chunks of [`SUM_CHUNK`].
     pub fn new(values: usize) -> Self {
         SumParams {
-            counts: [
-                values as u32,
-                SUM_CHUNK as u32,
-                values.div_ceil(SUM_CHUNK) as u32,
-                1,
-            ],
+            counts: chunking(values, SUM_CHUNK, 1),
             shift: [0.0; 4],
         }
     }
@@ -899,7 +994,7 @@ impl EnergyParams {
 
     /// Lattice nodes.
     pub fn nodes(&self) -> usize {
-        self.dims[..3].iter().map(|&n| n as usize).product()
+        count(&self.dims)
     }
 }
 
@@ -956,7 +1051,7 @@ pub struct ComposeParams {
 impl ComposeParams {
     /// Voxels of the fields' grid.
     pub fn voxels(&self) -> usize {
-        self.dims[..3].iter().map(|&n| n as usize).product()
+        count(&self.dims)
     }
 
     /// For fields on `grid`.

@@ -1,7 +1,7 @@
 //! Articulated initialisation (paper §2): per-bone rigid registration coarse to fine, skinning
 //! weights, and the inverted volume skeletal deformation, giving the initial field u0.
 
-use crate::abi::{Blending, Interpolation, LabelParams, ResampleParams};
+use crate::abi::{Blending, Interpolation, ResampleParams, ThresholdParams};
 use crate::adaptive::MAX_LEVELS;
 use crate::backend::{Backend, DeviceImage};
 use crate::check::within;
@@ -12,8 +12,9 @@ use crate::joint::{flexion_axis, rotation_about, rotation_degrees, JointAxis};
 use crate::labels as label;
 use crate::progress::Progress;
 use crate::pyramid;
+use crate::regions;
 use crate::rigid::{refine, score_candidates, BoneLevel, LevelReport, RefineOptions};
-use crate::skinning::{self, distance_map};
+use crate::skinning;
 use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
 use crate::vsd::initial_field;
 use nalgebra::{Rotation3, Unit, Vector3};
@@ -271,18 +272,11 @@ struct RegionLevel<B: Backend> {
 
 impl<B: Backend> RegionLevel<B> {
     fn new(backend: &B, mask: DeviceImage<B>) -> Result<Self> {
-        let host = mask.download(backend)?;
-        let (mut sum, mut inside) = (Vector3::zeros(), 0usize);
-        for (i, &m) in host.data.iter().enumerate() {
-            if m >= 0.5 {
-                sum += host.grid.world_of(i);
-                inside += 1;
-            }
-        }
+        let region = regions::moments(backend, &mask, 0.5)?;
         Ok(RegionLevel {
             mask,
-            inside,
-            centroid: sum / inside.max(1) as f64,
+            inside: region.voxels,
+            centroid: region.centroid,
         })
     }
 }
@@ -302,21 +296,18 @@ impl<B: Backend> Region<B> {
         first: usize,
         dilation_mm: f64,
     ) -> Result<Self> {
-        let indicator = DeviceImage {
-            data: backend.label_index(&LabelParams::new(&labels.grid, &[code])?, &labels.data)?,
-            grid: labels.grid.clone(),
-        };
+        let indicator = regions::label_index(backend, labels, &[code])?;
         let mut down = pyramid::build(backend, indicator, first + 1)?;
-        let at_first = down.pop().expect("level 0 at least").download(backend)?;
-        let inside: Vec<bool> = at_first.data.iter().map(|&v| v >= 0.5).collect();
-        let dilated = Image {
-            data: distance_map(&at_first.grid, &inside)
-                .iter()
-                .map(|&d| (d <= dilation_mm as f32) as u8 as f32)
-                .collect(),
-            grid: at_first.grid,
+        let at_first = down.pop().expect("level 0 at least");
+        // The bone at this level (smoothed indicator ≥ ½), grown by `dilation_mm`.
+        let distance = regions::distance_maps(backend, &at_first, 1)?;
+        let grid = at_first.grid;
+        let within = ThresholdParams::new(&grid, dilation_mm as f32);
+        let nothing_held = backend.zeros("nothing held", grid.len())?;
+        let dilated = DeviceImage {
+            data: backend.mark_at_most(&within, &distance, &nothing_held)?,
+            grid,
         };
-        let dilated = DeviceImage::upload(backend, "bone region", dilated)?;
         let levels = pyramid::build(backend, dilated, levels - first)?
             .into_iter()
             .map(|mask| RegionLevel::new(backend, mask))
@@ -509,7 +500,7 @@ pub fn initialise<B: Backend>(
             .map(|b| *found.iter().find(|f| f.0 == *b).expect("registered"))
             .collect();
     }
-    let weights = skinning::weights(backend, labels, &bones, skinning::SHEPARD_POWER)?;
+    let weights = skinning::weights(backend, &pair.labels, &bones, skinning::SHEPARD_POWER)?;
     let matrices: Vec<Affine> = motions.iter().map(|m| m.1).collect();
     let source_labels = SourceLabels {
         host: labels,
@@ -631,8 +622,8 @@ pub fn bend<B: Backend>(
             _ => rotation_about(&axis, degrees),
         })
         .collect();
-    let weights = skinning::weights(backend, labels, &bones, BEND_SHEPARD_POWER)?;
     let device_labels = DeviceImage::upload_labels(backend, labels)?;
+    let weights = skinning::weights(backend, &device_labels, &bones, BEND_SHEPARD_POWER)?;
     let source_labels = SourceLabels {
         host: labels,
         device: &device_labels,

@@ -4,10 +4,10 @@
 
 use crate::abi::Interpolation;
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FoldParams, GainParams,
-    JacobianParams, LabelParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams,
-    RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
-    SumParams,
+    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
+    JacobianParams, LabelParams, MomentsParams, PyramidParams, RbfGradParams, RbfLatticeParams,
+    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
+    SsdParams, SumParams, ThresholdParams,
 };
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
@@ -227,20 +227,20 @@ pub trait Backend {
         field: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
-    /// Per chunk of abi::FOLD_CHUNK voxels of a Jacobian determinant `det`: its minimum, the
+    /// Per chunk of abi::STATS_CHUNK voxels of a Jacobian determinant `det`: its minimum, the
     /// voxels ≤ 0, the voxels ≤ `params`' threshold, and those of them not `held` (> 0).
     fn fold_stats(
         &self,
-        params: &FoldParams,
+        params: &ThresholdParams,
         det: &Self::Buffer<f32>,
         held: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
-    /// 1 on the voxels not `held` whose `det` is at or below `params`' threshold, else 0.
-    fn fold_mark(
+    /// 1 on the voxels not `held` whose `value` is at or below `params`' threshold, else 0.
+    fn mark_at_most(
         &self,
-        params: &FoldParams,
-        det: &Self::Buffer<f32>,
+        params: &ThresholdParams,
+        value: &Self::Buffer<f32>,
         held: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
@@ -252,6 +252,18 @@ pub trait Backend {
         mask: &Self::Buffer<f32>,
         held: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
+
+    /// One axis's pass of exact Euclidean distance maps (mm) for a stack of volumes
+    /// (`params`): the first pass reads a label index map, the others the stack.
+    fn edt(&self, params: &EdtParams, input: &Self::Buffer<f32>) -> Result<Self::Buffer<f32>>;
+
+    /// Per chunk of abi::STATS_CHUNK voxels of `values`: how many are at or above `params`'
+    /// threshold and the sum of their world positions (4 f64 each).
+    fn moments(
+        &self,
+        params: &MomentsParams,
+        values: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f64>>;
 
     /// One sweep of local smoothing of `field` over `region`: each voxel there takes the mean
     /// of its 27 neighbours unless that carries its source point into a bone (`labels`,

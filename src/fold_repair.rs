@@ -6,7 +6,7 @@
 //! bone; a sequential sweep on the host, run only when folds are left). The push alone also
 //! serves a registration's total field ([`unfold_registration`]) and the phantom's truth field.
 
-use crate::abi::{BoneLookupParams, DilateParams, FoldParams, JacobianParams};
+use crate::abi::{BoneLookupParams, DilateParams, JacobianParams, ThresholdParams};
 use crate::backend::{Backend, DeviceImage};
 use crate::error::Result;
 use crate::sample::bone_at;
@@ -59,7 +59,7 @@ pub fn determinant<B: Backend>(
     held: &B::Buffer<f32>,
 ) -> Result<(B::Buffer<f32>, Folds)> {
     let det = backend.jacobian(&JacobianParams::new(&field.grid), &field.data)?;
-    let params = FoldParams::new(&field.grid, FOLD_THRESHOLD);
+    let params = ThresholdParams::new(&field.grid, FOLD_THRESHOLD);
     let stats = backend.download_one(&backend.fold_stats(&params, &det, held)?)?;
     let mut folds = Folds {
         min: f32::INFINITY,
@@ -116,7 +116,7 @@ pub fn repair_folds<B: Backend>(
     let solved = RIGID_RESIDUAL * grid.finest_spacing() as f32;
     let lookup = BoneLookupParams::new(&labels.host.grid, &grid, bones, solved)?;
     let held = backend.bone_at_source(&lookup, &field.data, &residual.data, &labels.device.data)?;
-    let folded = FoldParams::new(&grid, FOLD_THRESHOLD);
+    let folded = ThresholdParams::new(&grid, FOLD_THRESHOLD);
     let dilation = DilateParams::passes(&grid, REPAIR_MARGIN);
     let (mut det, mut folds) = determinant(backend, &field, &held)?;
     let mut report = FoldRepair {
@@ -125,7 +125,7 @@ pub fn repair_folds<B: Backend>(
     };
     while folds.low_free > 0 && report.rounds < REPAIR_ROUNDS {
         // The voxels not held within REPAIR_MARGIN (along each axis) of a fold not held.
-        let mut region = backend.fold_mark(&folded, &det, &held)?;
+        let mut region = backend.mark_at_most(&folded, &det, &held)?;
         for pass in &dilation {
             region = backend.dilate(pass, &region, &held)?;
         }

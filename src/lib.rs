@@ -49,6 +49,7 @@ pub mod progress;
 pub mod pyramid;
 pub mod quicklook;
 pub mod rbf;
+pub mod regions;
 pub mod register;
 pub mod regularise;
 pub mod result_checks;

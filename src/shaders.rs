@@ -18,7 +18,7 @@ const BONE_LOOKUP: (&str, &str) = (
     "bone_lookup.wgsl",
     include_str!("../shaders/bone_lookup.wgsl"),
 );
-const FOLD: (&str, &str) = ("fold.wgsl", include_str!("../shaders/fold.wgsl"));
+const THRESHOLD: (&str, &str) = ("threshold.wgsl", include_str!("../shaders/threshold.wgsl"));
 const GAIN: (&str, &str) = ("gain.wgsl", include_str!("../shaders/gain.wgsl"));
 const SUM_PARTIALS: (&str, &str) = (
     "sum_partials.wgsl",
@@ -73,7 +73,7 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         "fold_stats",
         &[
             COMMON,
-            FOLD,
+            THRESHOLD,
             (
                 "fold_stats.wgsl",
                 include_str!("../shaders/fold_stats.wgsl"),
@@ -81,11 +81,25 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         ],
     ),
     (
-        "fold_mark",
+        "mark_at_most",
         &[
             COMMON,
-            FOLD,
-            ("fold_mark.wgsl", include_str!("../shaders/fold_mark.wgsl")),
+            THRESHOLD,
+            (
+                "mark_at_most.wgsl",
+                include_str!("../shaders/mark_at_most.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "edt",
+        &[COMMON, ("edt.wgsl", include_str!("../shaders/edt.wgsl"))],
+    ),
+    (
+        "moments",
+        &[
+            COMMON,
+            ("moments.wgsl", include_str!("../shaders/moments.wgsl")),
         ],
     ),
     (

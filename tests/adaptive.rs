@@ -211,3 +211,59 @@ fn paper_experiment_one_on_the_gpu() {
         ten_degrees_without_initialisation(gpu, size, "gpu");
     }
 }
+
+/// The whole pipeline on the GPU path (lavapipe in CI) against the CPU backend, on the small
+/// phantom at 30° and 60° with the defaults: errors within 0.02 mm, control points as many but
+/// for 2%, and fields within 0.1 mm of each other on average over the evaluation mask
+/// (measured 2026-12-02: 188 / 187 points, 0.034 mm apart, 0.734 / 0.736 mm at 30°; 224 / 224,
+/// 0.073 mm, 1.239 / 1.247 mm at 60°). Not the same points, nor the 0.05 mm issue 16 asks for
+/// yet: the driver contracts multiplies and adds into FMAs where the CPU twins round each, so
+/// the bones' Levenberg-Marquardt steps differ in the last bits from the first one; the femur
+/// stops at its 40-iteration cap on one backend and at 38 on the other, the patella ends 0.3°
+/// apart, and later decisions (which cells get a point) can fall either side of their
+/// thresholds.
+#[test]
+fn the_whole_pipeline_agrees_on_both_backends() {
+    let Some(gpu) = common::gpu() else { return };
+    for flexion in [30.0, 60.0] {
+        let options = RegisterOptions::default();
+        let size = PhantomSize::Small;
+        let cpu = register_and_score(&posereg::cpu::CpuBackend, size, flexion, &options, "cpu");
+        let got = register_and_score(gpu, size, flexion, &options, "gpu");
+        let (source, target) = pair(size, flexion);
+        let mask = evaluation_mask(&source, &target);
+        let (a, b) = (&cpu.result.field.data, &got.result.field.data);
+        let apart: Vec<f64> = (0..a.len())
+            .filter(|&n| mask[n])
+            .map(|n| {
+                let d = (0..3).map(|c| (a[n][c] - b[n][c]) as f64);
+                d.map(|d| d * d).sum::<f64>().sqrt()
+            })
+            .collect();
+        let mean_apart = apart.iter().sum::<f64>() / apart.len() as f64;
+        let points = |s: &Scored| s.result.adaptive.points.len();
+        eprintln!(
+            "{flexion}°: control points {} (cpu) {} (gpu); fields {mean_apart:.4} mm apart on average; errors {:.3} / {:.3} mm",
+            points(&cpu),
+            points(&got),
+            cpu.error.mean_mm,
+            got.error.mean_mm
+        );
+        assert!(
+            points(&cpu).abs_diff(points(&got)) * 50 <= points(&cpu),
+            "{flexion}°: {} against {} control points",
+            points(&cpu),
+            points(&got)
+        );
+        assert!(
+            mean_apart <= 0.1,
+            "{flexion}°: fields {mean_apart} mm apart"
+        );
+        assert!(
+            (cpu.error.mean_mm - got.error.mean_mm).abs() <= 0.02,
+            "{flexion}°: errors {} vs {} mm",
+            cpu.error.mean_mm,
+            got.error.mean_mm
+        );
+    }
+}

@@ -12,8 +12,8 @@ mod common;
 use common::*;
 use posereg::abi::{
     pack_candidates, Blending, BoneBlend, BoneLookupParams, ComposeParams, DilateParams,
-    FoldParams, Interpolation, JacobianParams, LabelParams, RbfGradParams, ResampleParams,
-    RigidParams, ScoreParams, RIGID_SUMS,
+    Interpolation, JacobianParams, LabelParams, MomentsParams, RbfGradParams, ResampleParams,
+    RigidParams, ScoreParams, ThresholdParams, RIGID_SUMS,
 };
 use posereg::backend::BoneImages;
 use posereg::cpu::CpuBackend;
@@ -357,14 +357,18 @@ fn skinning_kernels_parity() {
     let Some(gpu) = gpu() else { return };
     let grid = oblique_grid([21, 17, 13]);
     let bones = 3;
-    // Distances: 0 inside a few voxels per bone, smooth positive elsewhere.
+    // Distances (one volume per bone): 0 within 1.5 voxels of the bone's centre, the distance
+    // (mm, 1.3 per voxel) from there elsewhere, so the weights vary smoothly.
+    let centres = [[4.0f32, 5.0, 3.0], [15.0, 8.0, 6.0], [9.0, 13.0, 10.0]];
     let distances: Vec<f32> = (0..grid.len() * bones)
         .map(|k| {
-            if k % 97 == k / grid.len() {
-                0.0
-            } else {
-                1.0 + ((k * 31) % 50) as f32 * 0.7
-            }
+            let (j, n) = (k / grid.len(), k % grid.len());
+            let p = [n % 21, (n / 21) % 17, n / (21 * 17)].map(|c| c as f32);
+            let r = (0..3)
+                .map(|a| (p[a] - centres[j][a]).powi(2))
+                .sum::<f32>()
+                .sqrt();
+            1.3 * (r - 1.5).max(0.0)
         })
         .collect();
     let cpu = skin_weights(&CpuBackend, &distances, &grid, bones, 4).unwrap();
@@ -846,7 +850,7 @@ fn fold_kernels_parity() {
     close("jacobian", &got[0], &cpu[0], 1e-4, 1e-5);
     // Statistics: minima to ulps, counts exact but for voxels within an ulp of a threshold.
     close("fold_stats", &got[1], &cpu[1], 1e-4, 1e-3);
-    for (name, k) in [("fold_mark", 2), ("dilate", 3)] {
+    for (name, k) in [("mark_at_most", 2), ("dilate", 3)] {
         let differ = got[k].iter().zip(&cpu[k]).filter(|(a, b)| a != b).count();
         assert!(
             differ <= grid.len() / 1000,
@@ -871,7 +875,42 @@ fn fold_kernels_parity() {
     );
 }
 
-/// jacobian, fold_stats, fold_mark, the three dilate passes and one fold_smooth, brought back.
+/// The distance maps (three edt passes over two regions at once, on an anisotropic oblique
+/// grid) and the moments of a smoothed map, on both backends.
+#[test]
+fn distance_and_moments_kernels_parity() {
+    let Some(gpu) = gpu() else { return };
+    let grid = Grid::new([23, 19, 14], oblique_affine([1.1, 0.9, 1.7])).unwrap();
+    // Regions 1 and 2 in scattered runs; the rest 0.
+    let index: Vec<f32> = (0..grid.len())
+        .map(|n| match n % 97 {
+            0..=2 => 1.0,
+            50 => 2.0,
+            _ => 0.0,
+        })
+        .collect();
+    let cpu = distances_and_moments(&CpuBackend, &grid, &index);
+    let got = distances_and_moments(gpu, &grid, &index);
+    // Square roots of sums of squared mm: ulps.
+    close("edt", &got.0, &cpu.0, 1e-4, 1e-5);
+    close_f64("moments", &got.1, &cpu.1, 1e-9);
+    assert!(cpu.1[0] > 0.0 && cpu.0.iter().all(|d| d.is_finite()));
+}
+
+/// The distance maps of `index`'s regions 1 and 2, and the moments of region 1's distances at
+/// or above 3 mm, brought back.
+fn distances_and_moments<B: Backend>(b: &B, grid: &Grid, index: &[f32]) -> (Vec<f32>, Vec<f64>) {
+    let index = posereg::backend::DeviceImage::<B> {
+        data: b.upload("index", index.to_vec()).unwrap(),
+        grid: grid.clone(),
+    };
+    let maps = posereg::regions::distance_maps(b, &index, 2).unwrap();
+    let far = b.moments(&MomentsParams::new(grid, 3.0), &maps).unwrap();
+    let mut out = b.download(&[&maps]).unwrap();
+    (out.pop().unwrap(), b.download_one(&far).unwrap())
+}
+
+/// jacobian, fold_stats, mark_at_most, the three dilate passes and one fold_smooth, brought back.
 fn fold_outputs<B: Backend>(
     b: &B,
     grid: &Grid,
@@ -883,9 +922,9 @@ fn fold_outputs<B: Backend>(
     let labels_up = b.upload("labels", labels.to_vec()).unwrap();
     let held_up = b.upload("held", held.to_vec()).unwrap();
     let det = b.jacobian(&JacobianParams::new(grid), &field_up).unwrap();
-    let folds = FoldParams::new(grid, 0.05);
+    let folds = ThresholdParams::new(grid, 0.05);
     let stats = b.fold_stats(&folds, &det, &held_up).unwrap();
-    let mark = b.fold_mark(&folds, &det, &held_up).unwrap();
+    let mark = b.mark_at_most(&folds, &det, &held_up).unwrap();
     let mut region = mark.clone();
     for pass in &DilateParams::passes(grid, 2) {
         region = b.dilate(pass, &region, &held_up).unwrap();

@@ -478,12 +478,77 @@ fn dual_quaternion_blending_turns_halfway_where_linear_blending_shortens_the_rad
     }
 }
 
+/// The distance maps (three edt passes) against brute force on an anisotropic grid, for two
+/// regions of a label index map at once: each voxel's distance (mm) to the nearest voxel of
+/// its region, 0 inside.
+#[test]
+fn distance_maps_match_brute_force_with_anisotropic_spacing() {
+    let mut a = Affine::identity();
+    a[(0, 0)] = 0.5;
+    a[(2, 2)] = 2.0;
+    let grid = Grid::new([9, 7, 5], a).unwrap();
+    let region = |n: usize| match n {
+        40 | 200 => 1.0,
+        3 | 250 | 251 => 2.0,
+        _ => 0.0,
+    };
+    let index = posereg::backend::DeviceImage::<CpuBackend> {
+        data: CpuBackend
+            .upload("index", (0..grid.len()).map(region).collect())
+            .unwrap(),
+        grid: grid.clone(),
+    };
+    let maps = posereg::regions::distance_maps(&CpuBackend, &index, 2).unwrap();
+    for (r, map) in maps.chunks(grid.len()).enumerate() {
+        let members: Vec<usize> = (0..grid.len())
+            .filter(|&n| region(n) == (r + 1) as f32)
+            .collect();
+        for (n, got) in map.iter().enumerate() {
+            let brute = members
+                .iter()
+                .map(|&m| (grid.world_of(n) - grid.world_of(m)).norm())
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                (*got as f64 - brute).abs() < 1e-4,
+                "region {r}, voxel {n}: {got} vs {brute}"
+            );
+        }
+    }
+}
+
+/// A region's size and centroid from the moments kernel, against the voxels counted on the
+/// host: an oblique grid, a smoothed-looking map with values either side of the threshold.
+#[test]
+fn moments_count_and_centre_a_region() {
+    let grid = oblique_grid([13, 11, 7]);
+    let values: Vec<f32> = (0..grid.len())
+        .map(|n| ((n * 37) % 100) as f32 / 100.0)
+        .collect();
+    let image = posereg::backend::DeviceImage::<CpuBackend> {
+        data: CpuBackend.upload("values", values.clone()).unwrap(),
+        grid: grid.clone(),
+    };
+    let got = posereg::regions::moments(&CpuBackend, &image, 0.5).unwrap();
+    let inside: Vec<usize> = (0..grid.len()).filter(|&n| values[n] >= 0.5).collect();
+    let centroid = inside
+        .iter()
+        .map(|&n| grid.world_of(n))
+        .sum::<nalgebra::Vector3<f64>>()
+        / inside.len() as f64;
+    assert_eq!(got.voxels, inside.len());
+    assert!(
+        (got.centroid - centroid).norm() < 1e-4,
+        "{:?} vs {centroid:?}",
+        got.centroid
+    );
+}
+
 #[test]
 fn skin_weights_are_one_inside_their_bone() {
     let grid = Grid::new([5, 4, 3], Affine::identity()).unwrap();
     let bones = 3;
     let mut distances = vec![5.0f32; grid.len() * bones];
-    distances[7 * bones + 1] = 0.0; // voxel 7 is inside bone 1
+    distances[grid.len() + 7] = 0.0; // voxel 7 is inside bone 1 (one volume per bone)
     let w = skin_weights(&CpuBackend, &distances, &grid, bones, 4).unwrap();
     assert_eq!(&w[7 * bones..8 * bones], &[0.0, 1.0, 0.0]);
     // Equal distances: equal shares.

@@ -2,10 +2,10 @@
 //! has the same size in Rust and WGSL.
 
 use posereg::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FoldParams, GainParams,
-    JacobianParams, LabelParams, PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams,
-    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
-    SsdParams, SumParams,
+    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
+    JacobianParams, LabelParams, MomentsParams, PartialsParams, PyramidParams, RbfGradParams,
+    RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
+    SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use posereg::shaders::{locate, source, KERNELS};
 use std::mem::size_of;
@@ -68,7 +68,7 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
-    let pairs: [(&str, &str, usize); 29] = [
+    let pairs: [(&str, &str, usize); 31] = [
         ("warp_image", "RbfGradParams", size_of::<RbfGradParams>()),
         ("gain_terms", "GainParams", size_of::<GainParams>()),
         ("gain_ratio", "GainParams", size_of::<GainParams>()),
@@ -107,9 +107,19 @@ fn abi_structs_match_their_wgsl_twins() {
             "BoneLookupParams",
             size_of::<BoneLookupParams>(),
         ),
-        ("fold_stats", "FoldParams", size_of::<FoldParams>()),
-        ("fold_mark", "FoldParams", size_of::<FoldParams>()),
+        (
+            "fold_stats",
+            "ThresholdParams",
+            size_of::<ThresholdParams>(),
+        ),
+        (
+            "mark_at_most",
+            "ThresholdParams",
+            size_of::<ThresholdParams>(),
+        ),
         ("dilate", "DilateParams", size_of::<DilateParams>()),
+        ("edt", "EdtParams", size_of::<EdtParams>()),
+        ("moments", "MomentsParams", size_of::<MomentsParams>()),
         (
             "fold_smooth",
             "BoneLookupParams",

@@ -97,8 +97,15 @@ fn mib(bytes: u64) -> f64 {
     bytes as f64 / (1024.0 * 1024.0)
 }
 
+/// Bytes of a registration's input volumes (source, labels, target as f32) and of the volumes it
+/// writes (field, warped source, Jacobian).
+struct Sizes {
+    inputs: u64,
+    outputs: u64,
+}
+
 /// One backend's row of the table and its traffic lines.
-fn print_row(describe: &str, timed: &Timed) {
+fn print_row(describe: &str, timed: &Timed, sizes: &Sizes) {
     let t = timed.seconds;
     println!(
         "{describe:<52} {:>10.2} {:>10.2} {:>10.2} {:>10.2}",
@@ -119,6 +126,11 @@ fn print_row(describe: &str, timed: &Timed) {
             traffic.submits
         );
     }
+    println!(
+        "  registration    up {:.2}× its inputs, down {:.2}× its outputs",
+        stages.total.bytes_up as f64 / sizes.inputs as f64,
+        stages.total.bytes_down as f64 / sizes.outputs as f64
+    );
     let e = &timed.evaluations;
     let per = |v: u64| v as f64 / e.count.max(1) as f64;
     println!(
@@ -152,10 +164,14 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         args.runs
     );
     let voxels = |p: &posereg::phantom::Phantom| p.image.grid.len() as u64;
+    let sizes = Sizes {
+        inputs: 4 * (2 * voxels(&pair.0) + voxels(&pair.1)),
+        outputs: 20 * voxels(&pair.1),
+    };
     println!(
-        "inputs (source, labels, target as f32): {:.2} MiB; outputs (field, warped): {:.2} MiB",
-        mib(4 * (2 * voxels(&pair.0) + voxels(&pair.1))),
-        mib(16 * voxels(&pair.1))
+        "inputs (source, labels, target as f32): {:.2} MiB; outputs (field, warped, Jacobian): {:.2} MiB",
+        mib(sizes.inputs),
+        mib(sizes.outputs)
     );
     println!(
         "{:<52} {:>10} {:>10} {:>10} {:>10}",
@@ -164,7 +180,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let mut totals = Vec::new();
     if args.which != Which::Gpu {
         let t = time(&CpuBackend, args.runs, &pair)?;
-        print_row(&CpuBackend.describe(), &t);
+        print_row(&CpuBackend.describe(), &t, &sizes);
         println!(
             "  peak host memory (process so far): {:.0} MiB",
             peak_rss_mib().unwrap_or(f64::NAN)
@@ -174,7 +190,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     if args.which != Which::Cpu {
         let gpu = GpuBackend::new()?;
         let t = time(&gpu, args.runs, &pair)?;
-        print_row(&gpu.describe(), &t);
+        print_row(&gpu.describe(), &t, &sizes);
         println!(
             "  peak host memory (process so far): {:.0} MiB; largest set of device buffers bound at once: {:.1} MiB",
             peak_rss_mib().unwrap_or(f64::NAN),

@@ -1,8 +1,8 @@
-//! CPU twins of shaders/fold_stats.wgsl, shaders/fold_mark.wgsl, shaders/dilate.wgsl and
+//! CPU twins of shaders/fold_stats.wgsl, shaders/mark_at_most.wgsl, shaders/dilate.wgsl and
 //! shaders/fold_smooth.wgsl.
 
 use super::common::{dims3, voxel_index};
-use crate::abi::{BoneLookupParams, DilateParams, FoldParams};
+use crate::abi::{BoneLookupParams, DilateParams, ThresholdParams};
 use crate::sample::bone_at;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -12,7 +12,7 @@ fn is_held(value: f32) -> bool {
 }
 
 /// Fills `stats` (4 floats per chunk) with each chunk's minimum and counts.
-pub fn fold_stats(params: &FoldParams, det: &[f32], held: &[f32], stats: &mut [f32]) {
+pub fn fold_stats(params: &ThresholdParams, det: &[f32], held: &[f32], stats: &mut [f32]) {
     let [voxels, per_chunk, _, _] = params.chunks.map(|n| n as usize);
     let threshold = params.threshold[0];
     stats.par_chunks_mut(4).enumerate().for_each(|(c, out)| {
@@ -32,11 +32,12 @@ pub fn fold_stats(params: &FoldParams, det: &[f32], held: &[f32], stats: &mut [f
     });
 }
 
-/// Fills `mark` (1 float per voxel) with 1 on the folded voxels not held.
-pub fn fold_mark(params: &FoldParams, det: &[f32], held: &[f32], mark: &mut [f32]) {
+/// Fills `mark` (1 float per voxel) with 1 on the voxels not held whose value is at most the
+/// threshold.
+pub fn mark_at_most(params: &ThresholdParams, value: &[f32], held: &[f32], mark: &mut [f32]) {
     let threshold = params.threshold[0];
     mark.par_iter_mut().enumerate().for_each(|(v, out)| {
-        *out = if det[v] <= threshold && !is_held(held[v]) {
+        *out = if value[v] <= threshold && !is_held(held[v]) {
             1.0
         } else {
             0.0

@@ -5,12 +5,14 @@
 pub mod common;
 pub mod compose;
 pub mod coverage;
+pub mod edt;
 pub mod fold;
 pub mod gain;
 pub mod jacobian;
 pub mod labels;
 pub mod lattice_energy;
 pub mod lattice_splat;
+pub mod moments;
 pub mod pyramid;
 pub mod rbf_adjoint;
 pub mod rbf_lattice;
@@ -27,10 +29,10 @@ pub mod warp_field;
 pub mod warp_image;
 
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FoldParams, GainParams,
-    JacobianParams, LabelParams, PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams,
-    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
-    SsdParams, SumParams,
+    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
+    JacobianParams, LabelParams, MomentsParams, PartialsParams, PyramidParams, RbfGradParams,
+    RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
+    SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use crate::backend::{Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -141,7 +143,7 @@ impl Backend for CpuBackend {
 
     fn fold_stats(
         &self,
-        params: &FoldParams,
+        params: &ThresholdParams,
         det: &Arc<Vec<f32>>,
         held: &Arc<Vec<f32>>,
     ) -> Result<Arc<Vec<f32>>> {
@@ -150,14 +152,14 @@ impl Backend for CpuBackend {
         })
     }
 
-    fn fold_mark(
+    fn mark_at_most(
         &self,
-        params: &FoldParams,
-        det: &Arc<Vec<f32>>,
+        params: &ThresholdParams,
+        value: &Arc<Vec<f32>>,
         held: &Arc<Vec<f32>>,
     ) -> Result<Arc<Vec<f32>>> {
         filled(params.voxels(), |out| {
-            fold::fold_mark(params, det, held, out)
+            fold::mark_at_most(params, value, held, out)
         })
     }
 
@@ -168,6 +170,16 @@ impl Backend for CpuBackend {
         held: &Arc<Vec<f32>>,
     ) -> Result<Arc<Vec<f32>>> {
         filled(params.voxels(), |out| fold::dilate(params, mask, held, out))
+    }
+
+    fn edt(&self, params: &EdtParams, input: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
+        filled(params.values(), |out| edt::edt(params, input, out))
+    }
+
+    fn moments(&self, params: &MomentsParams, values: &Arc<Vec<f32>>) -> Result<Arc<Vec<f64>>> {
+        filled(4 * params.chunks(), |out| {
+            moments::moments(params, values, out)
+        })
     }
 
     fn fold_smooth(
@@ -327,7 +339,7 @@ impl Backend for CpuBackend {
     }
 
     fn lattice_splat(&self, params: &SplatParams, values: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
-        let nodes: usize = params.dims[..3].iter().map(|&n| n as usize).product();
+        let nodes = params.nodes();
         filled(3 * nodes, |out| {
             lattice_splat::lattice_splat(params, values, out)
         })

@@ -3,34 +3,35 @@
 use crate::abi::SkinWeightsParams;
 use rayon::prelude::*;
 
-/// Fills `weight` (bones per voxel) from `distance` (bones per voxel).
+/// Fills `weight` (bones per voxel) from `distance` (one volume per bone), each bone's
+/// distances scaled by its reach.
 pub fn skin_weights(params: &SkinWeightsParams, distance: &[f32], weight: &mut [f32]) {
     let bones = params.weights[0] as usize;
     let power = params.weights[1];
-    weight
-        .par_chunks_mut(bones)
-        .zip(distance.par_chunks(bones))
-        .for_each(|(w, d)| {
-            let inside = d.iter().position(|&dj| dj <= 0.0);
-            if let Some(j) = inside {
-                for (k, wk) in w.iter_mut().enumerate() {
-                    *wk = if k == j { 1.0 } else { 0.0 };
-                }
-                return;
+    let voxels = weight.len() / bones.max(1);
+    let scaled = |j: usize, v: usize| distance[j * voxels + v] * params.reach[j / 4][j % 4];
+    weight.par_chunks_mut(bones).enumerate().for_each(|(v, w)| {
+        let d: Vec<f32> = (0..bones).map(|j| scaled(j, v)).collect();
+        let inside = d.iter().position(|&dj| dj <= 0.0);
+        if let Some(j) = inside {
+            for (k, wk) in w.iter_mut().enumerate() {
+                *wk = if k == j { 1.0 } else { 0.0 };
             }
-            let nearest = d.iter().fold(d[0], |m, &dj| m.min(dj));
-            let mut total = 0.0f32;
-            for (wk, dk) in w.iter_mut().zip(d) {
-                let ratio = nearest / dk;
-                let mut raw = 1.0f32;
-                for _ in 0..power {
-                    raw *= ratio;
-                }
-                *wk = raw;
-                total += raw;
+            return;
+        }
+        let nearest = d.iter().fold(d[0], |m, &dj| m.min(dj));
+        let mut total = 0.0f32;
+        for (wk, dk) in w.iter_mut().zip(&d) {
+            let ratio = nearest / dk;
+            let mut raw = 1.0f32;
+            for _ in 0..power {
+                raw *= ratio;
             }
-            for wk in w.iter_mut() {
-                *wk /= total;
-            }
-        });
+            *wk = raw;
+            total += raw;
+        }
+        for wk in w.iter_mut() {
+            *wk /= total;
+        }
+    });
 }

@@ -1,15 +1,15 @@
-//! Host side of shaders/fold_stats.wgsl, shaders/fold_mark.wgsl, shaders/dilate.wgsl and
+//! Host side of shaders/fold_stats.wgsl, shaders/mark_at_most.wgsl, shaders/dilate.wgsl and
 //! shaders/fold_smooth.wgsl.
 
 use super::kernel::{cover, groups, Binding};
 use super::resident::GpuBuffer;
 use super::GpuBackend;
-use crate::abi::{BoneLookupParams, DilateParams, FoldParams};
+use crate::abi::{BoneLookupParams, DilateParams, ThresholdParams};
 use crate::error::Result;
 
 use Binding::{Read, ReadWrite, Uniform};
 
-/// fold_stats, fold_mark and dilate bindings in the order the shaders declare them.
+/// fold_stats, mark_at_most and dilate bindings in the order the shaders declare them.
 pub const FOLD_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
 /// fold_smooth bindings.
 pub const SMOOTH_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, ReadWrite];
@@ -18,7 +18,7 @@ impl GpuBackend {
     /// 4 floats of fold statistics per chunk.
     pub fn record_fold_stats(
         &self,
-        params: &FoldParams,
+        params: &ThresholdParams,
         det: &GpuBuffer<f32>,
         held: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
@@ -32,18 +32,18 @@ impl GpuBackend {
         Ok(stats)
     }
 
-    /// The folded voxels not held.
-    pub fn record_fold_mark(
+    /// The voxels not held at or below the threshold.
+    pub fn record_mark_at_most(
         &self,
-        params: &FoldParams,
-        det: &GpuBuffer<f32>,
+        params: &ThresholdParams,
+        value: &GpuBuffer<f32>,
         held: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
-        let mark = self.output_buffer("folded voxels", params.voxels())?;
+        let mark = self.output_buffer("marked voxels", params.voxels())?;
         self.record(
-            &self.kernels.fold_mark,
+            &self.kernels.mark_at_most,
             params,
-            &[det.raw(), held.raw(), mark.raw()],
+            &[value.raw(), held.raw(), mark.raw()],
             cover(params.dims, 4),
         )?;
         Ok(mark)

@@ -14,16 +14,17 @@ pub mod kernel;
 pub mod labels;
 pub mod nonrigid;
 pub mod pyramid;
+pub mod regions;
 pub mod resample;
 pub mod resident;
 pub mod rigid;
 pub mod skinning;
 
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FoldParams, GainParams,
-    JacobianParams, LabelParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams,
-    RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
-    SumParams,
+    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
+    JacobianParams, LabelParams, MomentsParams, PyramidParams, RbfGradParams, RbfLatticeParams,
+    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
+    SsdParams, SumParams, ThresholdParams,
 };
 use crate::backend::{Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -37,7 +38,8 @@ pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
     ("compose", field::COMPOSE_BINDINGS),
     ("coverage", resample::COVERAGE_BINDINGS),
     ("dilate", fold::FOLD_BINDINGS),
-    ("fold_mark", fold::FOLD_BINDINGS),
+    ("edt", regions::EDT_BINDINGS),
+    ("mark_at_most", fold::FOLD_BINDINGS),
     ("fold_smooth", fold::SMOOTH_BINDINGS),
     ("fold_stats", fold::FOLD_BINDINGS),
     ("gain_apply", nonrigid::GAIN_BINDINGS),
@@ -47,6 +49,7 @@ pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
     ("label_index", labels::INDEX_BINDINGS),
     ("lattice_energy", nonrigid::ENERGY_BINDINGS),
     ("lattice_splat", nonrigid::SPLAT_BINDINGS),
+    ("moments", regions::MOMENTS_BINDINGS),
     ("pyramid", pyramid::BINDINGS),
     ("rbf_adjoint", nonrigid::ADJOINT_BINDINGS),
     ("rbf_lattice", nonrigid::LATTICE_BINDINGS),
@@ -85,10 +88,14 @@ pub struct Kernels {
     pub bone_at_source: Kernel,
     /// shaders/fold_stats.wgsl
     pub fold_stats: Kernel,
-    /// shaders/fold_mark.wgsl
-    pub fold_mark: Kernel,
+    /// shaders/mark_at_most.wgsl
+    pub mark_at_most: Kernel,
     /// shaders/dilate.wgsl
     pub dilate: Kernel,
+    /// shaders/edt.wgsl
+    pub edt: Kernel,
+    /// shaders/moments.wgsl
+    pub moments: Kernel,
     /// shaders/fold_smooth.wgsl
     pub fold_smooth: Kernel,
     /// shaders/ssd_cells.wgsl
@@ -160,8 +167,10 @@ impl GpuBackend {
                 label_index: compile(&ctx, "label_index")?,
                 bone_at_source: compile(&ctx, "bone_at_source")?,
                 fold_stats: compile(&ctx, "fold_stats")?,
-                fold_mark: compile(&ctx, "fold_mark")?,
+                mark_at_most: compile(&ctx, "mark_at_most")?,
                 dilate: compile(&ctx, "dilate")?,
+                edt: compile(&ctx, "edt")?,
+                moments: compile(&ctx, "moments")?,
                 fold_smooth: compile(&ctx, "fold_smooth")?,
                 ssd_cells: compile(&ctx, "ssd_cells")?,
                 jacobian: compile(&ctx, "jacobian")?,
@@ -275,20 +284,20 @@ impl Backend for GpuBackend {
 
     fn fold_stats(
         &self,
-        params: &FoldParams,
+        params: &ThresholdParams,
         det: &GpuBuffer<f32>,
         held: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
         self.record_fold_stats(params, det, held)
     }
 
-    fn fold_mark(
+    fn mark_at_most(
         &self,
-        params: &FoldParams,
-        det: &GpuBuffer<f32>,
+        params: &ThresholdParams,
+        value: &GpuBuffer<f32>,
         held: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
-        self.record_fold_mark(params, det, held)
+        self.record_mark_at_most(params, value, held)
     }
 
     fn dilate(
@@ -298,6 +307,14 @@ impl Backend for GpuBackend {
         held: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
         self.record_dilate(params, mask, held)
+    }
+
+    fn edt(&self, params: &EdtParams, input: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
+        self.record_edt(params, input)
+    }
+
+    fn moments(&self, params: &MomentsParams, values: &GpuBuffer<f32>) -> Result<GpuBuffer<f64>> {
+        self.record_moments(params, values)
     }
 
     fn fold_smooth(

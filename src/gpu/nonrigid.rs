@@ -89,7 +89,7 @@ impl GpuBackend {
         params: &SplatParams,
         values: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
-        let nodes: usize = params.dims[..3].iter().map(|&n| n as usize).product();
+        let nodes = params.nodes();
         let out = self.output_buffer("gradient at the lattice nodes", 3 * nodes)?;
         self.record(
             &self.kernels.lattice_splat,

@@ -150,7 +150,8 @@ pub use posereg::backend::resample_volume;
 #[allow(unused_imports)]
 pub use posereg::fold_repair::host_determinant;
 
-/// Skinning weights from host distances (bones per voxel), brought back.
+/// Skinning weights (bones per voxel) from host distances (one volume per bone, reach 1),
+/// brought back.
 pub fn skin_weights<B: posereg::Backend>(
     backend: &B,
     distances: &[f32],
@@ -158,7 +159,7 @@ pub fn skin_weights<B: posereg::Backend>(
     bones: usize,
     power: u32,
 ) -> posereg::Result<Vec<f32>> {
-    let params = posereg::abi::SkinWeightsParams::new(grid, bones, power);
+    let params = posereg::abi::SkinWeightsParams::new(grid, &vec![1.0; bones], power);
     let distances = backend.upload("distances", distances.to_vec())?;
     backend.download_one(&backend.skin_weights(&params, &distances)?)
 }
