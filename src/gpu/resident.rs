@@ -101,12 +101,6 @@ impl GpuBackend {
     pub fn download_buffers<T: Element>(&self, buffers: &[&GpuBuffer<T>]) -> Result<Vec<Vec<T>>> {
         let ctx = self.context();
         let total: u64 = buffers.iter().map(|b| b.bytes()).sum();
-        let mut encoder = self
-            .pending
-            .lock()
-            .expect("no kernel panicked while recording")
-            .take()
-            .unwrap_or_else(|| ctx.device.create_command_encoder(&Default::default()));
         let staging = ctx.scoped("staging buffer", || {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("staging"),
@@ -115,14 +109,26 @@ impl GpuBackend {
                 mapped_at_creation: false,
             })
         })?;
-        let mut offset = 0;
-        for b in buffers {
-            if b.bytes() > 0 {
-                encoder.copy_buffer_to_buffer(&b.buffer, 0, &staging, offset, b.bytes());
+        {
+            // The pending work is taken and submitted under one lock: another thread sharing
+            // this backend may have recorded kernels into it that its own next download reads,
+            // and that download must not be submitted before them.
+            let mut pending = self
+                .pending
+                .lock()
+                .expect("no kernel panicked while recording");
+            let mut encoder = pending
+                .take()
+                .unwrap_or_else(|| ctx.device.create_command_encoder(&Default::default()));
+            let mut offset = 0;
+            for b in buffers {
+                if b.bytes() > 0 {
+                    encoder.copy_buffer_to_buffer(&b.buffer, 0, &staging, offset, b.bytes());
+                }
+                offset += b.bytes();
             }
-            offset += b.bytes();
+            ctx.scoped("submit", || ctx.queue.submit([encoder.finish()]))?;
         }
-        ctx.scoped("submit", || ctx.queue.submit([encoder.finish()]))?;
         ctx.counters.submit();
         ctx.counters.down(total);
         let bytes = super::buffer::map_and_read(ctx, &staging)?;
