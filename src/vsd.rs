@@ -9,10 +9,11 @@
 //! rigid motions, so tissue between the bones turns by a blended angle about a blended axis
 //! and keeps its distance to the joint).
 
-use crate::abi::{check_bone_count, Blending, BoneBlend, LabelParams, SkinBlendParams};
+use crate::abi::{check_bone_count, Blending, BoneBlend, SkinBlendParams};
 use crate::backend::{Backend, DeviceImage};
 use crate::error::Result;
 use crate::fold_repair::{repair_folds, FoldRepair, SourceLabels};
+use crate::regions;
 use crate::skinning::SkinningWeights;
 use crate::volume::{Affine, Grid};
 
@@ -42,17 +43,14 @@ pub fn initial_field<B: Backend>(
     check_bone_count(motions.len())?;
     let grid = &labels.device.grid;
     // 1 + the weight index of the bone each source label voxel belongs to; 0 for soft tissue.
-    let bone_of_voxel = backend.label_index(
-        &LabelParams::new(grid, &weights.bones)?,
-        &labels.device.data,
-    )?;
+    let bone_of_voxel = regions::label_index(backend, labels.device, &weights.bones)?;
     let blend = BoneBlend {
         motions: motions.to_vec(),
         blending,
         iterations: INVERSION_ITERATIONS,
     };
     let params = SkinBlendParams::new(target, &weights.grid, grid, &blend);
-    let (field, residual) = backend.skin_blend(&params, &weights.data, &bone_of_voxel)?;
+    let (field, residual) = backend.skin_blend(&params, &weights.data, &bone_of_voxel.data)?;
     let field = DeviceImage {
         grid: target.clone(),
         data: field,
