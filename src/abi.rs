@@ -982,6 +982,14 @@ impl EnergyParams {
                 op.taps.len() <= MAX_TAPS,
                 "too many taps in an energy operator"
             );
+            // The CPU twin keeps results only for anchors on the lattice.
+            assert!(
+                (0..3).all(|a| {
+                    let span = op.taps.iter().map(|(offset, _)| offset[a]);
+                    span.clone().min() <= Some(0) && span.max() >= Some(0)
+                }),
+                "an energy operator's anchor must lie within its taps' span"
+            );
             for (t, (offset, c)) in op.taps.iter().enumerate() {
                 p.taps[MAX_TAPS * o + t] = [offset[0], offset[1], offset[2], 0];
                 p.coefficients[o][t] = *c;

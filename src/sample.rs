@@ -7,27 +7,32 @@ use crate::abi::{BoneLookupParams, LabelCodes, ResampleParams};
 
 /// Flat index of voxel (i, j, k) in an x-fastest volume of size dims (common.wgsl's
 /// voxel_index).
+#[inline]
 pub fn voxel_index(i: u32, j: u32, k: u32, dims: [u32; 3]) -> u32 {
     i + dims[0] * (j + dims[1] * k)
 }
 
 /// One row of a 3x4 affine applied to a point, summed left to right (common.wgsl).
+#[inline]
 pub fn affine_row(row: [f32; 4], p: [f32; 3]) -> f32 {
     row[0] * p[0] + row[1] * p[1] + row[2] * p[2] + row[3]
 }
 
 /// One row of a 3x3 linear map applied to a vector (common.wgsl).
+#[inline]
 pub fn linear_row(row: [f32; 4], v: [f32; 3]) -> f32 {
     row[0] * v[0] + row[1] * v[1] + row[2] * v[2]
 }
 
 /// The continuous source index of target voxel p's point displaced by u (world mm)
 /// (geometry.wgsl).
+#[inline]
 pub fn source_index(g: &ResampleParams, p: [f32; 3], u: [f32; 3]) -> [f32; 3] {
     std::array::from_fn(|r| affine_row(g.index_to_source[r], p) + linear_row(g.mm_to_source[r], u))
 }
 
 /// 1 + the position of `label` in `codes`, 0 when it is none of them or negative (labels.wgsl).
+#[inline]
 pub fn code_index(codes: &LabelCodes, label: f32) -> u32 {
     if label < 0.0 {
         return 0;
@@ -40,6 +45,7 @@ pub fn code_index(codes: &LabelCodes, label: f32) -> u32 {
 
 /// code_index of the source label (`labels`, codes as f32) nearest to target voxel p
 /// displaced by u (mm); 0 outside the label map (bone_lookup.wgsl).
+#[inline]
 pub fn bone_at(params: &BoneLookupParams, labels: &[f32], p: [f32; 3], u: [f32; 3]) -> u32 {
     let q = source_index(&params.geometry, p, u);
     let g = params.geometry.source_dims;
@@ -47,12 +53,14 @@ pub fn bone_at(params: &BoneLookupParams, labels: &[f32], p: [f32; 3], u: [f32; 
 }
 
 /// True when q lies within half a voxel of the outer voxel centres on every axis.
+#[inline]
 pub fn inside_source(q: [f32; 3], dims: [u32; 3]) -> bool {
     (0..3).all(|a| q[a] >= -0.5 && q[a] <= dims[a] as f32 - 0.5)
 }
 
 /// Trilinear value of `source` at continuous index q; `background` outside
 /// [-0.5, n - 0.5] on any axis (NaN coordinates count as outside).
+#[inline]
 pub fn trilinear(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -> f32 {
     if !inside_source(q, dims) {
         return background;
@@ -61,6 +69,7 @@ pub fn trilinear(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -
 }
 
 /// The value of the voxel whose centre is nearest to q (ties round up); `background` outside.
+#[inline]
 pub fn nearest(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -> f32 {
     if !inside_source(q, dims) {
         return background;
@@ -72,6 +81,7 @@ pub fn nearest(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -> 
 
 /// Value and index-space gradient of the trilinear interpolant at q (caller checks
 /// [`inside_source`]): [value, d/di, d/dj, d/dk].
+#[inline]
 pub fn trilinear_with_gradient(source: &[f32], q: [f32; 3], dims: [u32; 3]) -> [f32; 4] {
     let base = q.map(f32::floor);
     let t = [q[0] - base[0], q[1] - base[1], q[2] - base[2]];

@@ -560,7 +560,7 @@ fn lattice_splat_is_the_adjoint_of_the_lattice_interpolation() {
     // <interp(L), v> over voxels == <L, splat(v)> over nodes, for random L and v: the gradient
     // the optimiser gets through the lattice is exactly the gradient of what it evaluates.
     use posereg::abi::RbfGradParams;
-    use posereg::cpu::warp_image::warp_at;
+    use posereg::cpu::warp_image::{warp_at, LatticeTaps};
     let grid = oblique_grid([19, 14, 11]);
     let step = 4;
     let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
@@ -573,15 +573,11 @@ fn lattice_splat_is_the_adjoint_of_the_lattice_interpolation() {
         .collect();
     let params = RbfGradParams::new(&grid, ldims, step);
     let d = grid.dims;
+    let taps = LatticeTaps::new(&params);
     let mut lhs = 0.0f64;
     for n in 0..grid.len() {
-        let r = warp_at(
-            &params,
-            &lattice,
-            (n % d[0]) as u32,
-            ((n / d[0]) % d[1]) as u32,
-            (n / (d[0] * d[1])) as u32,
-        );
+        let voxel = [n % d[0], (n / d[0]) % d[1], n / (d[0] * d[1])].map(|c| c as u32);
+        let r = warp_at(&params, &lattice, &taps, voxel);
         for c in 0..3 {
             lhs += r[c] as f64 * v[3 * n + c] as f64;
         }

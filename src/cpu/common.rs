@@ -3,6 +3,7 @@
 pub use crate::sample::{affine_row, linear_row, source_index, voxel_index};
 
 /// Coverage at or above which a voxel holds data from the source scan.
+#[inline]
 pub fn is_covered(coverage: f32) -> bool {
     coverage >= crate::abi::COVERED_AT
 }
@@ -10,17 +11,20 @@ pub fn is_covered(coverage: f32) -> bool {
 /// First index of cell c when n voxels are split into `cells` cells.
 // Written as in WGSL, which has no div_ceil.
 #[allow(clippy::manual_div_ceil)]
+#[inline]
 pub fn cell_start(c: u32, n: u32, cells: u32) -> u32 {
     (c * n + cells - 1) / cells
 }
 
 /// Determinant of the 3×3 matrix with rows r0, r1, r2 (cofactors of the first row).
+#[inline]
 pub fn det3(r0: glam::Vec3, r1: glam::Vec3, r2: glam::Vec3) -> f32 {
     r0.x * (r1.y * r2.z - r1.z * r2.y) - r0.y * (r1.x * r2.z - r1.z * r2.x)
         + r0.z * (r1.x * r2.y - r1.y * r2.x)
 }
 
 /// Solves A s = e for A with rows r0, r1, r2 by Cramer's rule; `det` = det3(r0, r1, r2) ≠ 0.
+#[inline]
 pub fn solve3(
     r0: glam::Vec3,
     r1: glam::Vec3,
@@ -48,6 +52,7 @@ pub fn solve3(
 }
 
 /// The dims of a params struct's [nx, ny, nz, _] as u32s.
+#[inline]
 pub fn dims3(dims: [u32; 4]) -> [u32; 3] {
     [dims[0], dims[1], dims[2]]
 }

@@ -40,6 +40,35 @@ fn result_at(params: &EnergyParams, lattice: &[f32], o: usize, p: IVec3) -> Vec3
     sum
 }
 
+/// Each operator's result at every node, `None` where its placement leaves the lattice (index
+/// node · operators + o): the shader recomputes a result for each tap that reads it, the twin
+/// computes it once (the same sums, so the same bits).
+fn results(params: &EnergyParams, lattice: &[f32]) -> Vec<Option<Vec3>> {
+    let [lx, ly, lz, operators] = params.dims;
+    let nodes = (lx * ly * lz) as usize;
+    let operators = operators as usize;
+    let mut out = vec![None; nodes * operators];
+    out.par_chunks_mut(operators.max(1))
+        .enumerate()
+        .for_each(|(n, here_results)| {
+            let here = node(params, n);
+            for (o, r) in here_results.iter_mut().enumerate() {
+                *r = placed(params, o, here).then(|| result_at(params, lattice, o, here));
+            }
+        });
+    out
+}
+
+/// Lattice coordinates of node n.
+fn node(params: &EnergyParams, n: usize) -> IVec3 {
+    let [lx, ly, _, _] = params.dims;
+    IVec3::new(
+        (n as u32 % lx) as i32,
+        ((n as u32 / lx) % ly) as i32,
+        (n as u32 / (lx * ly)) as i32,
+    )
+}
+
 /// Fills `gradient` (3 floats per node: the scaled splat plus ∂E/∂R) and `energy` (1 float per
 /// node: the energy of the placements anchored there).
 pub fn lattice_energy(
@@ -49,31 +78,32 @@ pub fn lattice_energy(
     gradient: &mut [f32],
     energy: &mut [f32],
 ) {
-    let [lx, ly, _, operators] = params.dims;
+    let [lx, ly, lz, operators] = params.dims;
+    let operators = operators as usize;
+    let results = results(params, lattice);
+    let top = IVec3::new(lx as i32, ly as i32, lz as i32);
+    let result = |o: usize, p: IVec3| -> Option<Vec3> {
+        let inside = p.cmpge(IVec3::ZERO).all() && p.cmplt(top).all();
+        let n = (p.x + top.x * (p.y + top.y * p.z)) as usize;
+        inside.then(|| results[n * operators + o]).flatten()
+    };
     gradient
         .par_chunks_mut(3)
         .zip(energy.par_iter_mut())
         .enumerate()
         .for_each(|(n, (g_out, e_out))| {
-            let here = IVec3::new(
-                (n as u32 % lx) as i32,
-                ((n as u32 / lx) % ly) as i32,
-                (n as u32 / (lx * ly)) as i32,
-            );
+            let here = node(params, n);
             let mut g =
                 params.scale[0] * Vec3::new(splat[3 * n], splat[3 * n + 1], splat[3 * n + 2]);
             let mut e = 0.0f32;
-            for o in 0..operators as usize {
+            for o in 0..operators {
                 let w = params.weights[o][0];
-                if placed(params, o, here) {
-                    let r = result_at(params, lattice, o, here);
+                if let Some(r) = results[n * operators + o] {
                     e += w * r.dot(r);
                 }
                 for t in 0..tap_count(params, o) {
-                    let p = here - tap(params, o, t);
-                    if placed(params, o, p) {
-                        g += (2.0 * w * params.coefficients[o][t])
-                            * result_at(params, lattice, o, p);
+                    if let Some(r) = result(o, here - tap(params, o, t)) {
+                        g += (2.0 * w * params.coefficients[o][t]) * r;
                     }
                 }
             }

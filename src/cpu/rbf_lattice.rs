@@ -10,6 +10,7 @@ use rayon::prelude::*;
 const NODES_PER_TASK: usize = 256;
 
 /// World position (mm) of lattice node `a`, which sits on voxel a · step.
+#[inline]
 pub fn node_position(geometry: &[f64], a: [u32; 3], step: u32) -> [f64; 3] {
     let v = a.map(|c| (c * step) as f64);
     std::array::from_fn(|r| {
@@ -19,6 +20,7 @@ pub fn node_position(geometry: &[f64], a: [u32; 3], step: u32) -> [f64; 3] {
 }
 
 /// φ(|x − c|) = |x − c|³, the cubic radial basis.
+#[inline]
 pub fn cube_of_distance(x: [f64; 3], c: [f64; 3]) -> f64 {
     let dx = x[0] - c[0];
     let dy = x[1] - c[1];

@@ -1,7 +1,7 @@
 //! CPU twin of shaders/warp_cost.wgsl.
 
 use super::common::{is_covered, voxel_index};
-use super::warp_image::warped_sample;
+use super::warp_image::{warped_sample, LatticeTaps};
 use crate::abi::RbfGradParams;
 use crate::backend::CostImages;
 use rayon::prelude::*;
@@ -17,6 +17,7 @@ pub fn warp_cost(
 ) {
     let [nx, ny, nz, _] = params.dims;
     let d = [nx, ny, nz];
+    let taps = LatticeTaps::new(params);
     gradient
         .par_chunks_mut(3 * nx as usize)
         .zip(rows.par_iter_mut())
@@ -27,7 +28,7 @@ pub fn warp_cost(
             for i in 0..nx {
                 let v = voxel_index(i, j, k, d) as usize;
                 let t = images.fixed[v];
-                let s = warped_sample(params, lattice, images.moving, [i, j, k], t);
+                let s = warped_sample(params, lattice, &taps, images.moving, [i, j, k], t);
                 let c = if is_covered(images.covered[v]) {
                     1.0
                 } else {

@@ -1,12 +1,13 @@
 //! CPU twin of shaders/warp_field.wgsl.
 
-use super::warp_image::warp_at;
+use super::warp_image::{warp_at, LatticeTaps};
 use crate::abi::RbfGradParams;
 use rayon::prelude::*;
 
 /// Fills `out` (3 floats per voxel) with the warp interpolated from `lattice`.
 pub fn warp_field(params: &RbfGradParams, lattice: &[f32], out: &mut [f32]) {
     let [nx, ny, _, _] = params.dims;
+    let taps = LatticeTaps::new(params);
     out.par_chunks_mut(3 * (nx * ny) as usize)
         .enumerate()
         .for_each(|(zl, slice)| {
@@ -14,7 +15,8 @@ pub fn warp_field(params: &RbfGradParams, lattice: &[f32], out: &mut [f32]) {
             for j in 0..ny {
                 for i in 0..nx {
                     let o = 3 * (i + nx * j) as usize;
-                    slice[o..o + 3].copy_from_slice(&warp_at(params, lattice, i, j, k).to_array());
+                    slice[o..o + 3]
+                        .copy_from_slice(&warp_at(params, lattice, &taps, [i, j, k]).to_array());
                 }
             }
         });

@@ -7,6 +7,7 @@ use crate::sample::{inside_source, trilinear_with_gradient};
 use glam::Vec3;
 use rayon::prelude::*;
 
+#[inline]
 fn node(params: &RbfGradParams, lattice: &[f32], i: u32, j: u32, k: u32) -> Vec3 {
     let l = [
         params.lattice_dims[0],
@@ -17,39 +18,59 @@ fn node(params: &RbfGradParams, lattice: &[f32], i: u32, j: u32, k: u32) -> Vec3
     Vec3::new(lattice[n], lattice[n + 1], lattice[n + 2])
 }
 
+/// Where each voxel coordinate falls between lattice nodes, per axis: the shader's (i0, i1, t)
+/// for coordinate c at [a][c]. Computed once per call: per voxel, its three integer divisions
+/// cost as much as the rest of the interpolation.
+pub struct LatticeTaps {
+    axes: [Vec<([u32; 2], f32)>; 3],
+}
+
+impl LatticeTaps {
+    /// The taps of every voxel coordinate of `params`' grid.
+    pub fn new(params: &RbfGradParams) -> Self {
+        let s = params.dims[3];
+        LatticeTaps {
+            axes: std::array::from_fn(|a| {
+                let top = params.lattice_dims[a] - 1;
+                (0..params.dims[a])
+                    .map(|c| {
+                        let i0 = (c / s).min(top);
+                        let i1 = (i0 + 1).min(top);
+                        ([i0, i1], (c - i0 * s) as f32 / s as f32)
+                    })
+                    .collect()
+            }),
+        }
+    }
+}
+
 /// Trilinear interpolation of the lattice at voxel (i, j, k).
-pub fn warp_at(params: &RbfGradParams, lattice: &[f32], i: u32, j: u32, k: u32) -> Vec3 {
-    let s = params.dims[3];
-    let top = [
-        params.lattice_dims[0] - 1,
-        params.lattice_dims[1] - 1,
-        params.lattice_dims[2] - 1,
-    ];
-    let c = [i, j, k];
-    let i0: [u32; 3] = std::array::from_fn(|a| (c[a] / s).min(top[a]));
-    let i1: [u32; 3] = std::array::from_fn(|a| (i0[a] + 1).min(top[a]));
-    let t: [f32; 3] = std::array::from_fn(|a| (c[a] - i0[a] * s) as f32 / s as f32);
+#[inline]
+pub fn warp_at(params: &RbfGradParams, lattice: &[f32], taps: &LatticeTaps, c: [u32; 3]) -> Vec3 {
+    let [(x, tx), (y, ty), (z, tz)] = [0, 1, 2].map(|a| taps.axes[a][c[a] as usize]);
     let n = |x, y, z| node(params, lattice, x, y, z);
-    let c00 = (1.0 - t[0]) * n(i0[0], i0[1], i0[2]) + t[0] * n(i1[0], i0[1], i0[2]);
-    let c10 = (1.0 - t[0]) * n(i0[0], i1[1], i0[2]) + t[0] * n(i1[0], i1[1], i0[2]);
-    let c01 = (1.0 - t[0]) * n(i0[0], i0[1], i1[2]) + t[0] * n(i1[0], i0[1], i1[2]);
-    let c11 = (1.0 - t[0]) * n(i0[0], i1[1], i1[2]) + t[0] * n(i1[0], i1[1], i1[2]);
-    let c0 = (1.0 - t[1]) * c00 + t[1] * c10;
-    let c1 = (1.0 - t[1]) * c01 + t[1] * c11;
-    (1.0 - t[2]) * c0 + t[2] * c1
+    let c00 = (1.0 - tx) * n(x[0], y[0], z[0]) + tx * n(x[1], y[0], z[0]);
+    let c10 = (1.0 - tx) * n(x[0], y[1], z[0]) + tx * n(x[1], y[1], z[0]);
+    let c01 = (1.0 - tx) * n(x[0], y[0], z[1]) + tx * n(x[1], y[0], z[1]);
+    let c11 = (1.0 - tx) * n(x[0], y[1], z[1]) + tx * n(x[1], y[1], z[1]);
+    let c0 = (1.0 - ty) * c00 + ty * c10;
+    let c1 = (1.0 - ty) * c01 + ty * c11;
+    (1.0 - tz) * c0 + tz * c1
 }
 
 /// (W, ∂(W − t)²/∂R) at voxel (i, j, k) of `moving` through the warp `lattice`, against the
 /// target value `t`; all zero outside (warped_sample in shaders/warp_sample.wgsl).
+#[inline]
 pub fn warped_sample(
     params: &RbfGradParams,
     lattice: &[f32],
+    taps: &LatticeTaps,
     moving: &[f32],
     [i, j, k]: [u32; 3],
     t: f32,
 ) -> [f32; 4] {
     let d = [params.dims[0], params.dims[1], params.dims[2]];
-    let r = warp_at(params, lattice, i, j, k).to_array();
+    let r = warp_at(params, lattice, taps, [i, j, k]).to_array();
     let q = [
         i as f32 + linear_row(params.mm_to_index[0], r),
         j as f32 + linear_row(params.mm_to_index[1], r),
@@ -72,6 +93,7 @@ pub fn warped_sample(
 /// Fills `warped` (one per voxel) with `moving` seen through the warp `lattice`.
 pub fn warp_image(params: &RbfGradParams, lattice: &[f32], moving: &[f32], warped: &mut [f32]) {
     let [nx, ny, _, _] = params.dims;
+    let taps = LatticeTaps::new(params);
     warped
         .par_chunks_mut((nx * ny) as usize)
         .enumerate()
@@ -79,7 +101,7 @@ pub fn warp_image(params: &RbfGradParams, lattice: &[f32], moving: &[f32], warpe
             for j in 0..ny {
                 for i in 0..nx {
                     slice[(i + nx * j) as usize] =
-                        warped_sample(params, lattice, moving, [i, j, k as u32], 0.0)[0];
+                        warped_sample(params, lattice, &taps, moving, [i, j, k as u32], 0.0)[0];
                 }
             }
         });
