@@ -49,9 +49,24 @@ pub fn mark_at_most(params: &ThresholdParams, value: &[f32], held: &[f32], mark:
 pub fn dilate(params: &DilateParams, mask: &[f32], held: &[f32], out: &mut [f32]) {
     let d = dims3(params.dims);
     let (axis, m) = (params.axis[0] as usize, params.dims[3]);
-    out.par_chunks_mut((d[0] * d[1]) as usize)
+    // Whether each z slice marks any voxel: a slice with none within reach is all zeros, found
+    // without looking at its voxels (most of the volume, around a few folds).
+    let slice_len = (d[0] * d[1]) as usize;
+    let marked: Vec<bool> = mask
+        .par_chunks(slice_len)
+        .map(|slice| slice.iter().any(|&x| x > 0.0))
+        .collect();
+    out.par_chunks_mut(slice_len)
         .enumerate()
         .for_each(|(k, slice)| {
+            let reach = match axis {
+                2 => k.saturating_sub(m as usize)..(k + m as usize + 1).min(d[2] as usize),
+                _ => k..k + 1,
+            };
+            if !marked[reach].contains(&true) {
+                slice.fill(0.0);
+                return;
+            }
             for j in 0..d[1] {
                 for i in 0..d[0] {
                     let mut p = [i, j, k as u32];
