@@ -25,10 +25,11 @@ pub fn warp_cost(
         .for_each(|(row, (out, sum_out))| {
             let (j, k) = (row as u32 % ny, row as u32 / ny);
             let mut sum = 0.0f32;
+            let lattice_row = taps.row(params, lattice, j, k);
             for i in 0..nx {
                 let v = voxel_index(i, j, k, d) as usize;
                 let t = images.fixed[v];
-                let s = warped_sample(params, lattice, &taps, images.moving, [i, j, k], t);
+                let s = warped_sample(params, &lattice_row, &taps, images.moving, [i, j, k], t);
                 let c = if is_covered(images.covered[v]) {
                     1.0
                 } else {

@@ -1,6 +1,6 @@
 //! CPU twin of shaders/warp_field.wgsl.
 
-use super::warp_image::{warp_at, LatticeTaps};
+use super::warp_image::LatticeTaps;
 use crate::abi::RbfGradParams;
 use rayon::prelude::*;
 
@@ -13,10 +13,10 @@ pub fn warp_field(params: &RbfGradParams, lattice: &[f32], out: &mut [f32]) {
         .for_each(|(zl, slice)| {
             let k = zl as u32;
             for j in 0..ny {
+                let row = taps.row(params, lattice, j, k);
                 for i in 0..nx {
                     let o = 3 * (i + nx * j) as usize;
-                    slice[o..o + 3]
-                        .copy_from_slice(&warp_at(params, lattice, &taps, [i, j, k]).to_array());
+                    slice[o..o + 3].copy_from_slice(&row.warp_at(&taps, i).to_array());
                 }
             }
         });

@@ -7,17 +7,6 @@ use crate::sample::{inside_source, trilinear_with_gradient};
 use glam::Vec3;
 use rayon::prelude::*;
 
-#[inline]
-fn node(params: &RbfGradParams, lattice: &[f32], i: u32, j: u32, k: u32) -> Vec3 {
-    let l = [
-        params.lattice_dims[0],
-        params.lattice_dims[1],
-        params.lattice_dims[2],
-    ];
-    let n = 3 * voxel_index(i, j, k, l) as usize;
-    Vec3::new(lattice[n], lattice[n + 1], lattice[n + 2])
-}
-
 /// Where each voxel coordinate falls between lattice nodes, per axis: the shader's (i0, i1, t)
 /// for coordinate c at [a][c]. Computed once per call: per voxel, its three integer divisions
 /// cost as much as the rest of the interpolation.
@@ -42,20 +31,66 @@ impl LatticeTaps {
             }),
         }
     }
+
+    /// The lattice between which voxel row (j, k) (along x) interpolates.
+    #[inline]
+    pub fn row<'a>(
+        &self,
+        params: &RbfGradParams,
+        lattice: &'a [f32],
+        j: u32,
+        k: u32,
+    ) -> RowTaps<'a> {
+        let ([y0, y1], ty) = self.axes[1][j as usize];
+        let ([z0, z1], tz) = self.axes[2][k as usize];
+        let l = [
+            params.lattice_dims[0],
+            params.lattice_dims[1],
+            params.lattice_dims[2],
+        ];
+        let row = |y, z| {
+            let first = 3 * voxel_index(0, y, z, l) as usize;
+            &lattice[first..first + 3 * l[0] as usize]
+        };
+        RowTaps {
+            rows: [row(y0, z0), row(y1, z0), row(y0, z1), row(y1, z1)],
+            ty,
+            tz,
+        }
+    }
+}
+
+/// The four lattice rows one voxel row interpolates between (y0 z0, y1 z0, y0 z1, y1 z1, 3
+/// floats per node) and its y and z weights: the node lookups of a row, done once.
+pub struct RowTaps<'a> {
+    rows: [&'a [f32]; 4],
+    ty: f32,
+    tz: f32,
+}
+
+impl RowTaps<'_> {
+    /// Trilinear interpolation of the lattice at voxel i of the row, in the shader's order.
+    #[inline]
+    pub fn warp_at(&self, taps: &LatticeTaps, i: u32) -> Vec3 {
+        let ([x0, x1], tx) = taps.axes[0][i as usize];
+        let n = |r: usize, x: u32| {
+            let o = 3 * x as usize;
+            Vec3::from_slice(&self.rows[r][o..o + 3])
+        };
+        let (ty, tz) = (self.ty, self.tz);
+        let c00 = (1.0 - tx) * n(0, x0) + tx * n(0, x1);
+        let c10 = (1.0 - tx) * n(1, x0) + tx * n(1, x1);
+        let c01 = (1.0 - tx) * n(2, x0) + tx * n(2, x1);
+        let c11 = (1.0 - tx) * n(3, x0) + tx * n(3, x1);
+        let c0 = (1.0 - ty) * c00 + ty * c10;
+        let c1 = (1.0 - ty) * c01 + ty * c11;
+        (1.0 - tz) * c0 + tz * c1
+    }
 }
 
 /// Trilinear interpolation of the lattice at voxel (i, j, k).
-#[inline]
 pub fn warp_at(params: &RbfGradParams, lattice: &[f32], taps: &LatticeTaps, c: [u32; 3]) -> Vec3 {
-    let [(x, tx), (y, ty), (z, tz)] = [0, 1, 2].map(|a| taps.axes[a][c[a] as usize]);
-    let n = |x, y, z| node(params, lattice, x, y, z);
-    let c00 = (1.0 - tx) * n(x[0], y[0], z[0]) + tx * n(x[1], y[0], z[0]);
-    let c10 = (1.0 - tx) * n(x[0], y[1], z[0]) + tx * n(x[1], y[1], z[0]);
-    let c01 = (1.0 - tx) * n(x[0], y[0], z[1]) + tx * n(x[1], y[0], z[1]);
-    let c11 = (1.0 - tx) * n(x[0], y[1], z[1]) + tx * n(x[1], y[1], z[1]);
-    let c0 = (1.0 - ty) * c00 + ty * c10;
-    let c1 = (1.0 - ty) * c01 + ty * c11;
-    (1.0 - tz) * c0 + tz * c1
+    taps.row(params, lattice, c[1], c[2]).warp_at(taps, c[0])
 }
 
 /// (W, ∂(W − t)²/∂R) at voxel (i, j, k) of `moving` through the warp `lattice`, against the
@@ -63,14 +98,14 @@ pub fn warp_at(params: &RbfGradParams, lattice: &[f32], taps: &LatticeTaps, c: [
 #[inline]
 pub fn warped_sample(
     params: &RbfGradParams,
-    lattice: &[f32],
+    row: &RowTaps,
     taps: &LatticeTaps,
     moving: &[f32],
     [i, j, k]: [u32; 3],
     t: f32,
 ) -> [f32; 4] {
     let d = [params.dims[0], params.dims[1], params.dims[2]];
-    let r = warp_at(params, lattice, taps, [i, j, k]).to_array();
+    let r = row.warp_at(taps, i).to_array();
     let q = [
         i as f32 + linear_row(params.mm_to_index[0], r),
         j as f32 + linear_row(params.mm_to_index[1], r),
@@ -99,9 +134,10 @@ pub fn warp_image(params: &RbfGradParams, lattice: &[f32], moving: &[f32], warpe
         .enumerate()
         .for_each(|(k, slice)| {
             for j in 0..ny {
+                let row = taps.row(params, lattice, j, k as u32);
                 for i in 0..nx {
                     slice[(i + nx * j) as usize] =
-                        warped_sample(params, lattice, &taps, moving, [i, j, k as u32], 0.0)[0];
+                        warped_sample(params, &row, &taps, moving, [i, j, k as u32], 0.0)[0];
                 }
             }
         });
