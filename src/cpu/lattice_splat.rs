@@ -30,16 +30,19 @@ pub fn lattice_splat(params: &SplatParams, values: &[f32], out: &mut [f32]) {
             let c = zl as u32;
             for b in 0..ly {
                 for a in 0..lx {
+                    // The x weights of the node's reach, the same for each of its rows.
+                    let xs = reach_lo(a, s)..((a + 1) * s).min(n[0]);
+                    let wxs: Vec<f32> = xs.clone().map(|i| weight(i, a, s)).collect();
                     let mut sum = [0.0f32; 3];
                     for k in reach_lo(c, s)..((c + 1) * s).min(n[2]) {
                         let wz = weight(k, c, s);
                         for j in reach_lo(b, s)..((b + 1) * s).min(n[1]) {
                             let wy = weight(j, b, s);
-                            for i in reach_lo(a, s)..((a + 1) * s).min(n[0]) {
-                                let wx = weight(i, a, s);
+                            let row = 3 * voxel_index(0, j, k, n) as usize;
+                            for (i, wx) in xs.clone().zip(&wxs) {
                                 let w = wx * wy * wz;
                                 if w > 0.0 {
-                                    let v = 3 * voxel_index(i, j, k, n) as usize;
+                                    let v = row + 3 * i as usize;
                                     for q in 0..3 {
                                         sum[q] += w * values[v + q];
                                     }

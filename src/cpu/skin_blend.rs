@@ -84,16 +84,21 @@ fn blend(params: &SkinBlendParams, weight: &[f32], bone_of_voxel: &[f32], x: Vec
     let dual_quaternion = params.blend[2] == 1;
     let mut real = Vec4::ZERO;
     let mut dual = Vec4::ZERO;
+    // The corners' first weights (voxel_index · bones), found once for all the bones.
+    let corner = |x: u32, y: u32, z: u32| (voxel_index(x, y, z, n) * bones) as usize;
+    let corners = [
+        corner(i0[0], i0[1], i0[2]),
+        corner(i1[0], i0[1], i0[2]),
+        corner(i0[0], i1[1], i0[2]),
+        corner(i1[0], i1[1], i0[2]),
+        corner(i0[0], i0[1], i1[2]),
+        corner(i1[0], i0[1], i1[2]),
+        corner(i0[0], i1[1], i1[2]),
+        corner(i1[0], i1[1], i1[2]),
+    ];
     for j in 0..bones {
-        let v = |x: u32, y: u32, z: u32| weight[(voxel_index(x, y, z, n) * bones + j) as usize];
-        let v000 = v(i0[0], i0[1], i0[2]);
-        let v100 = v(i1[0], i0[1], i0[2]);
-        let v010 = v(i0[0], i1[1], i0[2]);
-        let v110 = v(i1[0], i1[1], i0[2]);
-        let v001 = v(i0[0], i0[1], i1[2]);
-        let v101 = v(i1[0], i0[1], i1[2]);
-        let v011 = v(i0[0], i1[1], i1[2]);
-        let v111 = v(i1[0], i1[1], i1[2]);
+        let [v000, v100, v010, v110, v001, v101, v011, v111] =
+            corners.map(|c| weight[c + j as usize]);
         let c00 = (1.0 - t.x) * v000 + t.x * v100;
         let c10 = (1.0 - t.x) * v010 + t.x * v110;
         let c01 = (1.0 - t.x) * v001 + t.x * v101;
