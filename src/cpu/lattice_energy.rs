@@ -84,8 +84,8 @@ pub fn lattice_energy(
     let top = IVec3::new(lx as i32, ly as i32, lz as i32);
     let result = |o: usize, p: IVec3| -> Option<Vec3> {
         let inside = p.cmpge(IVec3::ZERO).all() && p.cmplt(top).all();
-        let n = (p.x + top.x * (p.y + top.y * p.z)) as usize;
-        inside.then(|| results[n * operators + o]).flatten()
+        let n = || voxel_index(p.x as u32, p.y as u32, p.z as u32, [lx, ly, lz]) as usize;
+        inside.then(|| results[n() * operators + o]).flatten()
     };
     gradient
         .par_chunks_mut(3)
