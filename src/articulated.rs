@@ -4,7 +4,9 @@
 use crate::abi::{Blending, Interpolation, ResampleParams, ThresholdParams};
 use crate::adaptive::MAX_LEVELS;
 use crate::backend::{Backend, DeviceImage};
+use crate::chain::{self, Link};
 use crate::check::within;
+use crate::confidence::{judge, Confidence, Decision, Evidence, FollowRules};
 use crate::error::{Error, Result};
 use crate::fold_repair::{FoldRepair, SourceLabels};
 use crate::io::transform::{BoneTransform, BoneTransforms};
@@ -13,7 +15,9 @@ use crate::labels as label;
 use crate::progress::Progress;
 use crate::pyramid;
 use crate::regions;
-use crate::rigid::{refine, score_candidates, BoneLevel, LevelReport, RefineOptions};
+use crate::rigid::{
+    refine, score_candidates, score_covered, BoneLevel, LevelReport, RefineOptions,
+};
 use crate::skinning;
 use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
 use crate::vsd::initial_field;
@@ -31,10 +35,13 @@ pub fn bone_name(code: u16) -> String {
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct InitOptions {
-    /// Bone labels to register (default: every bone label 2..=5 present).
+    /// Bone labels to register (default: every bone of the chain present).
     pub bones: Vec<u16>,
-    /// The bone registered first, from the identity; the others start from its motion.
-    pub reference: u16,
+    /// The bones' tree: each bone's parent, rotation search and plausible range
+    /// (crate::chain; the knee's by default).
+    pub chain: Vec<Link>,
+    /// When a bone with weak evidence follows its parent (crate::confidence).
+    pub follow: FollowRules,
     /// Pyramid levels.
     pub levels: usize,
     /// Rigid registration runs on levels whose finest spacing is at least this (mm). At 1 mm
@@ -48,8 +55,6 @@ pub struct InitOptions {
     /// squared residual 183 600 at the true motion, 129 000 at the registered one, 0.74 mm
     /// off; without the margin and at 0.5 mm, 0.14 mm off).
     pub dilation_mm: f64,
-    /// Flexion angles searched (degrees): from, to, step.
-    pub search_degrees: [f64; 3],
     /// Tilts of the search axis away from the labels' flexion axis (degrees).
     pub search_tilt_degrees: f64,
     /// How the bone motions are blended across the soft tissue. Dual quaternions by default:
@@ -59,12 +64,23 @@ pub struct InitOptions {
 }
 
 impl InitOptions {
-    /// The bones registered: those `bones` names, or every bone present in `labels`.
+    /// The bones registered: those `bones` names, or every bone of the chain present in
+    /// `labels`.
     pub fn bones_in(&self, labels: &Labels) -> Vec<u16> {
         match self.bones.is_empty() {
-            true => present_bones(labels),
+            true => self
+                .chain
+                .iter()
+                .map(|l| l.label)
+                .filter(|code| labels.data.contains(code))
+                .collect(),
             false => self.bones.clone(),
         }
+    }
+
+    /// The name the chain gives bone `code`.
+    pub fn name_of(&self, code: u16) -> String {
+        chain::link(&self.chain, code).map_or_else(|| bone_name(code), |l| l.name.clone())
     }
 
     /// Rejects settings the stage cannot run with, naming the setting.
@@ -76,16 +92,8 @@ impl InitOptions {
         if !within(self.finest_spacing_mm, 0.01, 100.0) || !within(self.dilation_mm, 0.0, 50.0) {
             return bad("finest_spacing_mm must be 0.01 to 100 and dilation_mm 0 to 50 (mm)");
         }
-        let [from, to, step] = self.search_degrees;
-        let in_turn = |a: f64| within(a, -360.0, 360.0);
-        if !(in_turn(from)
-            && in_turn(to)
-            && to >= from
-            && step > 0.0
-            && (to - from) / step <= 1000.0)
-        {
-            return bad("search_degrees must be from, to, step in degrees (-360 to 360) with to >= from, step > 0 and at most 1000 steps");
-        }
+        chain::check(&self.chain)?;
+        self.follow.check()?;
         if !within(self.search_tilt_degrees, 0.0, 90.0) {
             return bad("search_tilt_degrees must be 0 to 90");
         }
@@ -105,11 +113,11 @@ impl Default for InitOptions {
     fn default() -> Self {
         InitOptions {
             bones: Vec::new(),
-            reference: label::FEMUR,
+            chain: chain::knee(),
+            follow: FollowRules::default(),
             levels: 4,
             finest_spacing_mm: 0.5,
             dilation_mm: 0.0,
-            search_degrees: [-30.0, 150.0, 4.0],
             search_tilt_degrees: 15.0,
             blending: Blending::DualQuaternion,
         }
@@ -127,6 +135,8 @@ pub struct BoneReport {
     pub search_degrees: Option<f64>,
     /// Refinement per level, coarse to fine.
     pub levels: Vec<LevelReport>,
+    /// Which motion the bone kept and how sure that is.
+    pub confidence: Confidence,
 }
 
 /// What the initialisation found (its images stay where the backend computes:
@@ -227,10 +237,15 @@ pub fn present_bones(labels: &Labels) -> Vec<u16> {
         .collect()
 }
 
-/// Candidate motions for a non-reference bone: rotations about the flexion axis (and about
-/// axes tilted from it) through the condyles, after the reference bone's motion.
-fn candidates(axis: &JointAxis, reference: &Affine, options: &InitOptions) -> Vec<(f64, Affine)> {
-    let tilt = options.search_tilt_degrees.to_radians();
+/// Candidate motions of a bone: rotations by `range` about the flexion axis (and about axes
+/// tilted from it by `tilt_degrees`) through the condyles, after its parent's motion.
+fn candidates(
+    axis: &JointAxis,
+    parent: &Affine,
+    [from, to, step]: [f64; 3],
+    tilt_degrees: f64,
+) -> Vec<(f64, Affine)> {
+    let tilt = tilt_degrees.to_radians();
     let tilted = |about: Vector3<f64>, t: f64| {
         Rotation3::from_axis_angle(&Unit::new_normalize(about), t) * axis.direction
     };
@@ -241,7 +256,6 @@ fn candidates(axis: &JointAxis, reference: &Affine, options: &InitOptions) -> Ve
         tilted(axis.anterior, tilt),
         tilted(axis.anterior, -tilt),
     ];
-    let [from, to, step] = options.search_degrees;
     let angles: Vec<f64> = (0..)
         .map(|k| from + k as f64 * step)
         .take_while(|a| *a <= to + 1e-9)
@@ -255,7 +269,7 @@ fn candidates(axis: &JointAxis, reference: &Affine, options: &InitOptions) -> Ve
             };
             angles
                 .iter()
-                .map(move |&deg| (deg, reference * rotation_about(&a, deg)))
+                .map(move |&deg| (deg, parent * rotation_about(&a, deg)))
         })
         .collect()
 }
@@ -337,6 +351,98 @@ impl<B: Backend> Pyramids<B> {
     }
 }
 
+/// How one bone's own registration went.
+struct BoneFit {
+    /// Flexion angle of the search candidate it came from.
+    search_degrees: Option<f64>,
+    /// Refinement per level, coarse to fine.
+    levels: Vec<LevelReport>,
+    /// The best refined candidate at least `distinct_degrees` from the winner: its cost over
+    /// the winner's and the angle between them.
+    runner_up: Option<(f64, f64)>,
+}
+
+/// The search candidates to refine: the best-scoring three that lie at least
+/// `distinct_degrees` apart, so that a second minimum gets a refinement of its own.
+fn distinct_best(cands: &[(f64, Affine)], scores: &[f64], distinct_degrees: f64) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..cands.len())
+        .filter(|&k| scores[k].is_finite())
+        .collect();
+    order.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]));
+    let mut kept: Vec<usize> = Vec::new();
+    for k in order {
+        let apart = |j: &usize| degrees_between(&cands[*j].1, &cands[k].1) >= distinct_degrees;
+        if kept.iter().all(apart) {
+            kept.push(k);
+        }
+        if kept.len() == 3 {
+            break;
+        }
+    }
+    kept
+}
+
+/// The rotation angle between two motions (degrees).
+pub fn degrees_between(a: &Affine, b: &Affine) -> f64 {
+    a.try_inverse()
+        .map_or(f64::INFINITY, |inv| rotation_degrees(&(inv * b)))
+}
+
+/// The search's outcome: the best refined candidate.
+struct Searched {
+    motion: Affine,
+    /// The flexion angle it started from.
+    degrees: f64,
+    report: LevelReport,
+    /// The best other refined candidate at least `distinct_degrees` away: its cost over the
+    /// best's and the angle between them.
+    runner_up: Option<(f64, f64)>,
+}
+
+/// Refines the distinct best search candidates at `level`, keeping the best fit and the
+/// runner-up's cost ratio and angle.
+fn search<B: Backend>(
+    backend: &B,
+    level: &BoneLevel<B>,
+    centroid: &Vector3<f64>,
+    cands: &[(f64, Affine)],
+    distinct_degrees: f64,
+) -> Result<Option<Searched>> {
+    let motions: Vec<Affine> = cands.iter().map(|c| c.1).collect();
+    let scores = score_candidates(backend, level, &motions)?;
+    let mut refined = Vec::new();
+    for k in distinct_best(cands, &scores, distinct_degrees) {
+        let (m, report) = refine(
+            backend,
+            level,
+            cands[k].1,
+            centroid,
+            &RefineOptions::default(),
+        )?;
+        refined.push((m, cands[k].0, report));
+    }
+    refined.sort_by(|a, b| a.2.cost_after.total_cmp(&b.2.cost_after));
+    let Some(best) = refined.first() else {
+        return Ok(None);
+    };
+    let runner_up = refined[1..]
+        .iter()
+        .map(|r| {
+            (
+                r.2.cost_after / best.2.cost_after,
+                degrees_between(&best.0, &r.0),
+            )
+        })
+        .find(|r| r.1 >= distinct_degrees);
+    let (motion, degrees, report) = refined.swap_remove(0);
+    Ok(Some(Searched {
+        motion,
+        degrees,
+        report,
+        runner_up,
+    }))
+}
+
 /// Registers one bone from `start` through the levels coarse to fine, after an optional
 /// search at its coarsest usable level.
 fn register_bone<B: Backend>(
@@ -345,67 +451,195 @@ fn register_bone<B: Backend>(
     pyramids: &Pyramids<B>,
     region: &Region<B>,
     start: Affine,
-    search: Option<Vec<(f64, Affine)>>,
-) -> Result<(Affine, BoneReport)> {
+    cands: Option<Vec<(f64, Affine)>>,
+    distinct_degrees: f64,
+) -> Result<(Affine, BoneFit)> {
     let first = region.first;
     let coarsest = (first..first + region.levels.len())
         .rev()
         .find(|&l| region.at(l).inside >= 200)
         .unwrap_or(first);
-    let options = RefineOptions::default();
     let mut motion = start;
-    let mut searched = None;
-    let mut levels = Vec::new();
-    if let Some(cands) = search {
+    let mut fit = BoneFit {
+        search_degrees: None,
+        levels: Vec::new(),
+        runner_up: None,
+    };
+    if let Some(cands) = cands {
         let level = pyramids.level(coarsest, region);
-        let motions: Vec<Affine> = cands.iter().map(|c| c.1).collect();
-        let scores = score_candidates(backend, &level, &motions)?;
-        let mut order: Vec<usize> = (0..cands.len()).collect();
-        order.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]));
-        // Refine the three best candidates and keep the one that fits best.
         let centroid = region.at(coarsest).centroid;
-        let mut best: Option<(f64, Affine, f64, LevelReport)> = None;
-        for &k in order.iter().take(3).filter(|&&k| scores[k].is_finite()) {
-            let (refined, report) = refine(backend, &level, cands[k].1, &centroid, &options)?;
-            if best.as_ref().is_none_or(|b| report.cost_after < b.0) {
-                best = Some((report.cost_after, refined, cands[k].0, report));
-            }
-        }
-        let (_, refined, degrees, report) = best.ok_or_else(|| {
+        let found = search(backend, &level, &centroid, &cands, distinct_degrees)?;
+        let best = found.ok_or_else(|| {
             Error::InvalidInput(format!(
                 "bone {code}: no search candidate overlaps the target"
             ))
         })?;
-        motion = refined;
-        searched = Some(degrees);
-        levels.push(report);
+        motion = best.motion;
+        fit.search_degrees = Some(best.degrees);
+        fit.runner_up = best.runner_up;
+        fit.levels.push(best.report);
     }
-    let finer_from = if searched.is_some() {
-        coarsest.saturating_sub(1)
-    } else {
-        coarsest
-    };
-    let range: Vec<usize> = if searched.is_some() && coarsest == first {
-        Vec::new()
-    } else {
-        (first..=finer_from).rev().collect()
+    let searched = fit.search_degrees.is_some();
+    let range: Vec<usize> = match (searched, coarsest == first) {
+        (true, true) => Vec::new(),
+        (true, false) => (first..coarsest).rev().collect(),
+        (false, _) => (first..=coarsest).rev().collect(),
     };
     for l in range {
         let centroid = region.at(l).centroid;
         let level = pyramids.level(l, region);
-        let (refined, report) = refine(backend, &level, motion, &centroid, &options)?;
+        let (refined, report) = refine(
+            backend,
+            &level,
+            motion,
+            &centroid,
+            &RefineOptions::default(),
+        )?;
         motion = refined;
-        levels.push(report);
+        fit.levels.push(report);
     }
-    Ok((
-        motion,
-        BoneReport {
+    Ok((motion, fit))
+}
+
+/// The evidence for a bone's own motion against its parent's, at its finest rigid level.
+#[allow(clippy::too_many_arguments)]
+fn evidence<B: Backend>(
+    backend: &B,
+    pyramids: &Pyramids<B>,
+    region: &Region<B>,
+    link: &Link,
+    own: &Affine,
+    parent: Option<(String, Affine)>,
+    runner_up: Option<(f64, f64)>,
+) -> Result<Evidence> {
+    let finest = region.at(region.first);
+    let level = pyramids.level(region.first, region);
+    let mut motions = vec![*own];
+    motions.extend(parent.as_ref().map(|p| p.1));
+    let scores = score_covered(backend, &level, &motions)?;
+    let voxels = finest.inside as f64;
+    Ok(Evidence {
+        name: link.name.clone(),
+        voxels,
+        cost_own: scores[0].0,
+        seen: scores[0].1 / voxels.max(1.0),
+        cost_at_parent: scores.get(1).map(|s| s.0),
+        degrees_from_parent: parent.as_ref().map(|p| degrees_between(&p.1, own)),
+        parent: parent.map(|p| p.0),
+        max_degrees: link.max_degrees,
+        runner_up,
+    })
+}
+
+/// The motions `given` holds for `bones`, in `bones` order.
+fn given_motions(given: &BoneTransforms, bones: &[u16]) -> Result<Vec<(u16, Affine)>> {
+    bones
+        .iter()
+        .map(|b| {
+            given
+                .bones
+                .iter()
+                .find(|t| t.label == *b)
+                .map(|t| (*b, t.affine()))
+                .ok_or_else(|| {
+                    Error::InvalidInput(format!("--init has no transform for bone label {b}"))
+                })
+        })
+        .collect()
+}
+
+/// The pair's pyramids for the rigid stage, and the finest level it registers at.
+fn rigid_pyramids<B: Backend>(
+    backend: &B,
+    pair: &PairImages<B>,
+    options: &InitOptions,
+) -> Result<(Pyramids<B>, usize)> {
+    let mut pyramids = Pyramids {
+        source: pyramid::build(backend, pair.source.clone(), options.levels)?,
+        target: pyramid::build(backend, pair.target.clone(), options.levels)?,
+    };
+    let levels = pyramids.source.len().min(pyramids.target.len());
+    pyramids.source.truncate(levels);
+    let first = pyramids
+        .source
+        .iter()
+        .position(|v| v.grid.finest_spacing() >= options.finest_spacing_mm - 1e-9)
+        .unwrap_or(levels - 1)
+        .min(levels - 1);
+    Ok((pyramids, first))
+}
+
+/// Registers `bones` down the chain: each from its parent's motion (the root from the
+/// identity), searched relative to it where its link says so, then judged against it: a bone
+/// whose own motion is implausible, or weakly supported and not clearly better, keeps its
+/// parent's. Motions and reports come back in `bones` order.
+#[allow(clippy::type_complexity)] // two parallel lists, as Initialisation holds them
+fn register_bones<B: Backend>(
+    backend: &B,
+    pair: &PairImages<B>,
+    axis: &JointAxis,
+    bones: &[u16],
+    options: &InitOptions,
+    progress: &dyn Progress,
+) -> Result<(Vec<(u16, Affine)>, Vec<BoneReport>)> {
+    let (pyramids, first) = rigid_pyramids(backend, pair, options)?;
+    let levels = pyramids.source.len();
+    let mut found: Vec<(u16, Affine, BoneReport)> = Vec::new();
+    for code in chain::registration_order(&options.chain, bones)? {
+        let link = chain::link(&options.chain, code).expect("registration_order checked it");
+        let parent = chain::parent_among(&options.chain, code, bones).map(|p| {
+            let at = found.iter().find(|f| f.0 == p).expect("parents go first");
+            (options.name_of(p), at.1)
+        });
+        let start = parent.as_ref().map_or_else(Affine::identity, |p| p.1);
+        let cands = match (link.search_degrees, &parent) {
+            (Some(range), Some(_)) => {
+                Some(candidates(axis, &start, range, options.search_tilt_degrees))
+            }
+            _ => None,
+        };
+        let dilation = options.dilation_mm;
+        let region = Region::new(backend, &pair.labels, code, levels, first, dilation)?;
+        let distinct = options.follow.distinct_degrees;
+        let (own, fit) = register_bone(backend, code, &pyramids, &region, start, cands, distinct)?;
+        let evidence = evidence(
+            backend,
+            &pyramids,
+            &region,
+            link,
+            &own,
+            parent,
+            fit.runner_up,
+        )?;
+        let confidence = judge(&evidence, &options.follow);
+        let motion = match confidence.decision {
+            Decision::FollowedParent => start,
+            Decision::Own | Decision::Root => own,
+        };
+        progress.step(&format!(
+            "{} turned {:.1}° ({})",
+            link.name,
+            rotation_degrees(&motion),
+            confidence.reason
+        ));
+        let report = BoneReport {
             label: code,
-            name: bone_name(code),
-            search_degrees: searched,
-            levels,
-        },
-    ))
+            name: link.name.clone(),
+            search_degrees: fit.search_degrees,
+            levels: fit.levels,
+            confidence,
+        };
+        found.push((code, motion, report));
+    }
+    let mut motions = Vec::new();
+    let mut reports = Vec::new();
+    for b in bones {
+        let at = found.iter().position(|f| f.0 == *b).expect("registered");
+        let (code, motion, report) = found.swap_remove(at);
+        motions.push((code, motion));
+        reports.push(report);
+    }
+    Ok((motions, reports))
 }
 
 /// Runs the articulated initialisation on `pair` (`labels`: its label map on the host).
@@ -441,65 +675,10 @@ pub fn initialise<B: Backend>(
     let axis = flexion_axis(labels)?;
     let rigid_steps = if given.is_some() { 0 } else { bones.len() };
     progress.begin("initialisation", rigid_steps + 1);
-    let motions: Vec<(u16, Affine)>;
-    let mut reports = Vec::new();
-    if let Some(given) = given {
-        motions = bones
-            .iter()
-            .map(|b| {
-                given
-                    .bones
-                    .iter()
-                    .find(|t| t.label == *b)
-                    .map(|t| (*b, t.affine()))
-                    .ok_or_else(|| {
-                        Error::InvalidInput(format!("--init has no transform for bone label {b}"))
-                    })
-            })
-            .collect::<Result<_>>()?;
-    } else {
-        let mut pyramids = Pyramids {
-            source: pyramid::build(backend, pair.source.clone(), options.levels)?,
-            target: pyramid::build(backend, pair.target.clone(), options.levels)?,
-        };
-        let levels = pyramids.source.len().min(pyramids.target.len());
-        pyramids.source.truncate(levels);
-        let first = pyramids
-            .source
-            .iter()
-            .position(|v| v.grid.finest_spacing() >= options.finest_spacing_mm - 1e-9)
-            .unwrap_or(levels - 1)
-            .min(levels - 1);
-        let mut order = bones.clone();
-        order.sort_by_key(|&b| b != options.reference);
-        let mut found: Vec<(u16, Affine)> = Vec::new();
-        let mut reference = Affine::identity();
-        for code in order {
-            let region = Region::new(
-                backend,
-                &pair.labels,
-                code,
-                levels,
-                first,
-                options.dilation_mm,
-            )?;
-            let is_reference = code == options.reference;
-            let search = (!is_reference).then(|| candidates(&axis, &reference, options));
-            let (motion, report) =
-                register_bone(backend, code, &pyramids, &region, reference, search)?;
-            if is_reference {
-                reference = motion;
-            }
-            let turned = rotation_degrees(&motion);
-            progress.step(&format!("{} turned {turned:.1}°", bone_name(code)));
-            found.push((code, motion));
-            reports.push(report);
-        }
-        motions = bones
-            .iter()
-            .map(|b| *found.iter().find(|f| f.0 == *b).expect("registered"))
-            .collect();
-    }
+    let (motions, reports) = match given {
+        Some(given) => (given_motions(given, &bones)?, Vec::new()),
+        None => register_bones(backend, pair, &axis, &bones, options, progress)?,
+    };
     let weights = skinning::weights(backend, &pair.labels, &bones, skinning::SHEPARD_POWER)?;
     let matrices: Vec<Affine> = motions.iter().map(|m| m.1).collect();
     let source_labels = SourceLabels {

@@ -160,7 +160,7 @@ fn check_labels(labels: &Labels, path: &Path) -> Result<Vec<String>> {
 }
 
 /// Checks the settings against the inputs: with the initialisation, every bone it registers
-/// exists and is large enough and the reference bone is one of them; the target holds the
+/// exists, is large enough and is in the chain; the target holds the
 /// pyramid levels asked for.
 pub fn check_settings(options: &RegisterOptions, pair: &Pair, paths: PairPaths) -> Result<()> {
     if options.initialise {
@@ -169,7 +169,7 @@ pub fn check_settings(options: &RegisterOptions, pair: &Pair, paths: PairPaths) 
     check_levels(&pair.target.grid, options.adaptive.levels, paths.target)
 }
 
-/// Every bone the initialisation registers has enough voxels, and the reference is one of them.
+/// Every bone the initialisation registers has enough voxels and a place in the chain.
 pub fn check_bones(init: &InitOptions, labels: &Labels, paths: PairPaths) -> Result<()> {
     let present = present_bones(labels);
     let listed = |codes: &[u16]| {
@@ -202,11 +202,13 @@ pub fn check_bones(init: &InitOptions, labels: &Labels, paths: PairPaths) -> Res
             ));
         }
     }
-    if !chosen.contains(&init.reference) {
+    if let Some(bone) = chosen
+        .iter()
+        .find(|&&b| crate::chain::link(&init.chain, b).is_none())
+    {
         return Err(Error::InvalidInput(format!(
-            "--reference / init.reference is {} but the bones registered are {} (from {})",
-            init.reference,
-            listed(&chosen),
+            "bone label {bone} (from --bones or {}) has no entry in init.chain; add one with \
+             its parent",
             paths.labels.display()
         )));
     }

@@ -1,12 +1,13 @@
 //! The checks a finished registration is held to, so that a poor result is said out loud
 //! rather than written silently: the final field does not fold, the warped source matches the
-//! target better than the source did, and every bone's motion lies inside the range its
-//! rotation search covered. `register` reports them in report.json under `checks` and on
+//! target better than the source did, every bone's motion lies inside the range its rotation
+//! search covered, and no bone's motion is implausible, weakly determined or barely seen. `register` reports them in report.json under `checks` and on
 //! stderr; `--strict` turns a failed check into a non-zero exit (the outputs are still
 //! written, atomically, for inspection).
 
-use crate::articulated::{bone_name, Initialisation};
-use crate::joint::rotation_degrees;
+use crate::articulated::{degrees_between, Initialisation};
+use crate::chain;
+use crate::confidence::Decision;
 use crate::register::{RegisterOptions, Registration};
 
 /// One check's outcome.
@@ -56,38 +57,38 @@ pub fn result_checks(
     ];
     if let Some(init) = &result.init {
         checks.push(bones_within_search(init, options));
+        checks.push(bones_confident(init));
     }
     checks
 }
 
-/// Every bone turns, relative to the reference bone, by no more than the search covered (its
+/// Every searched bone turns, relative to its parent, by no more than its search covered (its
 /// largest angle plus the tilt of the search axis), and no bone's best candidate sits at the
-/// edge of the searched range, where the true motion may lie beyond it.
+/// edge of its searched range, where the true motion may lie beyond it.
 fn bones_within_search(init: &Initialisation, options: &RegisterOptions) -> Check {
-    let [from, to, step] = options.init.search_degrees;
-    // The search's last candidate: `to` itself only when the step divides the range.
-    let last = from + ((to - from) / step + 1e-9).floor() * step;
-    let limit = from.abs().max(to.abs()) + options.init.search_tilt_degrees;
-    let reference = init
-        .motions
-        .iter()
-        .find(|(code, _)| *code == options.init.reference)
-        .map(|(_, m)| *m)
-        .unwrap_or_else(crate::volume::Affine::identity);
-    let inverse = reference
-        .try_inverse()
-        .unwrap_or_else(crate::volume::Affine::identity);
+    let tilt = options.init.search_tilt_degrees;
+    let motion_of = |code: u16| init.motions.iter().find(|m| m.0 == code).map(|m| m.1);
     let mut problems = Vec::new();
-    for (code, motion) in &init.motions {
-        let turn = rotation_degrees(&(inverse * motion));
-        if turn > limit {
-            problems.push(format!(
-                "{} (label {code}) turned {turn:.1}°, beyond the {limit:.0}° searched",
-                bone_name(*code)
-            ));
-        }
-    }
     for report in &init.reports {
+        let link = chain::link(&options.init.chain, report.label);
+        let (Some([from, to, step]), Some(parent)) = (
+            link.and_then(|l| l.search_degrees),
+            chain::parent_among(&options.init.chain, report.label, &init.bones),
+        ) else {
+            continue;
+        };
+        let limit = from.abs().max(to.abs()) + tilt;
+        if let (Some(m), Some(p)) = (motion_of(report.label), motion_of(parent)) {
+            let turn = degrees_between(&p, &m);
+            if turn > limit {
+                problems.push(format!(
+                    "{} (label {}) turned {turn:.1}° from its parent, beyond the {limit:.0}° searched",
+                    report.name, report.label
+                ));
+            }
+        }
+        // The search's last candidate: `to` itself only when the step divides the range.
+        let last = from + ((to - from) / step + 1e-9).floor() * step;
         if let Some(best) = report.search_degrees {
             if best <= from + 1e-9 || best >= last - 1e-9 {
                 problems.push(format!(
@@ -101,11 +102,37 @@ fn bones_within_search(init: &Initialisation, options: &RegisterOptions) -> Chec
         name: "bones_within_search",
         passed: problems.is_empty(),
         detail: match problems.is_empty() {
-            true => format!(
-                "every bone within {from:.0}..{to:.0}° of the reference (tilt {:.0}°)",
-                options.init.search_tilt_degrees
-            ),
+            true => format!("every searched bone within its range of its parent (tilt {tilt:.0}°)"),
             false => problems.join("; "),
         },
+    }
+}
+
+/// No bone's registration raised a doubt: none implausible and followed its parent instead,
+/// weakly determined or barely seen (crate::confidence). Which bones followed their parent is
+/// said either way.
+fn bones_confident(init: &Initialisation) -> Check {
+    let warnings: Vec<&str> = init
+        .reports
+        .iter()
+        .flat_map(|r| r.confidence.warnings.iter().map(String::as_str))
+        .collect();
+    let followed: Vec<String> = init
+        .reports
+        .iter()
+        .filter(|r| r.confidence.decision == Decision::FollowedParent)
+        .map(|r| format!("{} followed its parent ({})", r.name, r.confidence.reason))
+        .collect();
+    let mut detail = match warnings.is_empty() {
+        true => "every bone's motion plausible and determined".to_string(),
+        false => warnings.join("; "),
+    };
+    if !followed.is_empty() {
+        detail = format!("{detail}; {}", followed.join("; "));
+    }
+    Check {
+        name: "bones_confident",
+        passed: warnings.is_empty(),
+        detail,
     }
 }

@@ -93,21 +93,34 @@ pub fn score_candidates<B: Backend>(
     level: &BoneLevel<B>,
     candidates: &[Affine],
 ) -> Result<Vec<f64>> {
+    let scores = score_covered(backend, level, candidates)?;
+    let most = scores.iter().map(|s| s.1).fold(0.0, f64::max);
+    Ok(scores
+        .iter()
+        .map(|&(cost, n)| match n > 0.0 && n >= 0.5 * most {
+            true => cost,
+            false => f64::INFINITY,
+        })
+        .collect())
+}
+
+/// Each candidate's mean squared residual and the voxels of the bone region it keeps inside
+/// the target (a candidate that keeps none costs infinity).
+pub fn score_covered<B: Backend>(
+    backend: &B,
+    level: &BoneLevel<B>,
+    candidates: &[Affine],
+) -> Result<Vec<(f64, f64)>> {
     check_grids(&level.source.grid, &level.mask.grid)?;
     let params = ScoreParams::new(&level.source.grid, &level.target.grid, candidates.len());
     let packed = backend.upload("candidate motions", pack_candidates(candidates))?;
     let partial = backend.rigid_scores(&params, &level.images(), &packed)?;
     let totals = backend.download_one(&backend.sum_partials(&partial, 2 * candidates.len())?)?;
-    let most = totals.chunks_exact(2).map(|s| s[1]).fold(0.0, f64::max);
     Ok(totals
         .chunks_exact(2)
-        .map(|s| {
-            let (ssd, n) = (s[0], s[1]);
-            if n > 0.0 && n >= 0.5 * most {
-                ssd / n
-            } else {
-                f64::INFINITY
-            }
+        .map(|s| match s[1] > 0.0 {
+            true => (s[0] / s[1], s[1]),
+            false => (f64::INFINITY, 0.0),
         })
         .collect())
 }

@@ -551,11 +551,6 @@ fn image_cases(x: &Inputs) -> Vec<Case> {
             &["absent.nii.gz", "no such file"],
         ),
         case(
-            "reference bone absent",
-            x.register(src, lab, tgt, &["--reference", "9"]),
-            &["--reference", "9"],
-        ),
-        case(
             "bone absent",
             x.register(src, lab, tgt, &["--bones", "2,7"]),
             &["labels.nii.gz", "bone 7"],
@@ -630,10 +625,21 @@ fn settings_cases(x: &Inputs) -> Vec<Case> {
             &["nan.toml", "smoothing"],
         ),
         case(
+            "chain parent absent",
+            with(config(
+                "chain.toml",
+                "[[init.chain]]\nlabel = 2\nname = \"femur\"\nmax_degrees = 0\n\
+                 [[init.chain]]\nlabel = 3\nname = \"tibia\"\nparent = 9\nmax_degrees = 160\n",
+            )),
+            &["chain.toml", "tibia (label 3): parent 9"],
+        ),
+        case(
             "search backwards",
             with(config(
                 "search.toml",
-                "[init]\nsearch_degrees = [90.0, 0.0, 4.0]\n",
+                "[[init.chain]]\nlabel = 2\nname = \"femur\"\nmax_degrees = 0\n\
+                 [[init.chain]]\nlabel = 3\nname = \"tibia\"\nparent = 2\n\
+                 search_degrees = [90.0, 0.0, 4.0]\nmax_degrees = 160\n",
             )),
             &["search.toml", "search_degrees"],
         ),

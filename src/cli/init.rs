@@ -9,15 +9,17 @@ use posereg::articulated::{
     bone_name, initialise_volumes, present_bones, rigid_field, InitOptions,
 };
 use posereg::backend::resample_volume;
+use posereg::chain;
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::inputs::{check_bones, load_pair, Pair, PairPaths};
+use posereg::io::config::load_options;
 use posereg::io::field::save_field;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::transform::BoneTransforms;
 use posereg::io::{prepare_output_folder, OutputFolder};
 use posereg::joint::rotation_degrees;
 use posereg::metric::correlation;
-use posereg::register::unregistered;
+use posereg::register::{unregistered, RegisterOptions};
 use posereg::Error;
 use std::path::{Path, PathBuf};
 
@@ -30,9 +32,10 @@ pub struct InitArgs {
     /// Bone labels to use, e.g. 2,3,4 (default: every bone label present).
     #[arg(long, value_delimiter = ',')]
     pub bones: Vec<u16>,
-    /// The reference bone, registered first from the identity.
-    #[arg(long, default_value_t = 2)]
-    pub reference: u16,
+    /// Settings file (.toml or .json) as `register` takes; only its `init` settings are used
+    /// (the kinematic chain, the follow rules, …). Flags override it.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
     /// How the bone motions are blended across the soft tissue [default: dual-quaternion].
     #[arg(long, value_enum)]
     pub blending: Option<Blending>,
@@ -109,13 +112,16 @@ fn load_given(
 
 /// Runs the initialisation and writes init.json, init_field.nii.gz, initialised.nii.gz.
 pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
-    let defaults = InitOptions::default();
-    let options = InitOptions {
-        bones: args.bones.clone(),
-        reference: args.reference,
-        blending: args.blending.unwrap_or(defaults.blending),
-        ..defaults
+    let mut options = match &args.config {
+        Some(path) => load_options::<RegisterOptions>(path)?.init,
+        None => InitOptions::default(),
     };
+    if !args.bones.is_empty() {
+        options.bones = args.bones.clone();
+    }
+    if let Some(blending) = args.blending {
+        options.blending = blending;
+    }
     // The flags are checked before any voxel is read.
     options.check()?;
     let (_folder, pair) = args.pair.load(reporter)?;
@@ -170,10 +176,10 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         DataType::F32,
     )?;
 
-    let reference = init
+    let root = init
         .motions
         .iter()
-        .find(|m| m.0 == args.reference)
+        .find(|m| chain::parent_among(&options.chain, m.0, &init.bones).is_none())
         .map(|m| m.1);
     let body = |n: usize| target.data[n] > 0.0;
     let corr_identity = correlation(
@@ -186,14 +192,18 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     for r in &init.reports {
         let last = r.levels.last();
         println!(
-            "  {:<8} search {:>6}  mean sq. residual {:.1} -> {:.1}",
+            "  {:<8} search {:>6}  mean sq. residual {:.1} -> {:.1}; {}",
             r.name,
             r.search_degrees
                 .map(|d| format!("{d:.0}°"))
                 .unwrap_or("-".into()),
             r.levels.first().map(|l| l.cost_before).unwrap_or(f64::NAN),
-            last.map(|l| l.cost_after).unwrap_or(f64::NAN)
+            last.map(|l| l.cost_after).unwrap_or(f64::NAN),
+            r.confidence.reason
         );
+        for warning in &r.confidence.warnings {
+            reporter.warn(warning);
+        }
     }
     for (code, m) in &init.motions {
         println!(
@@ -211,16 +221,16 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         repair.folded_before, repair.folded_after, repair.rounds, repair.unfold_steps
     );
     println!("  correlation with target: identity {corr_identity:.4}");
-    if let Some(reference) = reference {
+    if let Some(root) = root {
         let femur_only = posereg::on_backend!(opened, backend => resample_volume(
             backend,
             &source,
-            &rigid_field(&reference, &target.grid)?,
+            &rigid_field(&root, &target.grid)?,
             0.0,
             Interpolation::Linear,
         ))?;
         println!(
-            "                             reference bone only {:.4}",
+            "                             root bone only {:.4}",
             correlation(&femur_only.data, &target.data, body)
         );
     }

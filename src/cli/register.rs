@@ -35,9 +35,6 @@ pub struct RegisterArgs {
     /// Bone labels to use, e.g. 2,3,4 (default: every bone label present).
     #[arg(long, value_delimiter = ',')]
     pub bones: Option<Vec<u16>>,
-    /// The reference bone, registered first from the identity.
-    #[arg(long)]
-    pub reference: Option<u16>,
     /// How the bone motions are blended across the soft tissue (init.blending).
     #[arg(long, value_enum)]
     pub blending: Option<Blending>,
@@ -74,9 +71,6 @@ impl RegisterArgs {
         }
         if let Some(bones) = &self.bones {
             options.init.bones = bones.clone();
-        }
-        if let Some(reference) = self.reference {
-            options.init.reference = reference;
         }
         if let Some(blending) = self.blending {
             options.init.blending = blending;

@@ -1,0 +1,88 @@
+#!/usr/bin/env python3
+"""Scores a registration of a pair made by scripts/make_pair.py, independently of posereg.
+
+    scripts/score_pair.py PAIR_DIR FIELD [--bones TRANSFORM_JSON] [--json]
+
+FIELD is a displacement field in the ITK convention (posereg's field.nii.gz, elastix's
+deformationField.nii, ANTs' warp, SimpleITK's): on the target grid, LPS mm, target point ->
+source point. Prints the mean field error over the body, the bones and the soft tissue (the
+pair's masks), and the folded share of the body (det J <= 0, central differences in world
+space); with --bones, each bone's rotation error (degrees) and its translation error at the
+bone's centroid (mm) against truth.json (RAS, source -> target, posereg's transform format).
+"""
+import argparse
+import json
+import os
+
+import numpy as np
+import SimpleITK as sitk
+
+
+def read_field(path, like):
+    field = sitk.ReadImage(path, sitk.sitkVectorFloat64)
+    if field.GetSize() != like.GetSize():
+        raise SystemExit(f"{path}: grid {field.GetSize()} is not the pair's {like.GetSize()}")
+    return field
+
+
+def jacobian_determinant(field):
+    u = sitk.GetArrayFromImage(field)
+    direction = np.array(field.GetDirection()).reshape(3, 3)
+    spacing = np.array(field.GetSpacing())
+    grads = np.stack([np.gradient(u, axis=2 - a) / spacing[a] for a in range(3)], -1)
+    return np.linalg.det(np.einsum("...ij,jk->...ik", grads, direction.T) + np.eye(3))
+
+
+def bone_errors(pair, transforms):
+    truth = {b["label"]: np.array(b["matrix"]) for b in json.load(open(os.path.join(pair, "truth.json")))["bones"]}
+    found = {b["label"]: (b["name"], np.array(b["matrix"])) for b in json.load(open(transforms))["bones"]}
+    labels = sitk.ReadImage(os.path.join(pair, "source_labels.nii.gz"))
+    arr = sitk.GetArrayFromImage(labels)
+    direction = np.array(labels.GetDirection()).reshape(3, 3)
+    out = {}
+    for code, (name, m) in sorted(found.items()):
+        if code not in truth or not (arr == code).any():
+            continue
+        idx = np.argwhere(arr == code)[:, ::-1].mean(0)
+        lps = direction @ (idx * np.array(labels.GetSpacing())) + np.array(labels.GetOrigin())
+        centroid = np.append(lps * [-1, -1, 1], 1.0)  # RAS
+        diff = np.linalg.inv(truth[code]) @ m
+        angle = np.degrees(np.arccos(np.clip((np.trace(diff[:3, :3]) - 1) / 2, -1, 1)))
+        shift = np.linalg.norm((m @ centroid - truth[code] @ centroid)[:3])
+        out[name] = {"degrees": float(angle), "mm": float(shift)}
+    return out
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("pair")
+    p.add_argument("field")
+    p.add_argument("--bones")
+    p.add_argument("--json", action="store_true")
+    a = p.parse_args()
+    mask = lambda name: sitk.GetArrayFromImage(sitk.ReadImage(os.path.join(a.pair, name))) > 0
+    truth = sitk.ReadImage(os.path.join(a.pair, "truth_field.nii.gz"), sitk.sitkVectorFloat64)
+    field = read_field(a.field, truth)
+    error = np.linalg.norm(sitk.GetArrayFromImage(field) - sitk.GetArrayFromImage(truth), axis=-1)
+    body, bone, soft = mask("target_labels.nii.gz"), mask("mask_bone.nii.gz"), mask("mask_soft.nii.gz")
+    det = jacobian_determinant(field)
+    result = {
+        "mean_mm": float(error[body].mean()),
+        "bone_mm": float(error[bone].mean()),
+        "soft_mm": float(error[soft].mean()),
+        "folded_share": float((det[body] <= 0).mean()),
+        "min_jacobian": float(det[body].min()),
+    }
+    if a.bones:
+        result["bones"] = bone_errors(a.pair, a.bones)
+    if a.json:
+        print(json.dumps(result))
+        return
+    print(f"field error: body {result['mean_mm']:.2f} mm, bone {result['bone_mm']:.2f}, soft tissue "
+          f"{result['soft_mm']:.2f}; folded {100 * result['folded_share']:.3f}% (min det J {result['min_jacobian']:.3f})")
+    for name, e in result.get("bones", {}).items():
+        print(f"  {name:<8} {e['degrees']:.2f}° {e['mm']:.2f} mm")
+
+
+if __name__ == "__main__":
+    main()
