@@ -6,11 +6,12 @@
 Shares no code and no model with the registration: numpy and SimpleITK only, its own flexion
 axis (a circle fitted to the posterior condyles, not posereg's axis finder), bone motions that
 are not rotations about one axis (the tibia also turns internally and slides, the patella tilts,
-the whole leg moves a little), and soft tissue moved by a pull-back blend: each target point is
-taken back by the log-Euclidean mean of the bones' inverse motions, weighted by inverse squared
-distance to the bones *in the bent pose* (posereg blends forward from the straight pose with
-dual quaternions and inverts numerically), plus smooth bumps in soft tissue only. Points inside
-a bent bone get that bone's motion exactly, so bones are exactly rigid.
+the whole leg moves a little), and soft tissue moved by a polyrigid log-Euclidean flow from the
+bent pose back to the straight one: each point moves with the weighted mean of the bones'
+inverse twists, weights d⁻² exp(−d/15 mm) of its distance to each bone where that bone is at
+that moment of the flow (posereg blends forward from the straight pose with dual quaternions
+and d⁻⁴ weights, then inverts numerically), plus smooth bumps in soft tissue only. The flow does
+not fold. Points inside a bent bone get that bone's motion exactly, so bones are exactly rigid.
 
 Both scans are sampled from the same anti-aliased high-resolution scan onto grids of the asked
 spacing, each with its own smooth multiplicative bias and Rician noise. The target's field of
@@ -44,6 +45,8 @@ def arguments():
     p.add_argument("--noise", type=float, default=0.02, help="Rician noise, share of the 99th percentile")
     p.add_argument("--bias", type=float, default=0.15, help="bias field amplitude (share)")
     p.add_argument("--bumps", type=float, default=1.5, help="soft-tissue bump amplitude (mm)")
+    p.add_argument("--falloff", type=float, default=15.0,
+                   help="soft tissue follows a bone d^-2 exp(-d/falloff) (mm) relative to the nearest")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("-o", "--out", required=True)
     return p.parse_args()
@@ -262,14 +265,18 @@ def trilinear(volume, index):
     return out
 
 
-def flow_weights(x, s, distance, twists, index_of):
-    """Inverse-square-distance weights of the bones at flow time s: bone j has then moved by
-    exp(s·η_j), so x's distance to it is the bent bone's distance map at exp(−s·η_j) x."""
+def flow_weights(x, s, distance, twists, index_of, falloff):
+    """Weights d⁻² exp(−d/falloff) of the bones at flow time s, normalised: bone j has then
+    moved by exp(s·η_j), so x's distance to it is the bent bone's distance map at exp(−s·η_j) x.
+    The exponential keeps a limb segment's tissue with its own bone away from the joint (with
+    d⁻² alone a thigh muscle 30 mm from the femur and 90 mm from the tibia would turn with the
+    tibia by a tenth of the flexion)."""
     d = np.stack([trilinear(dmap, index_of(apply_twists(-s * w, -s * v, x)))
                   for dmap, (w, v) in zip(distance, twists)], -1)
     inside = d <= 0
+    near = d - d.min(-1, keepdims=True)  # the exponential relative to the nearest bone
     weights = np.where(inside.any(-1, keepdims=True), inside.astype(float),
-                       1.0 / np.maximum(d, 1e-6) ** 2)
+                       np.exp(-near / falloff) / np.maximum(d, 1e-6) ** 2)
     return weights / weights.sum(-1, keepdims=True), d
 
 
@@ -279,12 +286,13 @@ def blended_step(x, weights, twists, h):
     return apply_twists(omega, vel, x)
 
 
-def pull_back(labels_hi, grid, motions, rng, bump_mm, body_mask, steps):
+def pull_back(labels_hi, grid, motions, rng, bump_mm, body_mask, steps, falloff):
     """Displacement (z,y,x,3 LPS) of every target voxel to its source point, and the target's
     bone labels on the grid. A polyrigid log-Euclidean flow from the bent pose to the straight
     one: each bone moves along its own one-parameter path exp(s·η_j), η_j = log M_j⁻¹, every
     other point with the weighted mean of the bones' twists, weights from the distances to the
-    bones where they are at that time (midpoint rule, exact exponential per step). A bone's
+    bones where they are at that time (flow_weights; midpoint rule, exact exponential per
+    step). A bone's
     points keep weight 1 all the way, so bones are exactly rigid; the flow of a Lipschitz
     velocity does not fold."""
     p = grid_points(grid)
@@ -299,11 +307,11 @@ def pull_back(labels_hi, grid, motions, rng, bump_mm, body_mask, steps):
     index_of = world_to_index(grid)
     x, h = p.copy(), 1.0 / steps
     for k in range(steps):
-        w, _ = flow_weights(x, k * h, distance, twists, index_of)
+        w, _ = flow_weights(x, k * h, distance, twists, index_of, falloff)
         middle = blended_step(x, w, twists, h / 2)
-        w, _ = flow_weights(middle, (k + 0.5) * h, distance, twists, index_of)
+        w, _ = flow_weights(middle, (k + 0.5) * h, distance, twists, index_of, falloff)
         x = blended_step(x, w, twists, h)
-    _, d0 = flow_weights(p, 0.0, distance, twists, index_of)
+    _, d0 = flow_weights(p, 0.0, distance, twists, index_of, falloff)
     body = body_mask & (bone_labels == 0)
     x += smooth_bumps(p, body, d0.min(-1), bump_mm, rng)
     return x - p, bone_labels
@@ -362,7 +370,8 @@ def main():
     body_t = sitk.GetArrayFromImage(
         pulled(body_hi, target_grid, sitk.Transform(3, sitk.sitkIdentity), sitk.sitkLinear)) >= 0.5
     steps = max(16, int(np.ceil(abs(a.degrees) / 2)))
-    disp, bent_labels = pull_back(labels, target_grid, motions, rng, a.bumps, body_t, steps)
+    disp, bent_labels = pull_back(labels, target_grid, motions, rng, a.bumps, body_t, steps,
+                                  a.falloff)
     field = image_like(disp.astype(np.float64), target_grid, vector=True)
     to_source = sitk.DisplacementFieldTransform(sitk.Image(field))
     target_clean = sitk.GetArrayFromImage(pulled(smooth, target_grid, to_source, sitk.sitkLinear))
