@@ -12,6 +12,13 @@
 #   paper-phantom10        the paper's experiment at the scale the paper registered at: the quarter
 #                          phantom (34×64×64, 5 mm voxels) bent 10°, posereg without initialisation;
 #   paper-knee10           the same on the real knee averaged 8×8×2 (64×64×40 at 2.5×2.5×3 mm).
+#   indep{2,1}-{20,45,90}  the real knee bent 20°, 45°, 90° by scripts/make_pair.py (independent of
+#                          posereg: its own axis, motions and soft-tissue flow, per-scan bias and
+#                          noise) at 2 mm and 1 mm voxels; indep2-fibula: 20° at 2 mm with the
+#                          target cut below (the fibula mostly out of view). Scored by
+#                          scripts/score_pair.py (body, bone, soft tissue, folds, worst bone) in
+#                          OUT_DIR/independent.md, with SimpleITK demons (scripts/demons.py) beside
+#                          elastix; elastix uses mutual information there (scans shaded differently).
 # elastix runs affine + multi-resolution B-spline
 # (scripts/elastix/*.txt); its field comes from transformix (-def all), which is in the same ITK
 # convention as posereg's field.nii.gz, so both are scored by `posereg eval` against the truth
@@ -93,6 +100,41 @@ PY
         "$dir/bent/target.nii.gz" "$dir/bent/truth_field.nii.gz" "" "$@"
 }
 
+# independent_pair DIR NAME SPACING DEGREES SEED [make_pair.py options...]
+independent_pair() {
+    local dir=$1 name=$2 spacing=$3 deg=$4 seed=$5
+    shift 5
+    local pair="$dir/pair" data=../shared/data/knee-dess
+    [ -f "$pair/truth.json" ] || python3 scripts/make_pair.py --image $data/image.nii.gz \
+        --labels $data/labels.nii.gz --degrees "$deg" --spacing "$spacing" --seed "$seed" "$@" -o "$pair"
+    [ -f "$out/independent.md" ] || printf '| pair | method | wall s | body mm | bone mm | soft tissue mm | folded %% | worst bone |\n|---|---|---|---|---|---|---|---|\n' > "$out/independent.md"
+    iscore() { # method, field, seconds, [bone transforms]
+        python3 scripts/score_pair.py "$pair" "$2" ${4:+--bones "$4"} --json |
+            python3 -c '
+import json, sys
+v = json.load(sys.stdin)
+name, method, t = sys.argv[1:4]
+bones = v.get("bones", {})
+worst = max(bones.items(), key=lambda b: b[1]["degrees"], default=None)
+w = f"{worst[0]} {worst[1][\"degrees\"]:.2f}° / {max(b[\"mm\"] for b in bones.values()):.2f} mm" if worst else "—"
+print(f"| {name} | {method} | {float(t):.1f} | {v[\"mean_mm\"]:.2f} | {v[\"bone_mm\"]:.2f} | {v[\"soft_mm\"]:.2f} | {100 * v[\"folded_share\"]:.4f} | {w} |")
+' "$name" "$1" "$3" >> "$out/independent.md"
+    }
+    for device in ${DEVICES:-cpu gpu}; do
+        local to="$dir/posereg-$device"
+        t=$(seconds $bin register --quiet --device "$device" --source "$pair/source.nii.gz" \
+            --source-labels "$pair/source_labels.nii.gz" --target "$pair/target.nii.gz" -o "$to")
+        iscore "posereg ($device$( [ $device = gpu ] && echo ', lavapipe'))" "$to/field.nii.gz" "$t" "$to/transform.json"
+    done
+    mkdir -p "$dir/elastix"
+    t=$(seconds elastix -f "$pair/target.nii.gz" -m "$pair/source.nii.gz" -p scripts/elastix/affine_mi.txt \
+        -p scripts/elastix/bspline_mi.txt -out "$dir/elastix" -threads "$threads")
+    transformix -def all -tp "$dir/elastix/TransformParameters.1.txt" -out "$dir/elastix" -threads "$threads" >/dev/null
+    iscore "elastix affine + B-spline (MI)" "$dir/elastix/deformationField.nii" "$t"
+    t=$(seconds python3 scripts/demons.py "$pair/target.nii.gz" "$pair/source.nii.gz" "$dir/demons")
+    iscore "SimpleITK affine + diffeomorphic demons" "$dir/demons/field.nii.gz" "$t"
+}
+
 for pair in ${PAIRS:-phantom10 phantom60 knee10}; do
     dir="$out/$pair"
     case $pair in
@@ -105,9 +147,16 @@ for pair in ${PAIRS:-phantom10 phantom60 knee10}; do
         phantom_pair "$dir" "quarter phantom 10° (paper's scale)" quarter 10 "no init|--no-init" ;;
     paper-knee10)
         knee_pair "$dir" "real knee 10°, 64×64×40 (paper's scale)" 8,8,2 10 "no init|--no-init" ;;
+    indep2-20 | indep2-45 | indep2-90 | indep1-20 | indep1-45 | indep1-90)
+        mm=${pair:5:1} deg=${pair#*-}
+        seed=$(( 10 + (mm == 2 ? 0 : 3) + (deg == 20 ? 1 : deg == 45 ? 2 : 3) ))
+        independent_pair "$dir" "knee ${mm} mm, $deg°" "$mm" "$deg" "$seed" ;;
+    indep2-fibula)
+        independent_pair "$dir" "knee 2 mm, 20°, target cut (fibula 8% seen)" 2 20 7 --target-keep 1 0 0.75 ;;
     *)
         echo "unknown pair $pair" >&2
         exit 2 ;;
     esac
 done
 cat "$out/table.md"
+[ -f "$out/independent.md" ] && cat "$out/independent.md"

@@ -130,3 +130,106 @@ fn a_barely_seen_fibula_follows_the_tibia_on_both_backends() {
         }
     }
 }
+
+/// `posereg register` on `pair` with `--device device`, scored by scripts/score_pair.py.
+fn register_and_score(pair: &Path, out: &Path, device: &str) -> serde_json::Value {
+    let arg = |name: &str| pair.join(name).to_str().unwrap().to_string();
+    let run = common::posereg(&[
+        "register",
+        "--quiet",
+        "--device",
+        device,
+        "--source",
+        &arg("source.nii.gz"),
+        "--source-labels",
+        &arg("source_labels.nii.gz"),
+        "--target",
+        &arg("target.nii.gz"),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(run.status.success(), "{device}: {run:?}");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/score_pair.py");
+    let scored = Command::new("python3")
+        .arg(script)
+        .arg(pair)
+        .arg(out.join("field.nii.gz"))
+        .arg("--bones")
+        .arg(out.join("transform.json"))
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(scored.status.success(), "{scored:?}");
+    serde_json::from_slice(&scored.stdout).unwrap()
+}
+
+/// The devices to register on: the CPU, and the GPU where there is one (REQUIRE_GPU=1 makes
+/// its absence a failure).
+fn devices() -> Vec<&'static str> {
+    match common::gpu() {
+        Some(_) => vec!["cpu", "gpu"],
+        None => vec!["cpu"],
+    }
+}
+
+/// Each bone's (rotation error °, translation error at its centroid mm) from a score.
+fn bone_errors(score: &serde_json::Value) -> Vec<(String, f64, f64)> {
+    let bones = score["bones"].as_object().unwrap();
+    bones
+        .iter()
+        .map(|(name, e)| {
+            let get = |k: &str| e[k].as_f64().unwrap();
+            (name.clone(), get("degrees"), get("mm"))
+        })
+        .collect()
+}
+
+/// Issue 17's bar on one of its pairs, at its smaller size: the shared real knee at 2 mm bent
+/// 20° by the generator, registered with the defaults on both backends: every bone within 1°
+/// and 0.5 mm, the mean field error over the body at most 1.0 mm, no fold in the body.
+/// ../shared/data is beside the checkout on development machines; without it the test says
+/// so and stops (the phantom test below always runs).
+#[test]
+fn the_real_knee_bent_20_degrees_independently_meets_the_bar_on_both_backends() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/knee-dess");
+    if !data.exists() {
+        eprintln!("skipped: {} not present", data.display());
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let pair = dir.path().join("pair");
+    let (image, labels) = (data.join("image.nii.gz"), data.join("labels.nii.gz"));
+    let made = make_pair(&[
+        "--image",
+        image.to_str().unwrap(),
+        "--labels",
+        labels.to_str().unwrap(),
+        "--degrees",
+        "20",
+        "--spacing",
+        "2",
+        "--seed",
+        "11",
+        "-o",
+        pair.to_str().unwrap(),
+    ]);
+    if !made {
+        return;
+    }
+    for device in devices() {
+        let score = register_and_score(&pair, &dir.path().join(device), device);
+        for (bone, degrees, mm) in bone_errors(&score) {
+            assert!(
+                degrees <= 1.0 && mm <= 0.5,
+                "{device}: {bone} {degrees:.2}° {mm:.2} mm"
+            );
+        }
+        let mean = score["mean_mm"].as_f64().unwrap();
+        assert!(mean <= 1.0, "{device}: mean field error {mean:.3} mm");
+        assert_eq!(
+            score["folded_share"].as_f64(),
+            Some(0.0),
+            "{device}: {score}"
+        );
+    }
+}
