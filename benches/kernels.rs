@@ -11,7 +11,7 @@ use posereg::abi::{
     pack_candidates, BoneLookupParams, ComposeParams, DilateParams, EdtParams, GainParams,
     Interpolation, JacobianParams, LabelParams, MomentsParams, PyramidParams, RbfGradParams,
     ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SsdParams,
-    SumParams, ThresholdParams, RIGID_SUMS,
+    SumParams, ThresholdParams, RIGID_SUMS, SCORE_SUMS,
 };
 use posereg::backend::{BoneImages, CostImages};
 use posereg::cpu::CpuBackend;
@@ -427,7 +427,7 @@ fn kernels(c: &mut Criterion) {
                     let packed = b.upload("candidates", pack_candidates(&candidates))?;
                     let images = BoneImages { source: s, mask: m, target: t };
                     let partial = b.rigid_scores(&params, &images, &packed)?;
-                    b.sum_partials(&partial, 2 * candidates.len())
+                    b.sum_partials(&partial, SCORE_SUMS * candidates.len())
                 }))
             },
         );

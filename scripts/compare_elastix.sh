@@ -109,16 +109,8 @@ independent_pair() {
         --labels $data/labels.nii.gz --degrees "$deg" --spacing "$spacing" --seed "$seed" "$@" -o "$pair"
     [ -f "$out/independent.md" ] || printf '| pair | method | wall s | body mm | bone mm | soft tissue mm | folded %% | worst bone |\n|---|---|---|---|---|---|---|---|\n' > "$out/independent.md"
     iscore() { # method, field, seconds, [bone transforms]
-        python3 scripts/score_pair.py "$pair" "$2" ${4:+--bones "$4"} --json |
-            python3 -c '
-import json, sys
-v = json.load(sys.stdin)
-name, method, t = sys.argv[1:4]
-bones = v.get("bones", {})
-worst = max(bones.items(), key=lambda b: b[1]["degrees"], default=None)
-w = f"{worst[0]} {worst[1][\"degrees\"]:.2f}° / {max(b[\"mm\"] for b in bones.values()):.2f} mm" if worst else "—"
-print(f"| {name} | {method} | {float(t):.1f} | {v[\"mean_mm\"]:.2f} | {v[\"bone_mm\"]:.2f} | {v[\"soft_mm\"]:.2f} | {100 * v[\"folded_share\"]:.4f} | {w} |")
-' "$name" "$1" "$3" >> "$out/independent.md"
+        python3 scripts/score_pair.py "$pair" "$2" ${4:+--bones "$4"} --row "$name" "$1" "$3" \
+            >> "$out/independent.md"
     }
     for device in ${DEVICES:-cpu gpu}; do
         local to="$dir/posereg-$device"

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Scores a registration of a pair made by scripts/make_pair.py, independently of posereg.
 
-    scripts/score_pair.py PAIR_DIR FIELD [--bones TRANSFORM_JSON] [--json]
+    scripts/score_pair.py PAIR_DIR FIELD [--bones TRANSFORM_JSON] [--json | --row PAIR METHOD SECONDS]
 
 FIELD is a displacement field in the ITK convention (posereg's field.nii.gz, elastix's
 deformationField.nii, ANTs' warp, SimpleITK's): on the target grid, LPS mm, target point ->
@@ -9,6 +9,7 @@ source point. Prints the mean field error over the body, the bones and the soft 
 pair's masks), and the folded share of the body (det J <= 0, central differences in world
 space); with --bones, each bone's rotation error (degrees) and its translation error at the
 bone's centroid (mm) against truth.json (RAS, source -> target, posereg's transform format).
+--row prints one row of scripts/compare_elastix.sh's independent-pairs table instead.
 """
 import argparse
 import json
@@ -53,12 +54,23 @@ def bone_errors(pair, transforms):
     return out
 
 
+def table_row(r, pair, method, seconds):
+    bones = r.get("bones", {})
+    worst = "—"
+    if bones:
+        name, e = max(bones.items(), key=lambda b: b[1]["degrees"])
+        worst = f"{name} {e['degrees']:.2f}° / {max(b['mm'] for b in bones.values()):.2f} mm"
+    return (f"| {pair} | {method} | {float(seconds):.1f} | {r['mean_mm']:.2f} | {r['bone_mm']:.2f} | "
+            f"{r['soft_mm']:.2f} | {100 * r['folded_share']:.4f} | {worst} |")
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("pair")
     p.add_argument("field")
     p.add_argument("--bones")
     p.add_argument("--json", action="store_true")
+    p.add_argument("--row", nargs=3, metavar=("PAIR", "METHOD", "SECONDS"))
     a = p.parse_args()
     mask = lambda name: sitk.GetArrayFromImage(sitk.ReadImage(os.path.join(a.pair, name))) > 0
     truth = sitk.ReadImage(os.path.join(a.pair, "truth_field.nii.gz"), sitk.sitkVectorFloat64)
@@ -77,6 +89,9 @@ def main():
         result["bones"] = bone_errors(a.pair, a.bones)
     if a.json:
         print(json.dumps(result))
+        return
+    if a.row:
+        print(table_row(result, *a.row))
         return
     print(f"field error: body {result['mean_mm']:.2f} mm, bone {result['bone_mm']:.2f}, soft tissue "
           f"{result['soft_mm']:.2f}; folded {100 * result['folded_share']:.3f}% (min det J {result['min_jacobian']:.3f})")

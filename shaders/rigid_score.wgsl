@@ -2,7 +2,8 @@
 // rotation search that starts each bone inside descent's reach).
 //
 // For candidate c (a world -> world 3x4 matrix M_c) and each source voxel x in the bone region
-// (mask >= 0.5) whose moved point lies inside the target: Σ (T(M_c x) - S(x))² and the count.
+// (mask >= 0.5) whose moved point lies inside the target: Σ (T(M_c x) - S(x))², the count, and
+// Σ S, Σ T, Σ S², Σ T², Σ S·T for the correlation of the bone with the target there.
 // One invocation owns one (x, z) column for one candidate and walks it along y.
 //
 // Bindings (group 0):
@@ -11,8 +12,9 @@
 //   2 storage  mask: array<f32>        the bone-region mask
 //   3 storage  target_image: array<f32>      the target level
 //   4 storage  candidates: array<f32>  12 floats (3 rows of 4) per candidate
-//   5 storage  partial: array<f32>     (sum, count) per column and candidate (read_write):
-//                                      index ((z * nx + x) * candidates + c) * 2
+//   5 storage  partial: array<f32>     SCORE_SUMS (7) per column and candidate (read_write):
+//                                      from index ((z * nx + x) * candidates + c) * 7, in the
+//                                      order Σr², count, ΣS, ΣT, ΣS², ΣT², ΣST (abi::SCORE_SUMS)
 // Dispatch: workgroups (ceil(nx/64), nz, candidates).
 
 // Keep in sync with abi::ScoreParams.
@@ -56,6 +58,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let tdims = params.target_dims.xyz;
     var sum = 0.0;
     var n = 0.0;
+    var s1 = 0.0;
+    var t1 = 0.0;
+    var s2 = 0.0;
+    var t2 = 0.0;
+    var st = 0.0;
     for (var y = 0u; y < ny; y = y + 1u) {
         let i = voxel_index(x, y, z, params.dims.xyz);
         if (mask[i] < 0.5) {
@@ -76,11 +83,23 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (!inside_source(q, tdims)) {
             continue;
         }
-        let r = trilinear(q, tdims, 0.0) - source[i];
+        let t = trilinear(q, tdims, 0.0);
+        let s = source[i];
+        let r = t - s;
         sum = sum + r * r;
         n = n + 1.0;
+        s1 = s1 + s;
+        t1 = t1 + t;
+        s2 = s2 + s * s;
+        t2 = t2 + t * t;
+        st = st + s * t;
     }
-    let base = ((z * nx + x) * count + c) * 2u;
+    let base = ((z * nx + x) * count + c) * 7u;
     partial[base] = sum;
     partial[base + 1u] = n;
+    partial[base + 2u] = s1;
+    partial[base + 3u] = t1;
+    partial[base + 4u] = s2;
+    partial[base + 5u] = t2;
+    partial[base + 6u] = st;
 }

@@ -54,6 +54,9 @@ pub fn check_bone_count(bones: usize) -> Result<()> {
 /// Sums per column of rigid_gn: JᵀJ upper triangle (21), Jᵀr (6), Σr² (1), count (1).
 pub const RIGID_SUMS: usize = 29;
 
+/// Sums per column and candidate of rigid_score: Σr², count, ΣS, ΣT, ΣS², ΣT², ΣS·T.
+pub const SCORE_SUMS: usize = 7;
+
 /// 12 floats per candidate: rows 0..3 of each matrix (the rigid_score kernel's layout).
 pub fn pack_candidates(candidates: &[Affine]) -> Vec<f32> {
     candidates

@@ -292,8 +292,8 @@ pub trait Backend {
         images: &BoneImages<Self::Buffer<f32>>,
     ) -> Result<Self::Buffer<f32>>;
 
-    /// Per-column (Σ r², count) of every candidate motion (12 floats each, abi::pack_candidates;
-    /// layout of shaders/rigid_score.wgsl).
+    /// Per-column sums (abi::SCORE_SUMS: Σ r², count and the correlation's) of every candidate
+    /// motion (12 floats each, abi::pack_candidates; layout of shaders/rigid_score.wgsl).
     fn rigid_scores(
         &self,
         params: &ScoreParams,

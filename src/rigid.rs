@@ -3,7 +3,7 @@
 //! kernel and added on the device in f64, coarse to fine; large poses start from a one-pass
 //! score of hundreds of rotations about the joint (rigid_score kernel).
 
-use crate::abi::{pack_candidates, RigidParams, ScoreParams, RIGID_SUMS as SUMS};
+use crate::abi::{pack_candidates, RigidParams, ScoreParams, RIGID_SUMS as SUMS, SCORE_SUMS};
 use crate::backend::{check_grids, Backend, BoneImages, DeviceImage};
 use crate::error::{Error, Result};
 use crate::volume::Affine;
@@ -94,34 +94,67 @@ pub fn score_candidates<B: Backend>(
     candidates: &[Affine],
 ) -> Result<Vec<f64>> {
     let scores = score_covered(backend, level, candidates)?;
-    let most = scores.iter().map(|s| s.1).fold(0.0, f64::max);
+    let most = scores.iter().map(|s| s.voxels).fold(0.0, f64::max);
     Ok(scores
         .iter()
-        .map(|&(cost, n)| match n > 0.0 && n >= 0.5 * most {
-            true => cost,
+        .map(|s| match s.voxels > 0.0 && s.voxels >= 0.5 * most {
+            true => s.cost,
             false => f64::INFINITY,
         })
         .collect())
 }
 
-/// Each candidate's mean squared residual and the voxels of the bone region it keeps inside
-/// the target (a candidate that keeps none costs infinity).
+/// How one motion of a bone fits the target.
+#[derive(Clone, Copy, Debug)]
+pub struct Score {
+    /// Mean squared residual (infinite when no voxel lands inside the target).
+    pub cost: f64,
+    /// Voxels of the bone region that land inside the target.
+    pub voxels: f64,
+    /// Correlation of the bone region's intensities with the target's where they land: how
+    /// much the moved bone looks like what the target holds there, whatever the two scans'
+    /// gain and offset (0 when either is constant).
+    pub correlation: f64,
+}
+
+impl Score {
+    /// From the kernel's sums: Σr², count, ΣS, ΣT, ΣS², ΣT², ΣST.
+    fn from_sums(s: &[f64]) -> Self {
+        let n = s[1];
+        if n <= 0.0 {
+            return Score {
+                cost: f64::INFINITY,
+                voxels: 0.0,
+                correlation: 0.0,
+            };
+        }
+        let var_s = s[4] - s[2] * s[2] / n;
+        let var_t = s[5] - s[3] * s[3] / n;
+        let cov = s[6] - s[2] * s[3] / n;
+        let spread = (var_s * var_t).sqrt();
+        Score {
+            cost: s[0] / n,
+            voxels: n,
+            correlation: if spread > 0.0 { cov / spread } else { 0.0 },
+        }
+    }
+}
+
+/// Each candidate's [`Score`].
 pub fn score_covered<B: Backend>(
     backend: &B,
     level: &BoneLevel<B>,
     candidates: &[Affine],
-) -> Result<Vec<(f64, f64)>> {
+) -> Result<Vec<Score>> {
     check_grids(&level.source.grid, &level.mask.grid)?;
     let params = ScoreParams::new(&level.source.grid, &level.target.grid, candidates.len());
     let packed = backend.upload("candidate motions", pack_candidates(candidates))?;
     let partial = backend.rigid_scores(&params, &level.images(), &packed)?;
-    let totals = backend.download_one(&backend.sum_partials(&partial, 2 * candidates.len())?)?;
+    let sums = SCORE_SUMS * candidates.len();
+    let totals = backend.download_one(&backend.sum_partials(&partial, sums)?)?;
     Ok(totals
-        .chunks_exact(2)
-        .map(|s| match s[1] > 0.0 {
-            true => (s[0] / s[1], s[1]),
-            false => (f64::INFINITY, 0.0),
-        })
+        .chunks_exact(SCORE_SUMS)
+        .map(Score::from_sums)
         .collect())
 }
 

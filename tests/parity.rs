@@ -13,7 +13,7 @@ use common::*;
 use posereg::abi::{
     pack_candidates, Blending, BoneBlend, BoneLookupParams, ComposeParams, DilateParams,
     Interpolation, JacobianParams, LabelParams, MomentsParams, RbfGradParams, ResampleParams,
-    RigidParams, ScoreParams, ThresholdParams, RIGID_SUMS,
+    RigidParams, ScoreParams, ThresholdParams, RIGID_SUMS, SCORE_SUMS,
 };
 use posereg::backend::BoneImages;
 use posereg::cpu::CpuBackend;
@@ -266,7 +266,8 @@ fn rigid_outputs<B: Backend>(
     let scores = b.rigid_scores(&params, &images, &packed).unwrap();
     let totals = [
         b.sum_partials(&sums, RIGID_SUMS).unwrap(),
-        b.sum_partials(&scores, 2 * candidates.len()).unwrap(),
+        b.sum_partials(&scores, SCORE_SUMS * candidates.len())
+            .unwrap(),
     ];
     let partials = b.download(&[&sums, &scores]).unwrap();
     let totals = b.download(&[&totals[0], &totals[1]]).unwrap();

@@ -220,9 +220,10 @@ impl Backend for CpuBackend {
         images: &BoneImages<Arc<Vec<f32>>>,
         candidates: &Arc<Vec<f32>>,
     ) -> Result<Arc<Vec<f32>>> {
-        filled(params.columns() * params.candidates() * 2, |out| {
-            rigid_score::rigid_score(params, &slices(images), candidates, out)
-        })
+        filled(
+            params.columns() * params.candidates() * crate::abi::SCORE_SUMS,
+            |out| rigid_score::rigid_score(params, &slices(images), candidates, out),
+        )
     }
 
     fn skin_weights(

@@ -1,13 +1,13 @@
 //! CPU twin of shaders/rigid_score.wgsl.
 
 use super::common::{affine_row, voxel_index};
-use crate::abi::ScoreParams;
+use crate::abi::{ScoreParams, SCORE_SUMS};
 use crate::backend::BoneImages;
 use crate::sample::{inside_source, trilinear};
 use rayon::prelude::*;
 
-/// Fills `partial` with (Σ r², count) per column and candidate, layout
-/// ((z * nx + x) * candidates + c) * 2.
+/// Fills `partial` with abi::SCORE_SUMS sums per column and candidate (Σ r², count, Σ S, Σ T,
+/// Σ S², Σ T², Σ S·T), layout ((z * nx + x) * candidates + c) * SCORE_SUMS.
 pub fn rigid_score(
     params: &ScoreParams,
     images: &BoneImages<[f32]>,
@@ -26,7 +26,7 @@ pub fn rigid_score(
         params.target_dims[2],
     ];
     partial
-        .par_chunks_mut((nx * count * 2) as usize)
+        .par_chunks_mut(nx as usize * count as usize * SCORE_SUMS)
         .enumerate()
         .for_each(|(z, out)| {
             let z = z as u32;
@@ -42,7 +42,8 @@ pub fn rigid_score(
                         ]
                     };
                     let m = [row(0), row(1), row(2)];
-                    let (mut sum, mut n) = (0.0f32, 0.0f32);
+                    // Σr², count, ΣS, ΣT, ΣS², ΣT², ΣST, summed in the shader's order.
+                    let mut sums = [0.0f32; SCORE_SUMS];
                     for y in 0..ny {
                         let i = voxel_index(x, y, z, [nx, ny, nz]) as usize;
                         if mask[i] < 0.5 {
@@ -57,13 +58,16 @@ pub fn rigid_score(
                         if !inside_source(q, tdims) {
                             continue;
                         }
-                        let r = trilinear(target, q, tdims, 0.0) - source[i];
-                        sum += r * r;
-                        n += 1.0;
+                        let t = trilinear(target, q, tdims, 0.0);
+                        let s = source[i];
+                        let r = t - s;
+                        let terms = [r * r, 1.0, s, t, s * s, t * t, s * t];
+                        for (sum, term) in sums.iter_mut().zip(terms) {
+                            *sum += term;
+                        }
                     }
-                    let base = ((x * count + c) * 2) as usize;
-                    out[base] = sum;
-                    out[base + 1] = n;
+                    let base = (x * count + c) as usize * SCORE_SUMS;
+                    out[base..base + SCORE_SUMS].copy_from_slice(&sums);
                 }
             }
         });

@@ -4,7 +4,7 @@
 use super::kernel::{groups, Binding};
 use super::resident::GpuBuffer;
 use super::GpuBackend;
-use crate::abi::{RigidParams, ScoreParams, RIGID_SUMS};
+use crate::abi::{RigidParams, ScoreParams, RIGID_SUMS, SCORE_SUMS};
 use crate::backend::BoneImages;
 use crate::error::Result;
 
@@ -46,8 +46,10 @@ impl GpuBackend {
         candidates: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
         let count = params.candidates();
-        let partial =
-            self.output_buffer("candidate column scores", params.columns() * count * 2)?;
+        let partial = self.output_buffer(
+            "candidate column scores",
+            params.columns() * count * SCORE_SUMS,
+        )?;
         self.record(
             &self.kernels.rigid_score,
             params,
