@@ -9,6 +9,7 @@ use posereg::device::{open_backend, DeviceChoice};
 use posereg::evaluate::field_error;
 use posereg::io::config::load_options;
 use posereg::io::field::save_field;
+use posereg::io::itk_transform::save_bone_tfms;
 use posereg::io::nifti::{save_labels, save_volume, DataType};
 use posereg::joint::rotation_degrees;
 use posereg::labels as label;
@@ -85,7 +86,9 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     target.truth.save(&out("truth.json"))?;
     save_volume(&out("warped.nii.gz"), &result.warped, DataType::F32)?;
     save_field(&out("field.nii.gz"), &result.field)?;
-    result.transforms(&options).save(&out("transform.json"))?;
+    let transforms = result.transforms(&options);
+    transforms.save(&out("transform.json"))?;
+    save_bone_tfms(&args.output, &transforms)?;
     let knee = posereg::phantom::flexion::Flexion::knee(0.0)
         .axis_point
         .as_dvec3()

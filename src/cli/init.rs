@@ -14,6 +14,7 @@ use posereg::device::{open_backend, DeviceChoice};
 use posereg::inputs::{check_bones, load_pair, Pair, PairPaths};
 use posereg::io::config::load_options;
 use posereg::io::field::save_field;
+use posereg::io::itk_transform::save_bone_tfms;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::transform::BoneTransforms;
 use posereg::io::{prepare_output_folder, OutputFolder};
@@ -169,6 +170,7 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         .extra
         .insert("bones_report".into(), serde_json::to_value(&init.reports)?);
     transforms.save(&args.pair.output.join("init.json"))?;
+    save_bone_tfms(&args.pair.output, &transforms)?;
     save_field(&args.pair.output.join("init_field.nii.gz"), &images.field)?;
     save_volume(
         &args.pair.output.join("initialised.nii.gz"),

@@ -10,6 +10,7 @@ use posereg::device::{open_backend, DeviceChoice};
 use posereg::inputs::{check_settings, Pair};
 use posereg::io::config::{load_options, options_toml};
 use posereg::io::field::save_field;
+use posereg::io::itk_transform::save_bone_tfms;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::levels::PerLevel;
 use posereg::metric::correlation;
@@ -115,6 +116,7 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
     save_volume(&out("jacobian.nii.gz"), &result.jacobian, DataType::F32)?;
     let transform = result.transforms(&options);
     transform.save(&out("transform.json"))?;
+    save_bone_tfms(&args.pair.output, &transform)?;
     let before =
         posereg::on_backend!(opened, backend => unregistered(backend, &source, &target.grid))?;
     let body = |n: usize| target.data[n] > 0.0;

@@ -3,6 +3,7 @@
 
 pub mod config;
 pub mod field;
+pub mod itk_transform;
 pub mod memory;
 pub mod nifti;
 pub mod points;
