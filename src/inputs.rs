@@ -2,7 +2,7 @@
 //! starts and is named with its file: headers first (3-D grids, the labels on the source's
 //! grid, the scans overlapping, memory), then the voxels, then their content (an image with
 //! nothing to register, no bones, bones too small, label codes that are not bones), then the
-//! settings against the inputs (the bones and the reference they name exist, the target holds
+//! settings against the inputs (the bones they name exist and are in the chain, the target holds
 //! the pyramid levels asked for).
 
 use crate::articulated::{bone_name, present_bones, InitOptions};
