@@ -96,6 +96,42 @@ fn resample_with_a_zero_field_reproduces_the_source_exactly() {
 }
 
 #[test]
+fn threads_sets_the_cpu_backends_threads_and_refuses_zero() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = oblique_grid([9, 8, 7]);
+    let src = dir.path().join("source.nii.gz");
+    let field = dir.path().join("zero.nii.gz");
+    save_volume(&src, &smooth_volume(&grid, 3), DataType::F32).unwrap();
+    save_field(&field, &constant_field(&grid, [0.0; 3])).unwrap();
+    let out_path = dir.path().join("out.nii.gz");
+    let run = |threads: &str| {
+        posereg(&[
+            "--threads",
+            threads,
+            "--device",
+            "cpu",
+            "resample",
+            s(&src),
+            "--field",
+            s(&field),
+            "--like",
+            s(&src),
+            "-o",
+            s(&out_path),
+        ])
+    };
+    let one = run("1");
+    let said = String::from_utf8_lossy(&one.stderr);
+    assert!(
+        one.status.success() && said.contains("cpu: 1 threads"),
+        "{said}"
+    );
+    let zero = run("0");
+    assert!(!zero.status.success());
+    assert!(String::from_utf8_lossy(&zero.stderr).contains("--threads"));
+}
+
+#[test]
 fn resample_errors_name_the_file_and_leave_no_output() {
     let dir = tempfile::tempdir().unwrap();
     let grid = oblique_grid([6, 5, 4]);

@@ -27,6 +27,10 @@ pub struct Cli {
     /// No progress bars or log lines on stderr (errors and the result line still print).
     #[arg(long, short, global = true)]
     pub quiet: bool,
+    /// CPU threads for the CPU backend and the host's work (default: every core, or
+    /// RAYON_NUM_THREADS), so that jobs can share a machine.
+    #[arg(long, global = true, value_parser = clap::value_parser!(u16).range(1..=4096))]
+    pub threads: Option<u16>,
     /// The verb.
     #[command(subcommand)]
     pub command: Command,
@@ -62,6 +66,11 @@ pub enum Command {
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     let reporter = progress::Reporter::new(cli.quiet);
+    if let Some(threads) = cli.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads as usize)
+            .build_global()?;
+    }
     match cli.command {
         Command::Apply(args) => apply::run(&args, cli.device, &reporter),
         Command::ApplyPoints(args) => points::run(&args, &reporter),
