@@ -325,6 +325,14 @@ fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
         report["correlation"]["after"].as_f64().unwrap(),
     );
     assert!(after > before, "correlation {before} -> {after}");
+    assert_eq!(report["schema"], 1);
+    let command = report["command_line"].as_array().unwrap();
+    assert!(command.iter().any(|a| a == "9x8x8"), "{command:?}");
+    assert!(report["finished_unix_seconds"].as_u64().unwrap() > 1_700_000_000);
+    assert!(
+        reg.join("bones/femur.tfm").exists(),
+        "register wrote no bones/femur.tfm"
+    );
     let used = &report["options"]["adaptive"];
     assert_eq!(used["iterations"], "20x20x10", "from the config file");
     assert_eq!(used["threshold"], "9x8x8", "the flag overrides the file");

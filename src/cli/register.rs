@@ -87,6 +87,9 @@ impl RegisterArgs {
     }
 }
 
+/// The version of report.json's layout: raised when a key changes meaning or goes away.
+const REPORT_SCHEMA: u32 = 1;
+
 /// Runs the registration and writes its outputs.
 pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.options()?;
@@ -125,8 +128,14 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
         after: correlation(&result.warped.data, &target.data, body),
     };
     let checks = result_checks(&result, correlations, &options);
+    let finished = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
     let report = serde_json::json!({
+        "schema": REPORT_SCHEMA,
         "posereg": env!("CARGO_PKG_VERSION"),
+        "command_line": std::env::args().collect::<Vec<_>>(),
+        "finished_unix_seconds": finished,
         "device": opened.describe(),
         "seconds": seconds,
         "inputs": { "source": args.pair.source, "source_labels": args.pair.source_labels, "target": args.pair.target },
@@ -137,7 +146,11 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
         })),
         "adaptive_stages": result.adaptive.stages,
         "control_points": result.adaptive.points.len(),
-        "correlation": { "before": correlations.before, "after": correlations.after },
+        "correlation": {
+            "before": correlations.before,
+            "after": correlations.after,
+            "over": "the target's voxels above 0 (its body), source resampled without and with the field",
+        },
         "jacobian": { "min": result.min_jacobian, "folded_share": result.folded_share, "unfolding": result.unfolding },
         "device_traffic": { "stages": result.traffic, "evaluations": result.adaptive.evaluations },
         "checks": checks,
