@@ -10,7 +10,7 @@ use crate::confidence::{judge, Confidence, Decision, Evidence, FollowRules};
 use crate::error::{Error, Result};
 use crate::fold_repair::{FoldRepair, SourceLabels};
 use crate::io::transform::{BoneTransform, BoneTransforms};
-use crate::joint::{flexion_axis, rotation_about, rotation_degrees, JointAxis};
+use crate::joint::{degrees_between, flexion_axis, rotation_about, rotation_degrees, JointAxis};
 use crate::labels as label;
 use crate::progress::Progress;
 use crate::pyramid;
@@ -73,12 +73,7 @@ impl InitOptions {
     /// `labels`.
     pub fn bones_in(&self, labels: &Labels) -> Vec<u16> {
         match self.bones.is_empty() {
-            true => self
-                .chain
-                .iter()
-                .map(|l| l.label)
-                .filter(|code| labels.data.contains(code))
-                .collect(),
+            true => chain::present(&self.chain, labels),
             false => self.bones.clone(),
         }
     }
@@ -238,14 +233,6 @@ impl Initialisation {
     }
 }
 
-/// Bone labels present in `labels` among the known bone codes.
-pub fn present_bones(labels: &Labels) -> Vec<u16> {
-    [label::FEMUR, label::TIBIA, label::PATELLA, label::FIBULA]
-        .into_iter()
-        .filter(|code| labels.data.contains(code))
-        .collect()
-}
-
 /// Candidate motions of a bone: rotations by `range` about the flexion axis (and about axes
 /// tilted from it by `tilt_degrees`) through the condyles, after its parent's motion.
 fn candidates(
@@ -394,12 +381,6 @@ fn distinct_best(cands: &[(f64, Affine)], scores: &[f64], distinct_degrees: f64)
     kept
 }
 
-/// The rotation angle between two motions (degrees).
-pub fn degrees_between(a: &Affine, b: &Affine) -> f64 {
-    a.try_inverse()
-        .map_or(f64::INFINITY, |inv| rotation_degrees(&(inv * b)))
-}
-
 /// The search's outcome: the best refined candidate.
 struct Searched {
     motion: Affine,
@@ -514,7 +495,6 @@ fn register_bone<B: Backend>(
 }
 
 /// The evidence for a bone's own motion against its parent's, at its finest rigid level.
-#[allow(clippy::too_many_arguments)]
 fn evidence<B: Backend>(
     backend: &B,
     pyramids: &Pyramids<B>,
@@ -805,7 +785,7 @@ pub fn bend<B: Backend>(
         Some(a) => a,
         None => flexion_axis(labels)?,
     };
-    let bones = present_bones(labels);
+    let bones = chain::present(&chain::knee(), labels);
     let motions: Vec<Affine> = bones
         .iter()
         .map(|&b| match b {

@@ -3,12 +3,15 @@
 //! Bones form a tree. The root is registered from the identity; every other bone's rotation
 //! search and refinement start from its parent's motion, its plausible motion is bounded
 //! relative to that parent, and a bone whose own evidence is weak may follow its parent
-//! (crate::confidence). The knee's table is the default; other joints (ankle, wrist, elbow,
-//! hip) are written as settings (`[[init.chain]]` entries) with their label codes.
+//! (crate::confidence). The knee's table is the default; a table in the settings
+//! (`[[init.chain]]` entries) replaces it. The rotation search still turns about the knee's
+//! flexion axis, found from labels 2 and 3 (crate::joint): other joints need an axis finder of
+//! their own.
 
 use crate::check::within;
 use crate::error::{Error, Result};
 use crate::labels as label;
+use crate::volume::Labels;
 
 /// One bone of the chain.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -117,6 +120,24 @@ fn check_search(who: &str, [from, to, step]: [f64; 3]) -> Result<()> {
         "init.chain: {who}: search_degrees must be from, to, step in degrees (-360 to 360) with \
          to >= from, step > 0 and at most 1000 steps"
     )))
+}
+
+/// The chain's bones that have voxels in `labels`, in chain order.
+pub fn present(chain: &[Link], labels: &Labels) -> Vec<u16> {
+    chain
+        .iter()
+        .map(|l| l.label)
+        .filter(|code| labels.data.contains(code))
+        .collect()
+}
+
+/// The chain's codes and names as a user reads them: "2 femur, 3 tibia, …".
+pub fn described(chain: &[Link]) -> String {
+    let each: Vec<String> = chain
+        .iter()
+        .map(|l| format!("{} {}", l.label, l.name))
+        .collect();
+    each.join(", ")
 }
 
 /// The link of `code`, if the chain has one.

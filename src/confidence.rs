@@ -121,7 +121,7 @@ pub struct Confidence {
     /// Correlation of the bone (and its one-voxel rim) with the target where the motion kept
     /// puts it: how much the moved bone looks like what the target holds there.
     pub correlation: f64,
-    /// The same at the parent's motion.
+    /// Mean squared residual at the parent's motion.
     pub cost_at_parent: Option<f64>,
     /// The search's runner-up cost over the best's (search level).
     pub runner_up_ratio: Option<f64>,

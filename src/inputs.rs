@@ -5,7 +5,8 @@
 //! settings against the inputs (the bones they name exist and are in the chain, the target holds
 //! the pyramid levels asked for).
 
-use crate::articulated::{bone_name, present_bones, InitOptions};
+use crate::articulated::InitOptions;
+use crate::chain::{self, Link};
 use crate::error::{Error, Result};
 use crate::io::memory;
 use crate::io::nifti::{labels_from_raw, read_header, read_raw, spatial_grid, volume_from_raw};
@@ -49,8 +50,9 @@ pub struct Pair {
     pub warnings: Vec<String>,
 }
 
-/// Reads the three inputs after checking their headers against each other.
-pub fn load_pair(paths: PairPaths) -> Result<Pair> {
+/// Reads the three inputs after checking their headers against each other; the label map
+/// must hold a bone of `chain`.
+pub fn load_pair(paths: PairPaths, chain: &[Link]) -> Result<Pair> {
     let grid_of = |path: &Path, what: &str| spatial_grid(path, &read_header(path)?, what);
     let source_grid = grid_of(paths.source, "an intensity image")?;
     let label_grid = grid_of(paths.labels, "a label map")?;
@@ -79,7 +81,7 @@ pub fn load_pair(paths: PairPaths) -> Result<Pair> {
     let target = volume_from_raw(paths.target, read_raw(paths.target)?)?;
     check_not_constant(&source, paths.source)?;
     check_not_constant(&target, paths.target)?;
-    let warnings = check_labels(&labels, paths.labels)?;
+    let warnings = check_labels(&labels, paths.labels, chain)?;
     Ok(Pair {
         source,
         labels,
@@ -131,19 +133,21 @@ fn check_not_constant(volume: &Volume, path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Refuses a label map without bones; returns a warning for codes that are not bones.
-fn check_labels(labels: &Labels, path: &Path) -> Result<Vec<String>> {
-    if present_bones(labels).is_empty() {
+/// Refuses a label map without a bone of `chain`; returns a warning for codes that are
+/// neither bones of the chain nor outside / soft tissue.
+fn check_labels(labels: &Labels, path: &Path, chain: &[Link]) -> Result<Vec<String>> {
+    let bones = chain::described(chain);
+    if chain::present(chain, labels).is_empty() {
         return Err(Error::bad_file(
             path,
-            "has no bone labels (2 femur, 3 tibia, 4 patella, 5 fibula)",
+            format!("has no bone labels ({bones})"),
         ));
     }
     let mut others: Vec<u16> = labels
         .data
         .iter()
         .copied()
-        .filter(|c| !NON_BONE_CODES.contains(c) && bone_name(*c).starts_with("bone"))
+        .filter(|c| !NON_BONE_CODES.contains(c) && chain::link(chain, *c).is_none())
         .collect();
     others.sort_unstable();
     others.dedup();
@@ -152,8 +156,8 @@ fn check_labels(labels: &Labels, path: &Path) -> Result<Vec<String>> {
     }
     let codes: Vec<String> = others.iter().map(|c| c.to_string()).collect();
     Ok(vec![format!(
-        "{}: label codes {} are not bones (2 femur, 3 tibia, 4 patella, 5 fibula); they are \
-         ignored unless --bones names them",
+        "{}: label codes {} are not bones ({bones}); they are ignored unless --bones names \
+         them",
         path.display(),
         codes.join(", ")
     )])
@@ -171,7 +175,7 @@ pub fn check_settings(options: &RegisterOptions, pair: &Pair, paths: PairPaths) 
 
 /// Every bone the initialisation registers has enough voxels and a place in the chain.
 pub fn check_bones(init: &InitOptions, labels: &Labels, paths: PairPaths) -> Result<()> {
-    let present = present_bones(labels);
+    let present = chain::present(&init.chain, labels);
     let listed = |codes: &[u16]| {
         codes
             .iter()
@@ -197,7 +201,7 @@ pub fn check_bones(init: &InitOptions, labels: &Labels, paths: PairPaths) -> Res
                 format!(
                     "{} (label {bone}) has {count} voxels, too few to register (at least \
                      {MIN_BONE_VOXELS}); leave it out with --bones",
-                    bone_name(bone)
+                    init.name_of(bone)
                 ),
             ));
         }
@@ -238,4 +242,45 @@ pub fn check_levels(target: &Grid, levels: usize, path: &Path) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::{Affine, Image};
+
+    #[test]
+    fn label_codes_are_read_against_the_chain() {
+        let grid = Grid::new([4, 1, 1], Affine::identity()).unwrap();
+        let labels: Labels = Image::from_data(grid, vec![0, 1, 7, 7]).unwrap();
+        let path = Path::new("ankle_labels.nii.gz");
+        let knee = check_labels(&labels, path, &chain::knee())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            knee.contains("has no bone labels (2 femur, 3 tibia"),
+            "{knee}"
+        );
+        let talus = vec![Link {
+            label: 7,
+            name: "talus".into(),
+            parent: None,
+            search_degrees: None,
+            max_degrees: 0.0,
+        }];
+        assert_eq!(
+            check_labels(&labels, path, &talus).unwrap(),
+            Vec::<String>::new()
+        );
+        let mut femur_only = talus.clone();
+        femur_only[0].label = 2;
+        femur_only[0].name = "femur".into();
+        let grid = Grid::new([4, 1, 1], Affine::identity()).unwrap();
+        let with_femur: Labels = Image::from_data(grid, vec![0, 2, 7, 7]).unwrap();
+        let warned = check_labels(&with_femur, path, &femur_only).unwrap();
+        assert!(
+            warned[0].contains("label codes 7 are not bones (2 femur)"),
+            "{warned:?}"
+        );
+    }
 }

@@ -123,3 +123,9 @@ pub fn rotation_degrees(m: &crate::volume::Affine) -> f64 {
         .acos()
         .to_degrees()
 }
+
+/// The rotation angle between two motions (degrees); infinite when `a` is singular.
+pub fn degrees_between(a: &crate::volume::Affine, b: &crate::volume::Affine) -> f64 {
+    a.try_inverse()
+        .map_or(f64::INFINITY, |inv| rotation_degrees(&(inv * b)))
+}

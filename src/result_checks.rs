@@ -5,9 +5,10 @@
 //! stderr; `--strict` turns a failed check into a non-zero exit (the outputs are still
 //! written, atomically, for inspection).
 
-use crate::articulated::{degrees_between, Initialisation};
+use crate::articulated::Initialisation;
 use crate::chain;
 use crate::confidence::Decision;
+use crate::joint::degrees_between;
 use crate::register::{RegisterOptions, Registration};
 
 /// One check's outcome.

@@ -5,7 +5,8 @@ mod common;
 use common::*;
 use posereg::io::field::save_field;
 use posereg::io::nifti::{load_volume, save_volume, DataType};
-use std::path::Path;
+use posereg::Volume;
+use std::path::{Path, PathBuf};
 use std::process::Output;
 
 fn s(p: &Path) -> &str {
@@ -56,33 +57,44 @@ fn info_json_reports_the_affine_nibabel_reports() {
     );
 }
 
+/// A smooth source on an oblique grid of `dims` and a zero field on the same grid, written
+/// into `dir` as source.nii.gz and zero.nii.gz.
+fn source_and_zero_field(dir: &Path, dims: [usize; 3], seed: u64) -> (Volume, PathBuf, PathBuf) {
+    let grid = oblique_grid(dims);
+    let source = smooth_volume(&grid, seed);
+    let (src, field) = (dir.join("source.nii.gz"), dir.join("zero.nii.gz"));
+    save_volume(&src, &source, DataType::F32).unwrap();
+    save_field(&field, &constant_field(&grid, [0.0; 3])).unwrap();
+    (source, src, field)
+}
+
+/// `posereg resample SRC --field FIELD --like SRC -o OUT` followed by `extra`.
+fn resample_onto_itself(src: &Path, field: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "resample",
+        s(src),
+        "--field",
+        s(field),
+        "--like",
+        s(src),
+        "-o",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    posereg(&args)
+}
+
 #[test]
 fn resample_with_a_zero_field_reproduces_the_source_exactly() {
     let dir = tempfile::tempdir().unwrap();
-    let grid = oblique_grid([19, 14, 9]);
-    let source = smooth_volume(&grid, 31);
-    let src = dir.path().join("source.nii.gz");
-    let field = dir.path().join("zero.nii.gz");
-    save_volume(&src, &source, DataType::F32).unwrap();
-    save_field(&field, &constant_field(&grid, [0.0; 3])).unwrap();
+    let (source, src, field) = source_and_zero_field(dir.path(), [19, 14, 9], 31);
     let mut devices = vec!["cpu"];
     if gpu().is_some() {
         devices.push("gpu");
     }
     for device in devices {
         let out_path = dir.path().join(format!("out-{device}.nii.gz"));
-        let out = posereg(&[
-            "resample",
-            s(&src),
-            "--field",
-            s(&field),
-            "--like",
-            s(&src),
-            "-o",
-            s(&out_path),
-            "--device",
-            device,
-        ]);
+        let out = resample_onto_itself(&src, &field, &out_path, &["--device", device]);
         assert!(
             out.status.success(),
             "{}",
@@ -98,27 +110,15 @@ fn resample_with_a_zero_field_reproduces_the_source_exactly() {
 #[test]
 fn threads_sets_the_cpu_backends_threads_and_refuses_zero() {
     let dir = tempfile::tempdir().unwrap();
-    let grid = oblique_grid([9, 8, 7]);
-    let src = dir.path().join("source.nii.gz");
-    let field = dir.path().join("zero.nii.gz");
-    save_volume(&src, &smooth_volume(&grid, 3), DataType::F32).unwrap();
-    save_field(&field, &constant_field(&grid, [0.0; 3])).unwrap();
+    let (_, src, field) = source_and_zero_field(dir.path(), [9, 8, 7], 3);
     let out_path = dir.path().join("out.nii.gz");
     let run = |threads: &str| {
-        posereg(&[
-            "--threads",
-            threads,
-            "--device",
-            "cpu",
-            "resample",
-            s(&src),
-            "--field",
-            s(&field),
-            "--like",
-            s(&src),
-            "-o",
-            s(&out_path),
-        ])
+        resample_onto_itself(
+            &src,
+            &field,
+            &out_path,
+            &["--threads", threads, "--device", "cpu"],
+        )
     };
     let one = run("1");
     let said = String::from_utf8_lossy(&one.stderr);

@@ -5,11 +5,12 @@
 
 mod common;
 
-use posereg::articulated::{degrees_between, initialise_volumes, InitOptions, Initialisation};
+use posereg::articulated::{initialise_volumes, InitOptions, Initialisation};
 use posereg::confidence::Decision;
 use posereg::cpu::CpuBackend;
 use posereg::io::nifti::{load_labels, load_volume};
 use posereg::io::transform::BoneTransforms;
+use posereg::joint::degrees_between;
 use posereg::labels as label;
 use posereg::progress::Silent;
 use posereg::Backend;

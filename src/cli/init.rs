@@ -5,11 +5,9 @@ use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
 use posereg::abi::Interpolation;
-use posereg::articulated::{
-    bone_name, initialise_volumes, present_bones, rigid_field, InitOptions,
-};
+use posereg::articulated::{bone_name, initialise_volumes, rigid_field, InitOptions};
 use posereg::backend::resample_volume;
-use posereg::chain;
+use posereg::chain::{self, Link};
 use posereg::device::{open_backend, DeviceChoice};
 use posereg::inputs::{check_bones, load_pair, Pair, PairPaths};
 use posereg::io::config::load_options;
@@ -73,10 +71,15 @@ impl PairArgs {
         }
     }
 
-    /// Prepares the output folder, then loads and checks the inputs, printing their warnings.
-    pub fn load(&self, reporter: &Reporter) -> anyhow::Result<(OutputFolder, Pair)> {
+    /// Prepares the output folder, then loads and checks the inputs (the labels against the
+    /// kinematic chain), printing their warnings.
+    pub fn load(
+        &self,
+        reporter: &Reporter,
+        chain: &[Link],
+    ) -> anyhow::Result<(OutputFolder, Pair)> {
         let folder = prepare_output_folder(&self.output)?;
-        let pair = load_pair(self.paths())?;
+        let pair = load_pair(self.paths(), chain)?;
         for warning in &pair.warnings {
             reporter.warn(warning);
         }
@@ -93,7 +96,7 @@ fn load_given(
 ) -> anyhow::Result<BoneTransforms> {
     let given = BoneTransforms::load(path)?;
     given.check_rigid(path)?;
-    let present = present_bones(labels);
+    let present = chain::present(&options.chain, labels);
     if let Some(b) = given.bones.iter().find(|b| !present.contains(&b.label)) {
         let problem = format!(
             "bone {} ({}) is not among the labels' bones {present:?}",
@@ -125,7 +128,7 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     }
     // The flags are checked before any voxel is read.
     options.check()?;
-    let (_folder, pair) = args.pair.load(reporter)?;
+    let (_folder, pair) = args.pair.load(reporter, &options.chain)?;
     let Pair {
         source,
         labels,

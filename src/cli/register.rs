@@ -93,7 +93,7 @@ const REPORT_SCHEMA: u32 = 1;
 /// Runs the registration and writes its outputs.
 pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.options()?;
-    let (_folder, pair) = args.pair.load(reporter)?;
+    let (_folder, pair) = args.pair.load(reporter, &options.init.chain)?;
     check_settings(&options, &pair, args.pair.paths())?;
     let Pair {
         source,
