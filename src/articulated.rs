@@ -10,7 +10,9 @@ use crate::confidence::{judge, Confidence, Decision, Evidence, FollowRules};
 use crate::error::{Error, Result};
 use crate::fold_repair::{FoldRepair, SourceLabels};
 use crate::io::transform::{BoneTransform, BoneTransforms};
-use crate::joint::{degrees_between, flexion_axis, rotation_about, rotation_degrees, JointAxis};
+use crate::joint::{
+    degrees_between, flexion_axis, rotation_about, rotation_degrees, JointAxis, KneeBones,
+};
 use crate::labels as label;
 use crate::progress::Progress;
 use crate::pyramid;
@@ -222,12 +224,12 @@ impl<B: Backend> PairImages<B> {
 }
 
 impl Initialisation {
-    /// The bone motions in the on-disk format.
-    pub fn transforms(&self) -> BoneTransforms {
+    /// The bone motions in the on-disk format, named as `options`' chain names them.
+    pub fn transforms(&self, options: &InitOptions) -> BoneTransforms {
         BoneTransforms::new(
             self.motions
                 .iter()
-                .map(|(code, m)| BoneTransform::new(*code, &bone_name(*code), m))
+                .map(|(code, m)| BoneTransform::new(*code, &options.name_of(*code), m))
                 .collect(),
         )
     }
@@ -665,7 +667,7 @@ pub fn initialise<B: Backend>(
         ));
     }
     crate::abi::check_bone_count(bones.len())?;
-    let axis = flexion_axis(labels)?;
+    let axis = flexion_axis(labels, KneeBones::of_chain(&options.chain)?)?;
     let rigid_steps = if given.is_some() { 0 } else { bones.len() };
     progress.begin("initialisation", rigid_steps + 1);
     let (motions, reports) = match given {
@@ -783,7 +785,7 @@ pub fn bend<B: Backend>(
     }
     let axis = match axis {
         Some(a) => a,
-        None => flexion_axis(labels)?,
+        None => flexion_axis(labels, KneeBones::default())?,
     };
     let bones = chain::present(&chain::knee(), labels);
     let motions: Vec<Affine> = bones

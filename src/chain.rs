@@ -4,9 +4,9 @@
 //! search and refinement start from its parent's motion, its plausible motion is bounded
 //! relative to that parent, and a bone whose own evidence is weak may follow its parent
 //! (crate::confidence). The knee's table is the default; a table in the settings
-//! (`[[init.chain]]` entries) replaces it. The rotation search still turns about the knee's
-//! flexion axis, found from labels 2 and 3 (crate::joint): other joints need an axis finder of
-//! their own.
+//! (`[[init.chain]]` entries) replaces it, and `--label-map` renames its codes. The rotation
+//! search turns about the knee's flexion axis, found from the bones named femur and tibia
+//! (crate::joint): other joints need an axis finder of their own.
 
 use crate::check::within;
 use crate::error::{Error, Result};
@@ -78,10 +78,8 @@ pub fn check(chain: &[Link]) -> Result<()> {
     }
     for (i, link) in chain.iter().enumerate() {
         let who = format!("{} (label {})", link.name, link.label);
-        if link.label <= label::SOFT_TISSUE {
-            return bad(format!(
-                "{who}: bone labels are 2 and up; 0 is outside the body and 1 soft tissue"
-            ));
+        if link.label == label::OUTSIDE {
+            return bad(format!("{who}: label 0 is outside the body, not a bone"));
         }
         if chain[..i].iter().any(|l| l.label == link.label) {
             return bad(format!("{who} is listed twice"));
@@ -120,6 +118,55 @@ fn check_search(who: &str, [from, to, step]: [f64; 3]) -> Result<()> {
         "init.chain: {who}: search_degrees must be from, to, step in degrees (-360 to 360) with \
          to >= from, step > 0 and at most 1000 steps"
     )))
+}
+
+/// `chain` with the label codes of a user's label map (`--label-map femur=1,tibia=3`): each
+/// name must be a bone of the chain and each code distinct and non-zero. Bones the map does
+/// not name are left out (a map's other codes — cartilage, menisci — are then not read as
+/// bones), their children hanging on their nearest named ancestor; the root must be named.
+pub fn relabelled(chain: &[Link], map: &[(String, u16)]) -> Result<Vec<Link>> {
+    let bad = |what: String| Err(Error::InvalidInput(format!("--label-map: {what}")));
+    for (i, (name, code)) in map.iter().enumerate() {
+        if !chain.iter().any(|l| &l.name == name) {
+            return bad(format!(
+                "no bone named {name:?} in the kinematic chain ({})",
+                names(chain)
+            ));
+        }
+        if let Some((other, _)) = map[..i].iter().find(|(n, c)| n == name || c == code) {
+            return bad(format!("{name}={code} repeats a name or a code ({other})"));
+        }
+    }
+    let code_of = |name: &str| map.iter().find(|(n, _)| n == name).map(|(_, c)| *c);
+    let mut out = Vec::new();
+    for link in chain {
+        let Some(code) = code_of(&link.name) else {
+            continue;
+        };
+        let named = |a: u16| self::link(chain, a).and_then(|l| code_of(&l.name));
+        let parent = ancestors(chain, link.label).find_map(named);
+        if link.parent.is_some() && parent.is_none() {
+            let root = ancestors(chain, link.label).last().unwrap_or(link.label);
+            let root = self::link(chain, root).map_or("", |l| l.name.as_str());
+            return bad(format!(
+                "{} is named but the chain's root, {root}, is not",
+                link.name
+            ));
+        }
+        out.push(Link {
+            label: code,
+            parent,
+            ..link.clone()
+        });
+    }
+    check(&out)?;
+    Ok(out)
+}
+
+/// The chain's bone names: "femur, tibia, …".
+fn names(chain: &[Link]) -> String {
+    let each: Vec<&str> = chain.iter().map(|l| l.name.as_str()).collect();
+    each.join(", ")
 }
 
 /// The chain's bones that have voxels in `labels`, in chain order.
@@ -221,15 +268,36 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("tibia (label 3): search_degrees"));
-        let mut soft = knee();
-        soft[2].label = 1;
-        assert!(check(&soft)
+        let mut outside = knee();
+        outside[2].label = 0;
+        assert!(check(&outside)
             .unwrap_err()
             .to_string()
-            .contains("soft tissue"));
+            .contains("outside the body"));
         assert!(registration_order(&knee(), &[2, 7])
             .unwrap_err()
             .to_string()
             .contains("label 7"));
+    }
+
+    #[test]
+    fn a_label_map_renames_codes_and_leaves_out_unnamed_bones() {
+        let map = |pairs: &[(&str, u16)]| -> Vec<(String, u16)> {
+            pairs.iter().map(|(n, c)| (n.to_string(), *c)).collect()
+        };
+        // The cartilage layout: 1 femur, 3 tibia, 5 fibula; no patella.
+        let chain =
+            relabelled(&knee(), &map(&[("femur", 1), ("tibia", 3), ("fibula", 5)])).unwrap();
+        let codes: Vec<(u16, Option<u16>)> = chain.iter().map(|l| (l.label, l.parent)).collect();
+        assert_eq!(codes, [(1, None), (3, Some(1)), (5, Some(3))]);
+        // Without the tibia the fibula hangs on the femur.
+        let chain = relabelled(&knee(), &map(&[("femur", 7), ("fibula", 9)])).unwrap();
+        assert_eq!(chain[1].parent, Some(7));
+        let err = |pairs: &[(&str, u16)]| relabelled(&knee(), &map(pairs)).unwrap_err().to_string();
+        assert!(err(&[("femor", 1)]).contains("no bone named \"femor\""));
+        assert!(err(&[("femur", 1), ("tibia", 1)]).contains("repeats"));
+        assert!(err(&[("femur", 1), ("femur", 2)]).contains("repeats"));
+        assert!(err(&[("tibia", 3)]).contains("root, femur, is not"));
+        assert!(err(&[("femur", 0)]).contains("label 0"));
     }
 }

@@ -3,7 +3,7 @@
 use crate::backend::Backend;
 use crate::cpu::CpuBackend;
 use crate::error::Result;
-use crate::gpu::context::GpuContext;
+use crate::gpu::context::{AdapterChoice, GpuContext};
 use crate::gpu::GpuBackend;
 
 /// The user's choice of backend.
@@ -17,6 +17,25 @@ pub enum DeviceChoice {
     Gpu,
     /// The CPU backend.
     Cpu,
+}
+
+/// Where the user wants kernels to run: the kind of backend and, for the GPU, which adapter.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct DeviceWanted {
+    /// auto, gpu or cpu.
+    pub kind: DeviceChoice,
+    /// The adapter `--gpu` names (index or name); none: the best one.
+    pub adapter: Option<AdapterChoice>,
+}
+
+impl DeviceWanted {
+    /// The CPU backend.
+    pub fn cpu() -> Self {
+        DeviceWanted {
+            kind: DeviceChoice::Cpu,
+            adapter: None,
+        }
+    }
 }
 
 /// An opened backend of either kind; [`on_backend!`](crate::on_backend) runs code generic over
@@ -51,16 +70,23 @@ macro_rules! on_backend {
 }
 
 /// Opens the chosen backend; also returns one line saying what was chosen and why.
-pub fn open_backend(choice: DeviceChoice) -> Result<(Opened, String)> {
-    match choice {
+pub fn open_backend(wanted: &DeviceWanted) -> Result<(Opened, String)> {
+    let adapter = wanted.adapter.as_ref();
+    match wanted.kind {
         DeviceChoice::Cpu => {
             let b = CpuBackend;
             let line = format!("device: {} (--device cpu)", b.describe());
             Ok((Opened::Cpu(b), line))
         }
         DeviceChoice::Gpu => {
-            let b = GpuBackend::new()?;
+            let b = GpuBackend::with_context(GpuContext::open(adapter)?)?;
             let line = format!("device: {}", b.describe());
+            Ok((Opened::Gpu(Box::new(b)), line))
+        }
+        // An adapter named by --gpu is used even when it is a software driver.
+        DeviceChoice::Auto if adapter.is_some() => {
+            let b = GpuBackend::with_context(GpuContext::open(adapter)?)?;
+            let line = format!("device: {} (--gpu)", b.describe());
             Ok((Opened::Gpu(Box::new(b)), line))
         }
         DeviceChoice::Auto => match GpuContext::new() {

@@ -156,8 +156,8 @@ fn check_labels(labels: &Labels, path: &Path, chain: &[Link]) -> Result<Vec<Stri
     }
     let codes: Vec<String> = others.iter().map(|c| c.to_string()).collect();
     Ok(vec![format!(
-        "{}: label codes {} are not bones ({bones}); they are ignored unless --bones names \
-         them",
+        "{}: label codes {} are not bones of the kinematic chain ({bones}); they are treated \
+         as soft tissue (--label-map names the codes of your bones)",
         path.display(),
         codes.join(", ")
     )])
@@ -279,7 +279,7 @@ mod tests {
         let with_femur: Labels = Image::from_data(grid, vec![0, 2, 7, 7]).unwrap();
         let warned = check_labels(&with_femur, path, &femur_only).unwrap();
         assert!(
-            warned[0].contains("label codes 7 are not bones (2 femur)"),
+            warned[0].contains("label codes 7 are not bones of the kinematic chain (2 femur)"),
             "{warned:?}"
         );
     }

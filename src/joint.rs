@@ -2,6 +2,7 @@
 //! the femoral condyles, medio-lateral, oriented so that a positive rotation swings the shank
 //! posteriorly — the direction a knee bends.
 
+use crate::chain::{self, Link};
 use crate::error::{Error, Result};
 use crate::labels as label;
 use crate::volume::Labels;
@@ -54,16 +55,58 @@ fn principal_direction(points: &[Vector3<f64>], remove: Option<Vector3<f64>>) ->
     eig.eigenvectors.column(k).into_owned().normalize()
 }
 
+/// The label codes the flexion axis is found from: the chain's bones named femur, tibia and
+/// (when it has one) patella, so that a label map with other codes works unchanged.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct KneeBones {
+    /// The femur's code.
+    pub femur: u16,
+    /// The tibia's code.
+    pub tibia: u16,
+    /// The patella's code, if the chain has one.
+    pub patella: Option<u16>,
+}
+
+impl KneeBones {
+    /// The codes of the chain's bones named femur, tibia and patella.
+    pub fn of_chain(chain: &[Link]) -> Result<Self> {
+        let code = |name: &str| chain.iter().find(|l| l.name == name).map(|l| l.label);
+        match (code("femur"), code("tibia")) {
+            (Some(femur), Some(tibia)) => Ok(KneeBones {
+                femur,
+                tibia,
+                patella: code("patella"),
+            }),
+            _ => Err(Error::InvalidInput(format!(
+                "the flexion axis is found from the bones named femur and tibia, and the \
+                 kinematic chain ({}) lacks one",
+                chain::described(chain)
+            ))),
+        }
+    }
+}
+
+impl Default for KneeBones {
+    /// The codes posereg's phantom and ARCHITECTURE.md use: 2 femur, 3 tibia, 4 patella.
+    fn default() -> Self {
+        KneeBones {
+            femur: label::FEMUR,
+            tibia: label::TIBIA,
+            patella: Some(label::PATELLA),
+        }
+    }
+}
+
 /// The flexion axis from femur and tibia labels (patella, when present, fixes anterior;
 /// otherwise world anterior +y is used).
-pub fn flexion_axis(labels: &Labels) -> Result<JointAxis> {
-    let femur = world_points(labels, label::FEMUR);
-    let tibia = world_points(labels, label::TIBIA);
+pub fn flexion_axis(labels: &Labels, bones: KneeBones) -> Result<JointAxis> {
+    let femur = world_points(labels, bones.femur);
+    let tibia = world_points(labels, bones.tibia);
     if femur.len() < 50 || tibia.len() < 50 {
         return Err(Error::InvalidInput(format!(
             "finding the flexion axis needs femur (label {}) and tibia (label {}) voxels; found {} and {}",
-            label::FEMUR,
-            label::TIBIA,
+            bones.femur,
+            bones.tibia,
             femur.len(),
             tibia.len()
         )));
@@ -83,7 +126,9 @@ pub fn flexion_axis(labels: &Labels) -> Result<JointAxis> {
         .collect();
     let point = centroid(&condyles);
     let medio_lateral = principal_direction(&condyles, Some(long_axis));
-    let patella = world_points(labels, label::PATELLA);
+    let patella = bones
+        .patella
+        .map_or_else(Vec::new, |code| world_points(labels, code));
     let towards_front = if patella.len() >= 20 {
         centroid(&patella) - point
     } else {

@@ -7,6 +7,7 @@ use crate::articulated::{initialise, InitOptions, InitialImages, Initialisation,
 use crate::backend::{resample_onto, Backend, DeviceImage, Traffic};
 use crate::error::Result;
 use crate::fold_repair::{determinant, unfold_registration, FoldRepair, Folds, SourceLabels};
+use crate::io::transform::BoneTransforms;
 use crate::progress::Progress;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
 use nalgebra::Vector3;
@@ -210,44 +211,64 @@ fn no_initialisation<B: Backend>(backend: &B, pair: &PairImages<B>) -> Result<In
     })
 }
 
-/// Registers `source` (with its bone `labels`) to `target`.
+/// What a registration starts from.
+#[derive(Clone, Copy)]
+pub struct Inputs<'a> {
+    /// The moving scan (straight pose).
+    pub source: &'a Volume,
+    /// Its bone labels.
+    pub labels: &'a Labels,
+    /// The fixed scan (bent pose): the result is on its grid.
+    pub target: &'a Volume,
+    /// Bone motions to start from instead of registering the bones (`register --init`).
+    pub given: Option<&'a BoneTransforms>,
+}
+
+impl<'a> Inputs<'a> {
+    /// The three scans, the bones registered.
+    pub fn new(source: &'a Volume, labels: &'a Labels, target: &'a Volume) -> Self {
+        Inputs {
+            source,
+            labels,
+            target,
+            given: None,
+        }
+    }
+}
+
+/// Registers the source (with its bone labels) to the target.
 pub fn register<B: Backend>(
     backend: &B,
-    source: &Volume,
-    labels: &Labels,
-    target: &Volume,
+    inputs: Inputs,
     options: &RegisterOptions,
     progress: &dyn Progress,
 ) -> Result<Registration> {
-    register_observed(
-        backend,
-        source,
-        labels,
-        target,
-        options,
-        progress,
-        &mut |_| Ok(()),
-    )
+    register_observed(backend, inputs, options, progress, &mut |_| Ok(()))
 }
 
 /// [`register`], handing the initialisation's images (where the backend computes) to
 /// `observe` before the adaptive stage: what a caller measures the initial field on.
 pub fn register_observed<B: Backend>(
     backend: &B,
-    source: &Volume,
-    labels: &Labels,
-    target: &Volume,
+    inputs: Inputs,
     options: &RegisterOptions,
     progress: &dyn Progress,
     observe: &mut dyn FnMut(&InitialImages<B>) -> Result<()>,
 ) -> Result<Registration> {
+    let Inputs {
+        source,
+        labels,
+        target,
+        given,
+    } = inputs;
     let clock = std::time::Instant::now();
     let at_start = backend.traffic();
     options.check()?;
     let pair = PairImages::upload(backend, source, labels, target)?;
     let (init, images) = match options.initialise.then_some(&options.init) {
         Some(init_options) => {
-            let (found, images) = initialise(backend, &pair, labels, init_options, None, progress)?;
+            let (found, images) =
+                initialise(backend, &pair, labels, init_options, given, progress)?;
             (Some(found), images)
         }
         None => (None, no_initialisation(backend, &pair)?),
@@ -395,12 +416,12 @@ impl Registration {
     /// initialisation) plus the RBF stage's control points and solved coefficients, and how
     /// the total field is composed. field.nii.gz beside it holds that total field sampled on the
     /// target grid.
-    pub fn transforms(&self, options: &RegisterOptions) -> crate::io::transform::BoneTransforms {
+    pub fn transforms(&self, options: &RegisterOptions) -> BoneTransforms {
         let mut transform = self
             .init
             .as_ref()
-            .map(|i| i.transforms())
-            .unwrap_or_else(|| crate::io::transform::BoneTransforms::new(Vec::new()));
+            .map(|i| i.transforms(&options.init))
+            .unwrap_or_else(|| BoneTransforms::new(Vec::new()));
         transform.extra.insert(
             "rbf".into(),
             serde_json::json!({

@@ -11,7 +11,7 @@ use posereg::evaluate::{field_error, FieldError};
 use posereg::labels as label;
 use posereg::metric::correlation;
 use posereg::phantom::{generate, Phantom, PhantomSize, PhantomSpec};
-use posereg::register::{register_observed, RegisterOptions, Registration};
+use posereg::register::{register_observed, Inputs, RegisterOptions, Registration};
 use posereg::Backend;
 
 fn pair(size: PhantomSize, flexion: f64) -> (Phantom, Phantom) {
@@ -49,9 +49,7 @@ fn register_and_score<B: Backend>(
     let mut initial = None;
     let result = register_observed(
         backend,
-        &source.image,
-        &source.labels,
-        &target.image,
+        Inputs::new(&source.image, &source.labels, &target.image),
         options,
         &Silent,
         &mut |images| {

@@ -578,3 +578,171 @@ fn apply_apply_points_and_eval_use_a_registration_folder() {
         "bad_points.csv",
     );
 }
+
+/// A quarter-size phantom pair (0° and 30°) in `dir`: source image, its labels, target.
+fn quarter_pair(dir: &Path) -> [PathBuf; 3] {
+    for (flexion, seed, name) in [("0", "1", "straight"), ("30", "2", "bent")] {
+        let out = dir.join(name);
+        let args = ["phantom", "--size", "quarter", "--flexion", flexion];
+        let made = posereg(&[&args[..], &["--seed", seed, "-q", "-o", s(&out)]].concat());
+        assert!(made.status.success(), "{made:?}");
+    }
+    [
+        dir.join("straight/image.nii.gz"),
+        dir.join("straight/labels.nii.gz"),
+        dir.join("bent/image.nii.gz"),
+    ]
+}
+
+/// Runs `verb` on the three inputs into `out` on the CPU, with `extra` flags.
+fn run_verb(
+    verb: &str,
+    [source, labels, target]: &[PathBuf; 3],
+    out: &Path,
+    extra: &[&str],
+) -> Output {
+    let inputs = [
+        "--source",
+        s(source),
+        "--source-labels",
+        s(labels),
+        "--target",
+        s(target),
+    ];
+    let base = [
+        &[verb][..],
+        &inputs,
+        &["-o", s(out), "--device", "cpu", "-q"],
+    ]
+    .concat();
+    posereg(&[&base[..], extra].concat())
+}
+
+fn bone_motions(path: &Path) -> Vec<(String, [[f64; 4]; 4])> {
+    let t = posereg::io::transform::BoneTransforms::load(path).unwrap();
+    t.bones.into_iter().map(|b| (b.name, b.matrix)).collect()
+}
+
+/// The cartilage layout (1 femur, 2 femoral cartilage, 3 tibia, …) read through --label-map
+/// registers the same bones as posereg's own codes, bit for bit; the --moving/--fixed aliases
+/// name the same inputs; bad maps are refused before any output is written.
+#[test]
+fn a_label_map_in_another_layout_registers_the_same_bones() {
+    let dir = tempfile::tempdir().unwrap();
+    let pair = quarter_pair(dir.path());
+    let own = dir.path().join("own");
+    let ran = run_verb("init", &pair, &own, &[]);
+    assert!(ran.status.success(), "{ran:?}");
+    // posereg's codes 1 soft tissue, 2 femur, 3 tibia, 4 patella, 5 fibula → 2 (as if
+    // cartilage), 1, 3, 6, 8.
+    let mut labels = posereg::io::nifti::load_labels(&pair[1]).unwrap();
+    let layout = [0u16, 2, 1, 3, 6, 8];
+    labels
+        .data
+        .iter_mut()
+        .for_each(|c| *c = layout[*c as usize]);
+    let relabelled = dir.path().join("cartilage_layout.nii.gz");
+    posereg::io::nifti::save_labels(&relabelled, &labels).unwrap();
+    let map = "femur=1,tibia=3,patella=6,fibula=8";
+    let theirs = dir.path().join("theirs");
+    let aliased = [
+        "init",
+        "--moving",
+        s(&pair[0]),
+        "--moving-labels",
+        s(&relabelled),
+        "--fixed",
+        s(&pair[2]),
+        "-o",
+        s(&theirs),
+        "--device",
+        "cpu",
+        "--label-map",
+        map,
+    ];
+    let ran = posereg(&aliased);
+    let said = String::from_utf8_lossy(&ran.stderr);
+    assert!(ran.status.success(), "{said}");
+    assert!(said.contains("label codes 2 are not bones"), "{said}");
+    assert_eq!(
+        bone_motions(&own.join("init.json")),
+        bone_motions(&theirs.join("init.json"))
+    );
+    let codes: Vec<u16> = posereg::io::transform::BoneTransforms::load(&theirs.join("init.json"))
+        .unwrap()
+        .bones
+        .iter()
+        .map(|b| b.label)
+        .collect();
+    assert_eq!(codes, [1, 3, 6, 8]);
+    let no = dir.path().join("refused");
+    let relabelled_pair = [pair[0].clone(), relabelled.clone(), pair[2].clone()];
+    for (map, problem) in [
+        ("femur=1,tibai=3", "no bone named \"tibai\""),
+        ("femur=1,tibia=1", "repeats"),
+        ("tibia=3,fibula=8", "root, femur, is not"),
+        ("femur", "not name=code"),
+        ("femur=-1", "not a label code"),
+    ] {
+        let out = run_verb("register", &relabelled_pair, &no, &["--label-map", map]);
+        let said = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && said.contains(problem),
+            "{map}: {said}"
+        );
+        assert!(said.contains("--label-map"), "{said}");
+        assert!(!no.exists(), "{map} left an output folder");
+    }
+}
+
+/// `register --init` starts from given bone motions and keeps them; it cannot be combined
+/// with --no-init.
+#[test]
+fn register_init_starts_from_the_given_bones() {
+    let dir = tempfile::tempdir().unwrap();
+    let pair = quarter_pair(dir.path());
+    let init = dir.path().join("init");
+    assert!(run_verb("init", &pair, &init, &[]).status.success());
+    let given = init.join("init.json");
+    let reg = dir.path().join("reg");
+    let fast = ["--iterations", "3x3x3", "--init", s(&given)];
+    let ran = run_verb("register", &pair, &reg, &fast);
+    assert!(ran.status.success(), "{ran:?}");
+    assert_eq!(
+        bone_motions(&given),
+        bone_motions(&reg.join("transform.json"))
+    );
+    let both = run_verb(
+        "register",
+        &pair,
+        &dir.path().join("no"),
+        &["--no-init", "--init", s(&given)],
+    );
+    assert!(!both.status.success());
+    assert!(String::from_utf8_lossy(&both.stderr).contains("--no-init"));
+}
+
+/// `posereg devices` lists the adapters --gpu counts; an index past the list is refused naming
+/// the list, and --gpu 0 runs on the first.
+#[test]
+fn gpu_by_index_and_the_device_list() {
+    let Some(_) = gpu() else { return };
+    let listed = posereg(&["devices"]);
+    let text = String::from_utf8_lossy(&listed.stdout);
+    assert!(listed.status.success() && text.starts_with("0: "), "{text}");
+    let dir = tempfile::tempdir().unwrap();
+    let (_, src, field) = source_and_zero_field(dir.path(), [9, 8, 7], 3);
+    let out_path = dir.path().join("out.nii.gz");
+    let first = resample_onto_itself(&src, &field, &out_path, &["--gpu", "0"]);
+    assert!(first.status.success(), "{first:?}");
+    let count = text.lines().count().to_string();
+    let past = resample_onto_itself(
+        &src,
+        &field,
+        &dir.path().join("x.nii.gz"),
+        &["--gpu", &count],
+    );
+    assert_fails_naming(&past, &format!("--gpu {count}"));
+    let named = resample_onto_itself(&src, &field, &out_path, &["--gpu", "no-such-gpu"]);
+    assert_fails_naming(&named, "matches none");
+}

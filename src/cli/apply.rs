@@ -8,7 +8,7 @@ use super::fields::{check_on_field_grid, interpolation, load_moving, registratio
 use super::progress::Reporter;
 use clap::Args;
 use posereg::backend::resample_volume;
-use posereg::device::{open_backend, DeviceChoice};
+use posereg::device::{open_backend, DeviceWanted};
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::{check_output_file, NIFTI_NAMES};
 use std::path::PathBuf;
@@ -32,7 +32,7 @@ pub struct ApplyArgs {
 }
 
 /// Applies the registration's field to the image.
-pub fn run(args: &ApplyArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
+pub fn run(args: &ApplyArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     check_output_file(&args.output, NIFTI_NAMES)?;
     let (field_path, field) = registration_field(&args.transform)?;
     check_on_field_grid(&args.like, &field, &field_path)?;

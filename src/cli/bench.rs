@@ -9,7 +9,7 @@ use posereg::cpu::CpuBackend;
 use posereg::gpu::GpuBackend;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
 use posereg::progress::Silent;
-use posereg::register::{register, RegisterOptions, StageTimes, StageTraffic};
+use posereg::register::{register, Inputs, RegisterOptions, StageTimes, StageTraffic};
 
 /// Which backends to time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -71,9 +71,7 @@ fn time<B: Backend>(
     for _ in 0..runs {
         let r = register(
             backend,
-            &pair.0.image,
-            &pair.0.labels,
-            &pair.1.image,
+            Inputs::new(&pair.0.image, &pair.0.labels, &pair.1.image),
             &RegisterOptions::default(),
             &Silent,
         )?;

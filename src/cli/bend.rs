@@ -7,7 +7,7 @@ use posereg::abi::Blending;
 use posereg::abi::Interpolation;
 use posereg::articulated::bend;
 use posereg::backend::resample_volume;
-use posereg::device::{open_backend, DeviceChoice};
+use posereg::device::{open_backend, DeviceWanted};
 use posereg::io::field::save_field;
 use posereg::io::nifti::{load_labels, load_volume, save_labels, save_volume, DataType};
 use posereg::joint::JointAxis;
@@ -64,7 +64,7 @@ fn given_axis(a: &[f64], source: &posereg::volume::Grid) -> anyhow::Result<Joint
 
 /// Bends and writes target.nii.gz, target_labels.nii.gz, truth_field.nii.gz, truth.json and
 /// picture.png (three planes through the knee).
-pub fn run(args: &BendArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
+pub fn run(args: &BendArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     let _folder = posereg::io::prepare_output_folder(&args.output)?;
     let source = load_volume(&args.source)?;
     let labels = load_labels(&args.labels)?;

@@ -5,7 +5,7 @@
 use super::progress::Reporter;
 use clap::Args;
 use posereg::articulated::bone_name;
-use posereg::device::{open_backend, DeviceChoice};
+use posereg::device::{open_backend, DeviceWanted};
 use posereg::evaluate::field_error;
 use posereg::io::config::load_options;
 use posereg::io::field::save_field;
@@ -15,7 +15,7 @@ use posereg::joint::rotation_degrees;
 use posereg::labels as label;
 use posereg::metric::correlation;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
-use posereg::register::{register_observed, unregistered, RegisterOptions};
+use posereg::register::{register_observed, unregistered, Inputs, RegisterOptions};
 use std::path::PathBuf;
 
 /// Arguments of `posereg demo`.
@@ -39,7 +39,7 @@ pub struct DemoArgs {
 }
 
 /// Makes the pair, registers it, prints the figures and where the outputs are.
-pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
+pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     let mut options = match &args.config {
         Some(path) => load_options(path)?,
         None => RegisterOptions::default(),
@@ -66,9 +66,7 @@ pub fn run(args: &DemoArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     let mut initial_field = None;
     let result = posereg::on_backend!(opened, backend => register_observed(
         backend,
-        &source.image,
-        &source.labels,
-        &target.image,
+        Inputs::new(&source.image, &source.labels, &target.image),
         &options,
         reporter,
         &mut |images| {

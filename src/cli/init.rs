@@ -5,10 +5,10 @@ use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
 use posereg::abi::Interpolation;
-use posereg::articulated::{bone_name, initialise_volumes, rigid_field, InitOptions};
+use posereg::articulated::{initialise_volumes, rigid_field, InitOptions};
 use posereg::backend::resample_volume;
 use posereg::chain::{self, Link};
-use posereg::device::{open_backend, DeviceChoice};
+use posereg::device::{open_backend, DeviceWanted};
 use posereg::inputs::{check_bones, load_pair, Pair, PairPaths};
 use posereg::io::config::load_options;
 use posereg::io::field::save_field;
@@ -47,18 +47,35 @@ pub struct InitArgs {
 /// and `register` both take.
 #[derive(Args, Debug)]
 pub struct PairArgs {
-    /// Source (straight pose) image.
-    #[arg(long)]
+    /// Source (moving) image: the scan with bone labels, e.g. the straight knee.
+    #[arg(long, visible_alias = "moving")]
     pub source: PathBuf,
-    /// Bone labels of the source (2 femur, 3 tibia, 4 patella, 5 fibula).
-    #[arg(long)]
+    /// Bone labels of the source, on its grid (2 femur, 3 tibia, 4 patella, 5 fibula unless
+    /// --label-map says otherwise).
+    #[arg(long, visible_alias = "moving-labels")]
     pub source_labels: PathBuf,
-    /// Target (bent pose) image.
-    #[arg(long)]
+    /// Target (fixed) image: the other pose; outputs are on its grid.
+    #[arg(long, visible_alias = "fixed")]
     pub target: PathBuf,
     /// Output folder (created if missing).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// The codes of the bones in your label map, e.g. femur=1,tibia=3,patella=5: bones it
+    /// does not name are not registered, other codes are soft tissue.
+    #[arg(long, value_delimiter = ',', value_parser = bone_code)]
+    pub label_map: Option<Vec<(String, u16)>>,
+}
+
+/// One `name=code` of --label-map.
+fn bone_code(text: &str) -> Result<(String, u16), String> {
+    let (name, code) = text
+        .split_once('=')
+        .ok_or_else(|| format!("{text:?} is not name=code (e.g. femur=1)"))?;
+    let code = code
+        .trim()
+        .parse::<u16>()
+        .map_err(|_| format!("{code:?} in {text:?} is not a label code (0 to 65535)"))?;
+    Ok((name.trim().to_string(), code))
 }
 
 impl PairArgs {
@@ -69,6 +86,14 @@ impl PairArgs {
             labels: &self.source_labels,
             target: &self.target,
         }
+    }
+
+    /// `chain` with the codes of --label-map, when given.
+    pub fn chain(&self, chain: &[Link]) -> anyhow::Result<Vec<Link>> {
+        Ok(match &self.label_map {
+            Some(map) => chain::relabelled(chain, map)?,
+            None => chain.to_vec(),
+        })
     }
 
     /// Prepares the output folder, then loads and checks the inputs (the labels against the
@@ -89,7 +114,7 @@ impl PairArgs {
 
 /// The bone motions of `--init`: rigid, each for a bone present in the labels, and one for
 /// every bone `options` registers.
-fn load_given(
+pub fn load_given(
     path: &Path,
     labels: &posereg::Labels,
     options: &InitOptions,
@@ -115,7 +140,7 @@ fn load_given(
 }
 
 /// Runs the initialisation and writes init.json, init_field.nii.gz, initialised.nii.gz.
-pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
+pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     let mut options = match &args.config {
         Some(path) => load_options::<RegisterOptions>(path)?.init,
         None => InitOptions::default(),
@@ -126,6 +151,7 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     if let Some(blending) = args.blending {
         options.blending = blending;
     }
+    options.chain = args.pair.chain(&options.chain)?;
     // The flags are checked before any voxel is read.
     options.check()?;
     let (_folder, pair) = args.pair.load(reporter, &options.chain)?;
@@ -153,7 +179,7 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
         reporter,
     ))?;
     let seconds = started.elapsed().as_secs_f64();
-    let mut transforms = init.transforms();
+    let mut transforms = init.transforms(&options);
     transforms.extra.insert(
         "skinning".into(),
         serde_json::json!({
@@ -213,7 +239,7 @@ pub fn run(args: &InitArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow
     for (code, m) in &init.motions {
         println!(
             "  {:<8} rotation {:.2}°",
-            bone_name(*code),
+            options.name_of(*code),
             rotation_degrees(m)
         );
     }

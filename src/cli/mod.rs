@@ -4,6 +4,7 @@ pub mod apply;
 pub mod bench;
 pub mod bend;
 pub mod demo;
+pub mod devices;
 pub mod eval;
 pub mod fields;
 pub mod info;
@@ -15,7 +16,8 @@ pub mod register;
 pub mod resample;
 
 use clap::{Parser, Subcommand};
-use posereg::device::DeviceChoice;
+use posereg::device::{DeviceChoice, DeviceWanted};
+use posereg::gpu::context::AdapterChoice;
 
 /// Register 3-D MRI of an articulated body across poses (GPU, with a CPU twin).
 #[derive(Parser, Debug)]
@@ -24,6 +26,10 @@ pub struct Cli {
     /// Where kernels run: auto picks a hardware GPU when present, else the CPU backend.
     #[arg(long, value_enum, global = true, default_value_t = DeviceChoice::Auto)]
     pub device: DeviceChoice,
+    /// Which GPU: its index in `posereg devices`' list, or part of its name (implies the GPU
+    /// path unless --device cpu).
+    #[arg(long, global = true)]
+    pub gpu: Option<AdapterChoice>,
     /// No progress bars or log lines on stderr (errors and the result line still print).
     #[arg(long, short, global = true)]
     pub quiet: bool,
@@ -49,6 +55,8 @@ pub enum Command {
     Bend(bend::BendArgs),
     /// Make a phantom pair, register it, and print the figures against the truth.
     Demo(demo::DemoArgs),
+    /// List the GPUs (Vulkan adapters) with the index --gpu takes.
+    Devices,
     /// The paper's figures for an estimated field against a true one.
     Eval(eval::EvalArgs),
     /// Print a NIfTI file's grid, world affine, orientation and intensity range.
@@ -71,17 +79,22 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             .num_threads(threads as usize)
             .build_global()?;
     }
+    let device = &DeviceWanted {
+        kind: cli.device,
+        adapter: cli.gpu,
+    };
     match cli.command {
-        Command::Apply(args) => apply::run(&args, cli.device, &reporter),
+        Command::Apply(args) => apply::run(&args, device, &reporter),
         Command::ApplyPoints(args) => points::run(&args, &reporter),
         Command::Bench(args) => bench::run(&args),
-        Command::Bend(args) => bend::run(&args, cli.device, &reporter),
-        Command::Demo(args) => demo::run(&args, cli.device, &reporter),
+        Command::Bend(args) => bend::run(&args, device, &reporter),
+        Command::Demo(args) => demo::run(&args, device, &reporter),
+        Command::Devices => devices::run(),
         Command::Eval(args) => eval::run(&args),
         Command::Info(args) => info::run(&args),
-        Command::Init(args) => init::run(&args, cli.device, &reporter),
+        Command::Init(args) => init::run(&args, device, &reporter),
         Command::Phantom(args) => phantom::run(&args),
-        Command::Register(args) => register::run(&args, cli.device, &reporter),
-        Command::Resample(args) => resample::run(&args, cli.device, &reporter),
+        Command::Register(args) => register::run(&args, device, &reporter),
+        Command::Resample(args) => resample::run(&args, device, &reporter),
     }
 }

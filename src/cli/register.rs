@@ -2,11 +2,11 @@
 //! pipeline, writing warped.nii.gz, field.nii.gz, transform.json, jacobian.nii.gz,
 //! report.json and quicklook.png.
 
-use super::init::PairArgs;
+use super::init::{load_given, PairArgs};
 use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
-use posereg::device::{open_backend, DeviceChoice};
+use posereg::device::{open_backend, DeviceWanted};
 use posereg::inputs::{check_settings, Pair};
 use posereg::io::config::{load_options, options_toml};
 use posereg::io::field::save_field;
@@ -14,7 +14,7 @@ use posereg::io::itk_transform::save_bone_tfms;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::levels::PerLevel;
 use posereg::metric::correlation;
-use posereg::register::{register, unregistered, RegisterOptions};
+use posereg::register::{register, unregistered, Inputs, RegisterOptions};
 use posereg::result_checks::{result_checks, Check, Correlations};
 use posereg::Error;
 use std::path::PathBuf;
@@ -46,6 +46,10 @@ pub struct RegisterArgs {
     /// point, per level coarse to fine, e.g. 8x8x12.
     #[arg(long)]
     pub threshold: Option<PerLevel<f64>>,
+    /// Bone transforms to start from instead of registering the bones (transform.json or
+    /// init.json of an earlier run, corrected if need be).
+    #[arg(long, conflicts_with = "no_init")]
+    pub init: Option<PathBuf>,
     /// Exit non-zero when a result check fails (the field folds, the correlation falls, a
     /// bone's motion lies outside its search); the outputs are still written.
     #[arg(long)]
@@ -82,6 +86,7 @@ impl RegisterArgs {
         if let Some(threshold) = &self.threshold {
             options.adaptive.threshold = threshold.clone();
         }
+        options.init.chain = self.pair.chain(&options.init.chain)?;
         options.check()?;
         Ok(options)
     }
@@ -91,7 +96,7 @@ impl RegisterArgs {
 const REPORT_SCHEMA: u32 = 1;
 
 /// Runs the registration and writes its outputs.
-pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
+pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.options()?;
     let (_folder, pair) = args.pair.load(reporter, &options.init.chain)?;
     check_settings(&options, &pair, args.pair.paths())?;
@@ -101,14 +106,20 @@ pub fn run(args: &RegisterArgs, device: DeviceChoice, reporter: &Reporter) -> an
         target,
         warnings,
     } = pair;
+    let given = match &args.init {
+        Some(path) => Some(load_given(path, &labels, &options.init)?),
+        None => None,
+    };
     let (opened, line) = open_backend(device)?;
     reporter.say(&line);
     let started = std::time::Instant::now();
+    let inputs = Inputs {
+        given: given.as_ref(),
+        ..Inputs::new(&source, &labels, &target)
+    };
     let result = posereg::on_backend!(opened, backend => register(
         backend,
-        &source,
-        &labels,
-        &target,
+        inputs,
         &options,
         reporter,
     ))?;

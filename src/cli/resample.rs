@@ -4,7 +4,7 @@ use super::fields::{check_on_field_grid, interpolation, load_moving};
 use super::progress::Reporter;
 use clap::Args;
 use posereg::backend::resample_volume;
-use posereg::device::{open_backend, DeviceChoice};
+use posereg::device::{open_backend, DeviceWanted};
 use posereg::io::field::load_field;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::{check_output_file, NIFTI_NAMES};
@@ -36,7 +36,7 @@ pub struct ResampleArgs {
 }
 
 /// Applies the field and writes the resampled image.
-pub fn run(args: &ResampleArgs, device: DeviceChoice, reporter: &Reporter) -> anyhow::Result<()> {
+pub fn run(args: &ResampleArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     check_output_file(&args.output, NIFTI_NAMES)?;
     if !args.background.is_finite() {
         let problem = format!(

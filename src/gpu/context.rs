@@ -71,15 +71,101 @@ fn type_rank(t: wgpu::DeviceType) -> u8 {
     }
 }
 
+/// Which adapter `--gpu` asks for: its index in `posereg devices`' list, or a substring of its
+/// name (case-insensitive).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum AdapterChoice {
+    /// The n-th adapter Vulkan lists (from 0).
+    Index(usize),
+    /// The first adapter whose name contains this.
+    Name(String),
+}
+
+impl std::str::FromStr for AdapterChoice {
+    type Err = std::convert::Infallible;
+
+    /// Digits are an index, anything else a name.
+    fn from_str(text: &str) -> std::result::Result<Self, Self::Err> {
+        Ok(match text.parse::<usize>() {
+            Ok(n) => AdapterChoice::Index(n),
+            Err(_) => AdapterChoice::Name(text.to_lowercase()),
+        })
+    }
+}
+
+/// One adapter as `posereg devices` lists it.
+#[derive(Clone, Debug)]
+pub struct AdapterListing {
+    /// Name, driver, type, backend.
+    pub info: wgpu::AdapterInfo,
+    /// Whether it offers the 64-bit floats posereg's RBF kernels need.
+    pub has_f64: bool,
+}
+
+/// Every adapter Vulkan finds, in the order `--gpu INDEX` counts them. $WGPU_BACKEND limits
+/// the backends searched.
+pub fn list_adapters() -> Vec<AdapterListing> {
+    enumerate()
+        .iter()
+        .map(|a| AdapterListing {
+            info: a.get_info(),
+            has_f64: a.features().contains(wgpu::Features::SHADER_F64),
+        })
+        .collect()
+}
+
+fn enumerate() -> Vec<wgpu::Adapter> {
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all());
+    pollster::block_on(instance.enumerate_adapters(backends))
+}
+
+/// The adapters `choice` (or, without one, $WGPU_ADAPTER_NAME) allows, in the order found.
+fn allowed(
+    adapters: Vec<wgpu::Adapter>,
+    choice: Option<&AdapterChoice>,
+) -> Result<Vec<wgpu::Adapter>> {
+    let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+    let from_env = std::env::var("WGPU_ADAPTER_NAME").ok();
+    let (wanted, how) = match (choice, from_env) {
+        (Some(AdapterChoice::Index(n)), _) => {
+            let mut adapters = adapters;
+            return match *n < adapters.len() {
+                true => Ok(vec![adapters.swap_remove(*n)]),
+                false => Err(Error::NoAdapter(format!(
+                    "--gpu {n}: there are {} adapters, numbered from 0: {names:?}",
+                    names.len()
+                ))),
+            };
+        }
+        (Some(AdapterChoice::Name(name)), _) => (name.clone(), "--gpu"),
+        (None, Some(name)) => (name.to_lowercase(), "WGPU_ADAPTER_NAME"),
+        (None, None) => return Ok(adapters),
+    };
+    let kept: Vec<wgpu::Adapter> = adapters
+        .into_iter()
+        .filter(|a| a.get_info().name.to_lowercase().contains(&wanted))
+        .collect();
+    match kept.is_empty() {
+        true => Err(Error::NoAdapter(format!(
+            "{how} {wanted:?} matches none of {names:?}"
+        ))),
+        false => Ok(kept),
+    }
+}
+
 impl GpuContext {
-    /// Opens the best adapter: the one whose name contains $WGPU_ADAPTER_NAME when set, else a
-    /// discrete GPU before an integrated one before a software rasteriser. $WGPU_BACKEND limits
-    /// the backends searched (this build has Vulkan).
+    /// Opens the best adapter: the one `--gpu` or $WGPU_ADAPTER_NAME names, else a discrete
+    /// GPU before an integrated one before a software rasteriser. $WGPU_BACKEND limits the
+    /// backends searched (this build has Vulkan).
     pub fn new() -> Result<Self> {
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all());
-        let mut adapters = pollster::block_on(instance.enumerate_adapters(backends));
+        Self::open(None)
+    }
+
+    /// Opens the adapter `choice` names (see [`GpuContext::new`]).
+    pub fn open(choice: Option<&AdapterChoice>) -> Result<Self> {
+        let adapters = enumerate();
         if adapters.is_empty() {
             return Err(Error::NoAdapter(
                 "no Vulkan device found; for the software driver (lavapipe) on Debian/Ubuntu \
@@ -87,16 +173,7 @@ impl GpuContext {
                     .into(),
             ));
         }
-        if let Ok(wanted) = std::env::var("WGPU_ADAPTER_NAME") {
-            let wanted = wanted.to_lowercase();
-            let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
-            adapters.retain(|a| a.get_info().name.to_lowercase().contains(&wanted));
-            if adapters.is_empty() {
-                return Err(Error::NoAdapter(format!(
-                    "WGPU_ADAPTER_NAME={wanted:?} matches none of {names:?}"
-                )));
-            }
-        }
+        let mut adapters = allowed(adapters, choice)?;
         adapters.sort_by_key(|a| type_rank(a.get_info().device_type));
         let adapter = adapters.remove(0);
         let info = adapter.get_info();
