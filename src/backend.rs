@@ -5,9 +5,9 @@
 use crate::abi::Interpolation;
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
-    JacobianParams, LabelParams, MomentsParams, PyramidParams, RbfGradParams, RbfLatticeParams,
-    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
-    SsdParams, SumParams, ThresholdParams,
+    InvertParams, JacobianParams, LabelParams, MomentsParams, PyramidParams, RbfGradParams,
+    RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
+    SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
@@ -368,6 +368,15 @@ pub trait Backend {
         warp: &Self::Buffer<f32>,
         initial: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
+
+    /// The inverse of `field` (3 floats per voxel of the field grid in `params`) on the output
+    /// grid: w with y + w(y) = z where z + u(z) = y (3 floats per voxel), and per voxel the
+    /// residual |z + u(z) − y| in mm, −1 where y has no preimage in the field's grid.
+    fn invert_field(
+        &self,
+        params: &InvertParams,
+        field: &Self::Buffer<f32>,
+    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
 
     /// The warp R at every lattice node (3 f32 per node), the cubic RBF `spline` (f64, layout
     /// of abi::spline_buffer) evaluated in f64 at nodes placed by `geometry`

@@ -38,6 +38,7 @@ pub mod fold_repair;
 pub mod gain;
 pub mod gpu;
 pub mod inputs;
+pub mod inverse;
 pub mod io;
 pub mod joint;
 pub mod labels;

@@ -5,8 +5,9 @@ use crate::abi::{BoneLookupParams, ComposeParams, Interpolation, ResampleParams}
 use crate::adaptive::{self, Adaptive, AdaptiveOptions, Moving};
 use crate::articulated::{initialise, InitOptions, InitialImages, Initialisation, PairImages};
 use crate::backend::{resample_onto, Backend, DeviceImage, Traffic};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::fold_repair::{determinant, unfold_registration, FoldRepair, Folds, SourceLabels};
+use crate::inverse::{invert, round_trip, RoundTrip};
 use crate::io::transform::BoneTransforms;
 use crate::progress::Progress;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
@@ -74,6 +75,10 @@ pub struct Registration {
     pub warped: Volume,
     /// The field's Jacobian determinant per target voxel.
     pub jacobian: Volume,
+    /// The field's inverse on the source's grid: source point → target point (RAS mm).
+    pub inverse: Field,
+    /// How closely the inverse undoes the field.
+    pub round_trip: RoundTrip,
     /// Smallest Jacobian determinant of the field over the target.
     pub min_jacobian: f32,
     /// Share of target voxels with determinant ≤ 0.
@@ -337,6 +342,12 @@ pub fn register_observed<B: Backend>(
         field: finished.field,
         warped: finished.warped,
         jacobian: finished.jacobian,
+        inverse: finished.inverse,
+        round_trip: round_trip(
+            &finished.inverse_residual,
+            |n| source.data[n] > 0.0,
+            "the source's voxels above 0 (its body)",
+        ),
         min_jacobian: finished.folds.min,
         folded_share: finished.folds.folded as f64 / voxels,
         warp_scale: finished.scale,
@@ -351,6 +362,8 @@ struct Finished {
     field: Field,
     warped: Volume,
     jacobian: Volume,
+    inverse: Field,
+    inverse_residual: Vec<f32>,
     folds: Folds,
     scale: f64,
     unfolding: FoldRepair,
@@ -398,13 +411,19 @@ fn finish<B: Backend>(
     }
     let resample = ResampleParams::new(&pair.source.grid, grid, 0.0, Interpolation::Linear);
     let warped = backend.resample(&resample, &pair.source.data, &field.data)?;
-    let mut out = backend.download(&[&field.data, &warped, &det])?;
-    let (jacobian, warped) = (out.pop().unwrap_or_default(), out.pop().unwrap_or_default());
-    let field = out.pop().unwrap_or_default();
+    let source_grid = &pair.source.grid;
+    let (inverse, residual) = invert(backend, &field, source_grid)?;
+    let wanted = [&field.data, &warped, &det, &inverse.data, &residual];
+    let [field, warped, jacobian, inverse, residual] = backend
+        .download(&wanted)?
+        .try_into()
+        .map_err(|_| Error::Gpu("a download returned the wrong number of buffers".into()))?;
     Ok(Finished {
         field: Image::from_data(grid.clone(), bytemuck::cast_vec(field))?,
         warped: Image::from_data(grid.clone(), warped)?,
         jacobian: Image::from_data(grid.clone(), jacobian)?,
+        inverse: Image::from_data(source_grid.clone(), bytemuck::cast_vec(inverse))?,
+        inverse_residual: residual,
         folds,
         scale,
         unfolding,

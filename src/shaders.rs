@@ -224,6 +224,17 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         ],
     ),
     (
+        "invert_field",
+        &[
+            COMMON,
+            SAMPLE,
+            (
+                "invert_field.wgsl",
+                include_str!("../shaders/invert_field.wgsl"),
+            ),
+        ],
+    ),
+    (
         "rbf_lattice",
         &[
             COMMON,

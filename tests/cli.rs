@@ -253,10 +253,17 @@ fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
     ] {
         assert!(stderr.contains(stage), "no '{stage}' in stderr: {stderr}");
     }
+    // demo writes what register writes, and its inputs.
     for file in [
         "warped.nii.gz",
         "field.nii.gz",
+        "inverse_field.nii.gz",
+        "jacobian.nii.gz",
         "transform.json",
+        "bones/tibia.tfm",
+        "report.json",
+        "quicklook.png",
+        "posereg.log",
         "target.nii.gz",
         "source_labels.nii.gz",
     ] {
@@ -312,12 +319,19 @@ fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
     for file in [
         "warped.nii.gz",
         "field.nii.gz",
+        "inverse_field.nii.gz",
         "transform.json",
         "jacobian.nii.gz",
         "report.json",
+        "posereg.log",
     ] {
         assert!(reg.join(file).exists(), "register did not write {file}");
     }
+    let log = std::fs::read_to_string(reg.join("posereg.log")).unwrap();
+    assert!(
+        log.contains("9x8x8") && log.contains("registered in"),
+        "{log}"
+    );
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(reg.join("report.json")).unwrap()).unwrap();
     let (before, after) = (
@@ -339,6 +353,35 @@ fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
     let warped = load_volume(&reg.join("warped.nii.gz")).unwrap();
     let target = load_volume(&demo.join("target.nii.gz")).unwrap();
     assert_eq!(warped.grid, target.grid, "warped is on the target's grid");
+    // The inverse field brings the target back onto the source's grid.
+    let trip = &report["inverse_round_trip"];
+    assert!(trip["mean_mm"].as_f64().unwrap() < 0.01, "{trip}");
+    let back = dir.path().join("back.nii.gz");
+    let source_path = demo.join("source.nii.gz");
+    let applied = posereg(&[
+        "apply",
+        s(&reg.join("transform.json")),
+        s(&demo.join("target.nii.gz")),
+        "--like",
+        s(&source_path),
+        "--inverse",
+        "-o",
+        s(&back),
+        "--device",
+        "cpu",
+    ]);
+    assert!(applied.status.success(), "{applied:?}");
+    let (back, source) = (
+        load_volume(&back).unwrap(),
+        load_volume(&source_path).unwrap(),
+    );
+    assert_eq!(back.grid, source.grid);
+    let body = |n: usize| source.data[n] > 0.0;
+    let r = posereg::metric::correlation(&back.data, &source.data, body);
+    assert!(
+        r > 0.9,
+        "target brought back correlates {r} with the source"
+    );
 }
 
 /// Every bad input of issue 6 — missing file, NaN voxels, labels on another grid, labels

@@ -12,8 +12,8 @@ mod common;
 use common::*;
 use posereg::abi::{
     pack_candidates, Blending, BoneBlend, BoneLookupParams, ComposeParams, DilateParams,
-    Interpolation, JacobianParams, LabelParams, MomentsParams, RbfGradParams, ResampleParams,
-    RigidParams, ScoreParams, ThresholdParams, RIGID_SUMS, SCORE_SUMS,
+    Interpolation, InvertParams, JacobianParams, LabelParams, MomentsParams, RbfGradParams,
+    ResampleParams, RigidParams, ScoreParams, ThresholdParams, RIGID_SUMS, SCORE_SUMS,
 };
 use posereg::backend::BoneImages;
 use posereg::cpu::CpuBackend;
@@ -938,4 +938,58 @@ fn fold_outputs<B: Backend>(
         .download(&[&det, &stats, &mark, &region, &smoothed])
         .unwrap();
     std::array::from_fn(|_| out.remove(0))
+}
+
+/// invert_field on both backends: a smooth field of a few mm on an oblique grid, inverted onto
+/// a grid that reaches beyond it (some of its voxels have no preimage). Newton's method stops
+/// at 1e-4 mm, so converged answers agree to about that; whether a point has a preimage
+/// agrees but for points on the field grid's edge.
+#[test]
+fn invert_field_parity() {
+    let Some(gpu) = gpu() else { return };
+    let field_grid = oblique_grid([23, 19, 13]);
+    let mut out_grid = Grid::new([21, 17, 15], oblique_affine([1.2, 1.0, 1.5])).unwrap();
+    out_grid.affine[(0, 3)] += 3.0;
+    let field = smooth_field(&field_grid, 91, 1.5);
+    let params = InvertParams::new(&field_grid, &out_grid);
+    let (want, want_residual) = inverted(&CpuBackend, &params, &field);
+    let (got, got_residual) = inverted(gpu, &params, &field);
+    let (mut both, mut disagree) = (0usize, 0usize);
+    for n in 0..out_grid.len() {
+        let (c, g) = (want_residual[n], got_residual[n]);
+        if (c < 0.0) != (g < 0.0) {
+            disagree += 1;
+        } else if (0.0..1e-3).contains(&c) && (0.0..1e-3).contains(&g) {
+            both += 1;
+            for a in 0..3 {
+                let (x, y) = (want[3 * n + a], got[3 * n + a]);
+                assert!((x - y).abs() <= 2e-3, "voxel {n}: gpu {y} vs cpu {x}");
+            }
+        }
+    }
+    let with_preimage = want_residual.iter().filter(|&&r| r >= 0.0).count();
+    eprintln!("invert_field: {both} converged on both of {with_preimage} with a preimage; {disagree} disagree on having one");
+    assert!(
+        disagree * 100 <= out_grid.len(),
+        "{disagree} voxels disagree"
+    );
+    assert!(
+        both * 10 >= with_preimage * 9,
+        "{both} of {with_preimage} converged"
+    );
+    assert!(
+        with_preimage * 10 <= out_grid.len() * 9,
+        "the fixture has no voxels without a preimage"
+    );
+}
+
+/// invert_field's two outputs, brought back.
+fn inverted<B: Backend>(backend: &B, params: &InvertParams, field: &Field) -> (Vec<f32>, Vec<f32>) {
+    let (w, r) = backend
+        .invert_field(params, &field_on(backend, field))
+        .unwrap();
+    (
+        backend.download_one(&w).unwrap(),
+        backend.download_one(&r).unwrap(),
+    )
 }

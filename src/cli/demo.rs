@@ -2,6 +2,7 @@
 //! registered (articulated initialisation, then adaptive cubic-RBF), with its figures
 //! against the known truth.
 
+use super::outputs::{write_registration, Run};
 use super::progress::Reporter;
 use clap::Args;
 use posereg::articulated::bone_name;
@@ -9,13 +10,11 @@ use posereg::device::{open_backend, DeviceWanted};
 use posereg::evaluate::field_error;
 use posereg::io::config::load_options;
 use posereg::io::field::save_field;
-use posereg::io::itk_transform::save_bone_tfms;
 use posereg::io::nifti::{save_labels, save_volume, DataType};
 use posereg::joint::rotation_degrees;
 use posereg::labels as label;
-use posereg::metric::correlation;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
-use posereg::register::{register_observed, unregistered, Inputs, RegisterOptions};
+use posereg::register::{register_observed, Inputs, RegisterOptions};
 use std::path::PathBuf;
 
 /// Arguments of `posereg demo`.
@@ -54,13 +53,13 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         seed,
         ..Default::default()
     };
-    println!(
+    reporter.result(&format!(
         "making a {:?} knee phantom straight and bent {}° ...",
         args.size, args.flexion
-    );
+    ));
     let source = generate(&posereg::cpu::CpuBackend, &spec(0.0, 1))?;
     let target = generate(&posereg::cpu::CpuBackend, &spec(args.flexion, 2))?;
-    println!("registering ...");
+    reporter.result("registering ...");
     let started = std::time::Instant::now();
     // The initial field, brought back for its error against the truth.
     let mut initial_field = None;
@@ -82,33 +81,26 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     save_volume(&out("target.nii.gz"), &target.image, DataType::F32)?;
     save_field(&out("truth_field.nii.gz"), &target.truth_field)?;
     target.truth.save(&out("truth.json"))?;
-    save_volume(&out("warped.nii.gz"), &result.warped, DataType::F32)?;
-    save_field(&out("field.nii.gz"), &result.field)?;
-    let transforms = result.transforms(&options);
-    transforms.save(&out("transform.json"))?;
-    save_bone_tfms(&args.output, &transforms)?;
-    let knee = posereg::phantom::flexion::Flexion::knee(0.0)
-        .axis_point
-        .as_dvec3()
-        .to_array();
-    let unregistered = posereg::on_backend!(opened, backend => unregistered(backend, &source.image, &target.image.grid))?;
-    posereg::quicklook::save(
-        &out("quicklook.png"),
-        &target.image,
-        &unregistered,
-        &result.warped,
-        &result.adaptive.points,
-        knee,
-    )?;
-
-    println!("done in {seconds:.1} s on {}", opened.describe());
+    let run = Run {
+        source: &source.image,
+        target: &target.image,
+        result: &result,
+        options: &options,
+        inputs: serde_json::json!({
+            "phantom": format!("{:?}, straight and bent {}°", args.size, args.flexion),
+        }),
+        warnings: &[],
+        seconds,
+    };
+    let (correlations, _) = write_registration(&args.output, &opened, &run, reporter)?;
+    reporter.result(&format!("done in {seconds:.1} s on {}", opened.describe()));
     let motions = result
         .init
         .as_ref()
         .map(|i| i.motions.clone())
         .unwrap_or_default();
     if !motions.is_empty() {
-        println!("bone motions against the truth:");
+        reporter.result("bone motions against the truth:");
     }
     for (code, m) in &motions {
         let truth = target
@@ -120,10 +112,10 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         if let Some(truth) = truth {
             let angle = rotation_degrees(&(m.try_inverse().unwrap_or(*m) * truth));
             let shift = (m.fixed_view::<3, 1>(0, 3) - truth.fixed_view::<3, 1>(0, 3)).norm();
-            println!(
+            reporter.result(&format!(
                 "  {:<8} rotation error {angle:.2}°, translation difference {shift:.2} mm",
                 bone_name(*code)
-            );
+            ));
         }
     }
     // Inside the body and seen by both scans: where the true source point lies in the source's
@@ -135,17 +127,17 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     let after = field_error(&result.field, &target.truth_field, body)?;
     if let Some(initial_field) = &initial_field.filter(|_| result.init.is_some()) {
         let initial = field_error(initial_field, &target.truth_field, body)?;
-        println!(
+        reporter.result(&format!(
             "after the articulated initialisation: mean error {:.2} mm, within 2 voxels {:.1}%",
             initial.mean_mm,
             100.0 * initial.within_2_voxels
-        );
+        ));
     }
-    println!(
+    reporter.result(&format!(
         "inside the body, where both scans see it ({} voxels):",
         after.voxels
-    );
-    println!(
+    ));
+    reporter.result(&format!(
         "  mean error      {:.2} mm -> {:.2} mm   (within 2 voxels {:.1}% -> {:.1}%, within 4 {:.1}% -> {:.1}%)",
         before.mean_mm,
         after.mean_mm,
@@ -153,22 +145,24 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         100.0 * after.within_2_voxels,
         100.0 * before.within_4_voxels,
         100.0 * after.within_4_voxels
-    );
-    println!(
-        "  correlation     {:.3} -> {:.3}",
-        correlation(&unregistered.data, &target.image.data, body),
-        correlation(&result.warped.data, &target.image.data, body)
-    );
+    ));
+    reporter.result(&format!(
+        "  correlation     {:.3} -> {:.3}   (over the target's body)",
+        correlations.before, correlations.after
+    ));
     let free = result.adaptive.points.iter().filter(|p| !p.pinned).count();
-    println!(
+    reporter.result(&format!(
         "  control points  {free} adaptive + {} pinned on bone surfaces; Jacobian min {:.3}, {:.4}% folded",
         result.adaptive.points.len() - free,
         result.min_jacobian,
         100.0 * result.folded_share
-    );
-    println!(
-        "outputs in {}: warped.nii.gz, field.nii.gz, transform.json, quicklook.png, and the inputs",
+    ));
+    reporter.result(&format!(
+        "outputs in {}: what `posereg register` writes (warped.nii.gz, field.nii.gz, \
+         inverse_field.nii.gz, jacobian.nii.gz, transform.json, bones/*.tfm, report.json, \
+         quicklook.png), the inputs and the truth",
         args.output.display()
-    );
+    ));
+    reporter.save_log(&args.output.join("posereg.log"))?;
     Ok(())
 }

@@ -10,14 +10,19 @@ use posereg::{Error, Field, Image, Volume};
 use std::path::{Path, PathBuf};
 
 /// The total field of a registration: field.nii.gz in the folder of its `transform.json`
-/// (which is read first, so a wrong file is refused by name). Returns the field's path too.
-pub fn registration_field(transform: &Path) -> anyhow::Result<(PathBuf, Field)> {
+/// (which is read first, so a wrong file is refused by name), or with `inverse` its
+/// inverse_field.nii.gz. Returns the field's path too.
+pub fn registration_field(transform: &Path, inverse: bool) -> anyhow::Result<(PathBuf, Field)> {
     BoneTransforms::load(transform)?;
     let folder = transform
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    let path = folder.join("field.nii.gz");
+    let name = match inverse {
+        true => "inverse_field.nii.gz",
+        false => "field.nii.gz",
+    };
+    let path = folder.join(name);
     let field = load_field(&path)?;
     Ok((path, field))
 }
@@ -45,7 +50,7 @@ pub fn check_on_field_grid(like: &Path, field: &Field, field_path: &Path) -> any
 
 /// The image `apply` and `resample` move: a label map (whole numbers, so that nearest
 /// neighbour keeps its codes) with `nearest`, else an intensity image; refused when under 1%
-/// of the field's source points fall inside it (it would come out empty).
+/// of the points the field samples fall inside it (it would come out empty).
 pub fn load_moving(path: &Path, nearest: bool, field: &Field) -> anyhow::Result<Volume> {
     let image = match nearest {
         true => {
@@ -62,8 +67,8 @@ pub fn load_moving(path: &Path, nearest: bool, field: &Field) -> anyhow::Result<
     let share = seen.iter().filter(|&&s| s).count() as f64 / seen.len() as f64;
     if share < 0.01 {
         let problem = format!(
-            "lies outside the field's source points ({:.1}% of them inside it): it is not in \
-             the source's world frame",
+            "lies outside the points the field samples ({:.1}% of them inside it): it is not \
+             in the world frame of the scan the field points into",
             100.0 * share
         );
         return Err(Error::bad_file(path, problem).into());

@@ -219,10 +219,10 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         &target.data,
         body,
     );
-    println!("initialisation in {seconds:.1} s");
+    reporter.result(&format!("initialisation in {seconds:.1} s"));
     for r in &init.reports {
         let last = r.levels.last();
-        println!(
+        reporter.result(&format!(
             "  {:<8} search {:>6}  mean sq. residual {:.1} -> {:.1}; {}",
             r.name,
             r.search_degrees
@@ -231,27 +231,29 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
             r.levels.first().map(|l| l.cost_before).unwrap_or(f64::NAN),
             last.map(|l| l.cost_after).unwrap_or(f64::NAN),
             r.confidence.reason
-        );
+        ));
         for warning in &r.confidence.warnings {
             reporter.warn(warning);
         }
     }
     for (code, m) in &init.motions {
-        println!(
+        reporter.result(&format!(
             "  {:<8} rotation {:.2}°",
             options.name_of(*code),
             rotation_degrees(m)
-        );
+        ));
     }
     let residual = &images.residual.data;
     let worst = residual.iter().cloned().fold(0.0f32, f32::max);
-    println!("  blend inversion residual: worst {worst:.3} mm");
+    reporter.result(&format!("  blend inversion residual: worst {worst:.3} mm"));
     let repair = &init.repair;
-    println!(
+    reporter.result(&format!(
         "  folds (det J <= 0.05): {} in the blend, {} after {} smoothing rounds and {} unfolding steps",
         repair.folded_before, repair.folded_after, repair.rounds, repair.unfold_steps
-    );
-    println!("  correlation with target: identity {corr_identity:.4}");
+    ));
+    reporter.result(&format!(
+        "  correlation with target: identity {corr_identity:.4}"
+    ));
     if let Some(root) = root {
         let femur_only = posereg::on_backend!(opened, backend => resample_volume(
             backend,
@@ -260,15 +262,16 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
             0.0,
             Interpolation::Linear,
         ))?;
-        println!(
+        reporter.result(&format!(
             "                             root bone only {:.4}",
             correlation(&femur_only.data, &target.data, body)
-        );
+        ));
     }
-    println!(
+    reporter.result(&format!(
         "                             initialised {:.4}",
         correlation(&images.initialised.data, &target.data, body)
-    );
-    println!("written to {}", args.pair.output.display());
+    ));
+    reporter.result(&format!("written to {}", args.pair.output.display()));
+    reporter.save_log(&args.pair.output.join("posereg.log"))?;
     Ok(())
 }

@@ -9,6 +9,7 @@ pub mod eval;
 pub mod fields;
 pub mod info;
 pub mod init;
+pub mod outputs;
 pub mod phantom;
 pub mod points;
 pub mod progress;

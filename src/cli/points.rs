@@ -41,7 +41,7 @@ pub struct PointsArgs {
 /// Reads, maps, writes.
 pub fn run(args: &PointsArgs, reporter: &Reporter) -> anyhow::Result<()> {
     posereg::io::check_output_file(&args.output, &[])?;
-    let (field_path, field) = registration_field(&args.transform)?;
+    let (field_path, field) = registration_field(&args.transform, false)?;
     let mut table = load_points(&args.points)?;
     let grid = &field.grid;
     // The field is defined on the target grid only: outside it any answer is extrapolation.

@@ -1,5 +1,7 @@
 //! Progress on the command line: a bar per stage when stderr is a terminal, one log line per
-//! step when it is not (CI logs, pipes), nothing with --quiet.
+//! step when it is not (CI logs, pipes), nothing with --quiet. Every line, quiet or not, is
+//! also kept with its time for the log a verb writes beside its outputs (posereg.log) once
+//! they are written: a failed run leaves no half-written folder, its error is on stderr.
 
 use indicatif::{ProgressBar, ProgressStyle};
 use posereg::progress::Progress;
@@ -23,10 +25,12 @@ struct Stage {
     bar: Option<ProgressBar>,
 }
 
-/// Draws a library computation's progress on stderr.
+/// Draws a library computation's progress on stderr and keeps the log.
 pub struct Reporter {
     mode: Mode,
     stage: Mutex<Option<Stage>>,
+    started: Instant,
+    log: Mutex<Vec<String>>,
 }
 
 impl Reporter {
@@ -42,11 +46,14 @@ impl Reporter {
         Reporter {
             mode,
             stage: Mutex::new(None),
+            started: Instant::now(),
+            log: Mutex::new(Vec::new()),
         }
     }
 
     /// Prints an informational line unless quiet (the device line, notes).
     pub fn say(&self, line: &str) {
+        self.keep(line);
         if !matches!(self.mode, Mode::Quiet) {
             eprintln!("{line}");
         }
@@ -54,7 +61,38 @@ impl Reporter {
 
     /// Prints a warning, even when quiet: something the user must know about the result.
     pub fn warn(&self, line: &str) {
-        eprintln!("posereg: warning: {line}");
+        let line = format!("posereg: warning: {line}");
+        self.keep(&line);
+        eprintln!("{line}");
+    }
+
+    /// Prints the verb's result on stdout.
+    pub fn result(&self, line: &str) {
+        self.keep(line);
+        println!("{line}");
+    }
+
+    /// Writes the log so far, with the command line, to `path`.
+    pub fn save_log(&self, path: &std::path::Path) -> anyhow::Result<()> {
+        let command: Vec<String> = std::env::args().collect();
+        let lines = self.log.lock().unwrap_or_else(|e| e.into_inner());
+        let text = format!(
+            "posereg {}: {}\n{}\n",
+            env!("CARGO_PKG_VERSION"),
+            command.join(" "),
+            lines.join("\n")
+        );
+        posereg::io::write_atomically(path, |tmp| {
+            std::fs::write(tmp, text).map_err(|e| posereg::Error::io(tmp, e))
+        })?;
+        Ok(())
+    }
+
+    /// Keeps `line` for the log, stamped with the seconds since the start.
+    fn keep(&self, line: &str) {
+        let at = self.started.elapsed().as_secs_f64();
+        let mut log = self.log.lock().unwrap_or_else(|e| e.into_inner());
+        log.push(format!("[{at:8.2} s] {line}"));
     }
 
     fn with_stage(&self, f: impl FnOnce(&mut Option<Stage>)) {
@@ -66,8 +104,10 @@ impl Reporter {
 
 impl Progress for Reporter {
     fn begin(&self, stage: &str, steps: usize) {
+        let line = format!("{stage}: {steps} steps");
+        self.keep(&line);
         let bar = match self.mode {
-            Mode::Quiet => return,
+            Mode::Quiet => None,
             Mode::Bars => {
                 let bar = ProgressBar::new(steps as u64).with_prefix(stage.to_string());
                 if let Ok(style) = ProgressStyle::with_template(
@@ -79,7 +119,7 @@ impl Progress for Reporter {
                 Some(bar)
             }
             Mode::Lines => {
-                eprintln!("{stage}: {steps} steps");
+                eprintln!("{line}");
                 None
             }
         };
@@ -98,12 +138,15 @@ impl Progress for Reporter {
         self.with_stage(|s| {
             let Some(stage) = s.as_mut() else { return };
             stage.done += 1;
-            match &stage.bar {
-                Some(bar) => {
+            let line = format!("{} [{}/{}] {detail}", stage.name, stage.done, stage.steps);
+            self.keep(&line);
+            match (&stage.bar, &self.mode) {
+                (Some(bar), _) => {
                     bar.inc(1);
                     bar.set_message(detail.to_string());
                 }
-                None => eprintln!("{} [{}/{}] {detail}", stage.name, stage.done, stage.steps),
+                (None, Mode::Lines) => eprintln!("{line}"),
+                (None, _) => {}
             }
         });
     }
@@ -112,12 +155,16 @@ impl Progress for Reporter {
         self.with_stage(|s| {
             let Some(stage) = s.take() else { return };
             let seconds = stage.started.elapsed().as_secs_f64();
+            let line = format!("{}: done in {seconds:.1} s", stage.name);
+            self.keep(&line);
             // The finished bar gives way to the same summary line as off a terminal, so
             // whatever prints next starts on a line of its own.
             if let Some(bar) = stage.bar {
                 bar.finish_and_clear();
             }
-            eprintln!("{}: done in {seconds:.1} s", stage.name);
+            if !matches!(self.mode, Mode::Quiet) {
+                eprintln!("{line}");
+            }
         });
     }
 }

@@ -1,22 +1,18 @@
 //! `posereg register --source S --source-labels L --target T -o DIR [--no-init]`: the whole
-//! pipeline, writing warped.nii.gz, field.nii.gz, transform.json, jacobian.nii.gz,
-//! report.json and quicklook.png.
+//! pipeline, writing warped.nii.gz, field.nii.gz, inverse_field.nii.gz, transform.json,
+//! bones/*.tfm, jacobian.nii.gz, report.json and quicklook.png.
 
 use super::init::{load_given, PairArgs};
+use super::outputs::{write_registration, Run};
 use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
 use posereg::device::{open_backend, DeviceWanted};
 use posereg::inputs::{check_settings, Pair};
 use posereg::io::config::{load_options, options_toml};
-use posereg::io::field::save_field;
-use posereg::io::itk_transform::save_bone_tfms;
-use posereg::io::nifti::{save_volume, DataType};
 use posereg::levels::PerLevel;
-use posereg::metric::correlation;
-use posereg::register::{register, unregistered, Inputs, RegisterOptions};
-use posereg::result_checks::{result_checks, Check, Correlations};
-use posereg::Error;
+use posereg::register::{register, Inputs, RegisterOptions};
+use posereg::result_checks::Check;
 use std::path::PathBuf;
 
 /// Arguments of `posereg register`.
@@ -92,9 +88,6 @@ impl RegisterArgs {
     }
 }
 
-/// The version of report.json's layout: raised when a key changes meaning or goes away.
-const REPORT_SCHEMA: u32 = 1;
-
 /// Runs the registration and writes its outputs.
 pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.options()?;
@@ -124,79 +117,31 @@ pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> a
         reporter,
     ))?;
     let seconds = started.elapsed().as_secs_f64();
-    let out = |name: &str| args.pair.output.join(name);
-    save_volume(&out("warped.nii.gz"), &result.warped, DataType::F32)?;
-    save_field(&out("field.nii.gz"), &result.field)?;
-    save_volume(&out("jacobian.nii.gz"), &result.jacobian, DataType::F32)?;
-    let transform = result.transforms(&options);
-    transform.save(&out("transform.json"))?;
-    save_bone_tfms(&args.pair.output, &transform)?;
-    let before =
-        posereg::on_backend!(opened, backend => unregistered(backend, &source, &target.grid))?;
-    let body = |n: usize| target.data[n] > 0.0;
-    let correlations = Correlations {
-        before: correlation(&before.data, &target.data, body),
-        after: correlation(&result.warped.data, &target.data, body),
+    let run = Run {
+        source: &source,
+        target: &target,
+        result: &result,
+        options: &options,
+        inputs: serde_json::json!({
+            "source": args.pair.source,
+            "source_labels": args.pair.source_labels,
+            "target": args.pair.target,
+            "bones": args.init,
+        }),
+        warnings: &warnings,
+        seconds,
     };
-    let checks = result_checks(&result, correlations, &options);
-    let finished = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let report = serde_json::json!({
-        "schema": REPORT_SCHEMA,
-        "posereg": env!("CARGO_PKG_VERSION"),
-        "command_line": std::env::args().collect::<Vec<_>>(),
-        "finished_unix_seconds": finished,
-        "device": opened.describe(),
-        "seconds": seconds,
-        "inputs": { "source": args.pair.source, "source_labels": args.pair.source_labels, "target": args.pair.target },
-        "options": options,
-        "initialisation": result.init.as_ref().map(|i| serde_json::json!({
-            "bones": i.reports,
-            "fold_repair": i.repair,
-        })),
-        "adaptive_stages": result.adaptive.stages,
-        "control_points": result.adaptive.points.len(),
-        "correlation": {
-            "before": correlations.before,
-            "after": correlations.after,
-            "over": "the target's voxels above 0 (its body), source resampled without and with the field",
-        },
-        "jacobian": { "min": result.min_jacobian, "folded_share": result.folded_share, "unfolding": result.unfolding },
-        "device_traffic": { "stages": result.traffic, "evaluations": result.adaptive.evaluations },
-        "checks": checks,
-        "warnings": warnings,
-    });
-    let centre = match &result.init {
-        Some(init) => [init.axis.point.x, init.axis.point.y, init.axis.point.z],
-        None => target
-            .grid
-            .voxel_to_world(target.grid.dims.map(|d| (d as f64 - 1.0) / 2.0)),
-    };
-    posereg::quicklook::save(
-        &out("quicklook.png"),
-        &target,
-        &before,
-        &result.warped,
-        &result.adaptive.points,
-        centre,
-    )?;
-    let text = serde_json::to_string_pretty(&report)?;
-    posereg::io::write_atomically(&out("report.json"), |tmp| {
-        std::fs::write(tmp, text + "\n").map_err(|e| Error::io(tmp, e))
-    })?;
-    println!(
+    let (correlations, checks) = write_registration(&args.pair.output, &opened, &run, reporter)?;
+    reporter.result(&format!(
         "registered in {seconds:.1} s: correlation {:.3} -> {:.3}, {} control points, Jacobian min {:.3}; outputs in {}",
         correlations.before,
         correlations.after,
         result.adaptive.points.len(),
         result.min_jacobian,
         args.pair.output.display()
-    );
+    ));
+    reporter.save_log(&args.pair.output.join("posereg.log"))?;
     let failed: Vec<&Check> = checks.iter().filter(|c| !c.passed).collect();
-    for check in &failed {
-        reporter.warn(&format!("check {} failed: {}", check.name, check.detail));
-    }
     if args.strict && !failed.is_empty() {
         let names: Vec<&str> = failed.iter().map(|c| c.name).collect();
         anyhow::bail!(

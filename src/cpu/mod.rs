@@ -8,6 +8,7 @@ pub mod coverage;
 pub mod edt;
 pub mod fold;
 pub mod gain;
+pub mod invert;
 pub mod jacobian;
 pub mod labels;
 pub mod lattice_energy;
@@ -30,9 +31,9 @@ pub mod warp_image;
 
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
-    JacobianParams, LabelParams, MomentsParams, PartialsParams, PyramidParams, RbfGradParams,
-    RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
-    SplatParams, SsdParams, SumParams, ThresholdParams,
+    InvertParams, JacobianParams, LabelParams, MomentsParams, PartialsParams, PyramidParams,
+    RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams,
+    SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use crate::backend::{Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -308,6 +309,17 @@ impl Backend for CpuBackend {
         filled(3 * params.voxels(), |out| {
             compose::compose(params, warp, initial, out)
         })
+    }
+
+    fn invert_field(
+        &self,
+        params: &InvertParams,
+        field: &Arc<Vec<f32>>,
+    ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
+        let mut out = vec![0.0f32; 3 * params.voxels()];
+        let mut residual = vec![0.0f32; params.voxels()];
+        invert::invert_field(params, field, &mut out, &mut residual);
+        Ok((Arc::new(out), Arc::new(residual)))
     }
 
     fn rbf_lattice(

@@ -1,9 +1,10 @@
-//! Host side of shaders/warp_field.wgsl and shaders/compose.wgsl: the final field's kernels.
+//! Host side of shaders/warp_field.wgsl, shaders/compose.wgsl and shaders/invert_field.wgsl:
+//! the final field's kernels.
 
 use super::kernel::{cover, Binding};
 use super::resident::GpuBuffer;
 use super::GpuBackend;
-use crate::abi::{ComposeParams, RbfGradParams};
+use crate::abi::{ComposeParams, InvertParams, RbfGradParams};
 use crate::error::Result;
 
 use Binding::{Read, ReadWrite, Uniform};
@@ -12,6 +13,8 @@ use Binding::{Read, ReadWrite, Uniform};
 pub const WARP_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
 /// compose bindings.
 pub const COMPOSE_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
+/// invert_field bindings.
+pub const INVERT_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite, ReadWrite];
 
 impl GpuBackend {
     /// The lattice interpolated at every voxel (3 floats per voxel).
@@ -45,5 +48,22 @@ impl GpuBackend {
             cover(params.dims, 4),
         )?;
         Ok(out)
+    }
+
+    /// The field's inverse on the output grid (3 floats per voxel) and its residual (1 float).
+    pub fn record_invert_field(
+        &self,
+        params: &InvertParams,
+        field: &GpuBuffer<f32>,
+    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
+        let out = self.output_buffer("inverse field", 3 * params.voxels())?;
+        let residual = self.output_buffer("inverse residual", params.voxels())?;
+        self.record(
+            &self.kernels.invert_field,
+            params,
+            &[field.raw(), out.raw(), residual.raw()],
+            cover(params.out_dims, 4),
+        )?;
+        Ok((out, residual))
     }
 }

@@ -22,9 +22,9 @@ pub mod skinning;
 
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
-    JacobianParams, LabelParams, MomentsParams, PyramidParams, RbfGradParams, RbfLatticeParams,
-    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
-    SsdParams, SumParams, ThresholdParams,
+    InvertParams, JacobianParams, LabelParams, MomentsParams, PyramidParams, RbfGradParams,
+    RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
+    SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use crate::backend::{Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -45,6 +45,7 @@ pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
     ("gain_apply", nonrigid::GAIN_BINDINGS),
     ("gain_ratio", nonrigid::GAIN_BINDINGS),
     ("gain_terms", nonrigid::GAIN_TERMS_BINDINGS),
+    ("invert_field", field::INVERT_BINDINGS),
     ("jacobian", jacobian::BINDINGS),
     ("label_index", labels::INDEX_BINDINGS),
     ("lattice_energy", nonrigid::ENERGY_BINDINGS),
@@ -140,6 +141,8 @@ pub struct Kernels {
     pub warp_field: Kernel,
     /// shaders/compose.wgsl
     pub compose: Kernel,
+    /// shaders/invert_field.wgsl
+    pub invert_field: Kernel,
 }
 
 /// The GPU backend with its compiled kernels.
@@ -193,6 +196,7 @@ impl GpuBackend {
                 sum_partials_f32: compile(&ctx, "sum_partials_f32")?,
                 warp_field: compile(&ctx, "warp_field")?,
                 compose: compile(&ctx, "compose")?,
+                invert_field: compile(&ctx, "invert_field")?,
             },
             ctx,
             peak_dispatch_bytes: Default::default(),
@@ -420,6 +424,14 @@ impl Backend for GpuBackend {
         initial: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
         self.record_compose(params, warp, initial)
+    }
+
+    fn invert_field(
+        &self,
+        params: &InvertParams,
+        field: &GpuBuffer<f32>,
+    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
+        self.record_invert_field(params, field)
     }
 
     fn rbf_lattice(

@@ -1,0 +1,139 @@
+//! CPU twin of shaders/invert_field.wgsl: the inverse of a displacement field by Newton's
+//! method per voxel.
+
+use super::common::{det3, dims3, solve3};
+use crate::abi::InvertParams;
+use crate::sample::{affine_row, inside_source, linear_row, trilinear_with_gradient};
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Keep in sync with shaders/invert_field.wgsl.
+const NEWTON_STEPS: u32 = 40;
+const HALVINGS: u32 = 12;
+const CONVERGED_MM: f32 = 1e-4;
+const SINGULAR: f32 = 1e-6;
+
+/// u at a field index (clamped into the field's grid) and its index-space gradient rows.
+struct Local {
+    u: Vec3,
+    g: [Vec3; 3],
+}
+
+/// The field's three components as volumes (the shader reads one at a time).
+struct Components<'a> {
+    params: &'a InvertParams,
+    each: Vec<Vec<f32>>,
+}
+
+impl Components<'_> {
+    fn local(&self, q: Vec3) -> Local {
+        let d = dims3(self.params.field_dims);
+        let top = Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32) - Vec3::ONE;
+        let qc = q.clamp(Vec3::ZERO, top).to_array();
+        let s: [[f32; 4]; 3] =
+            std::array::from_fn(|c| trilinear_with_gradient(&self.each[c], qc, d));
+        Local {
+            u: Vec3::new(s[0][0], s[1][0], s[2][0]),
+            g: s.map(|v| Vec3::new(v[1], v[2], v[3])),
+        }
+    }
+
+    fn to_index(&self, v: Vec3) -> Vec3 {
+        let m = self.params.mm_to_index;
+        let v = v.to_array();
+        Vec3::new(
+            linear_row(m[0], v),
+            linear_row(m[1], v),
+            linear_row(m[2], v),
+        )
+    }
+
+    fn mm_length(&self, f: Vec3) -> f32 {
+        let l = self.params.index_to_mm;
+        let f = f.to_array();
+        Vec3::new(
+            linear_row(l[0], f),
+            linear_row(l[1], f),
+            linear_row(l[2], f),
+        )
+        .length()
+    }
+
+    fn jacobian_row(&self, r: usize, unit: Vec3, at: &Local) -> Vec3 {
+        let m = self.params.mm_to_index[r];
+        unit + m[0] * at.g[0] + m[1] * at.g[1] + m[2] * at.g[2]
+    }
+
+    /// w and the residual (−1: no preimage) at output voxel p.
+    fn invert_at(&self, p: [f32; 3]) -> (Vec3, f32) {
+        let t = self.params.index_to_field;
+        let qy = Vec3::new(
+            affine_row(t[0], p),
+            affine_row(t[1], p),
+            affine_row(t[2], p),
+        );
+        let mut q = qy - self.to_index(self.local(qy).u);
+        let mut at = self.local(q);
+        let mut f = q + self.to_index(at.u) - qy;
+        let mut size = self.mm_length(f);
+        let mut step = 0;
+        while step < NEWTON_STEPS && size >= CONVERGED_MM {
+            let r0 = self.jacobian_row(0, Vec3::X, &at);
+            let r1 = self.jacobian_row(1, Vec3::Y, &at);
+            let r2 = self.jacobian_row(2, Vec3::Z, &at);
+            let det = det3(r0, r1, r2);
+            let delta = match det.abs() > SINGULAR {
+                true => solve3(r0, r1, r2, det, -f),
+                false => -f,
+            };
+            let mut shrunk = false;
+            let mut scale = 1.0;
+            let mut h = 0;
+            while h < HALVINGS && !shrunk {
+                let qn = q + scale * delta;
+                let an = self.local(qn);
+                let fq = qn + self.to_index(an.u) - qy;
+                let sn = self.mm_length(fq);
+                if sn < size {
+                    (q, at, f, size) = (qn, an, fq, sn);
+                    shrunk = true;
+                }
+                scale *= 0.5;
+                h += 1;
+            }
+            if !shrunk {
+                break;
+            }
+            step += 1;
+        }
+        let inside = inside_source(q.to_array(), dims3(self.params.field_dims));
+        (-at.u, if inside { size } else { -1.0 })
+    }
+}
+
+/// Fills `out` (3 floats per output voxel) with the inverse of `field` (3 floats per field
+/// voxel) and `residual` (1 float per output voxel) with |z + u(z) − y| in mm, −1 where y has
+/// no preimage inside the field's grid.
+pub fn invert_field(params: &InvertParams, field: &[f32], out: &mut [f32], residual: &mut [f32]) {
+    let components = Components {
+        params,
+        each: (0..3)
+            .map(|c| field.iter().skip(c).step_by(3).copied().collect())
+            .collect(),
+    };
+    let [nx, ny, _] = dims3(params.out_dims);
+    let plane = (nx * ny) as usize;
+    out.par_chunks_mut(3 * plane)
+        .zip(residual.par_chunks_mut(plane))
+        .enumerate()
+        .for_each(|(k, (slice, res))| {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let o = (i + nx * j) as usize;
+                    let (w, r) = components.invert_at([i as f32, j as f32, k as f32]);
+                    slice[3 * o..3 * o + 3].copy_from_slice(&w.to_array());
+                    res[o] = r;
+                }
+            }
+        });
+}
