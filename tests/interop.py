@@ -1,16 +1,22 @@
 """Interoperability with the tools labs already use (run by tests/interop.rs).
 
-Given a folder written by `posereg demo` (source, target, warped, field), this checks that
-SimpleITK applies posereg's field.nii.gz (ITK displacement-field convention) to the source and
-gets posereg's warped.nii.gz (correlation >= 0.999 inside the target's body), that SimpleITK
-reads each bones/<name>.tfm as the transform the field applies to that bone, and that nibabel
-reads every output with the target's affine.
+Given a folder written by `posereg demo` (source, target, warped, field, bones/) with
+target_on_source.nii.gz added by `posereg apply --inverse`, this checks that
+- SimpleITK and ANTs (antspyx `apply_transforms`) apply posereg's field.nii.gz (ITK
+  displacement-field convention) to the source and get posereg's warped.nii.gz (correlation
+  >= 0.999 inside the target's body);
+- SimpleITK and ANTs read each bones/<name>.tfm as the motion the field gives that bone: the
+  source labels resampled through the .tfm and through the field agree (Dice >= 0.99 per bone);
+- ANTs inverts bones/<name>.mat (`whichtoinvert`) and brings the target back onto the source
+  as posereg's inverse field does, inside each bone (correlation >= 0.99);
+- nibabel reads every output with the target's affine.
 
     python3 tests/interop.py DIR
 """
 import sys
 from pathlib import Path
 
+import ants
 import nibabel as nib
 import numpy as np
 import SimpleITK as sitk
@@ -49,8 +55,45 @@ for name, code in bones.items():
           f"back within {gap:.3f} mm")
     assert gap < 0.5, f"{name}: {gap} mm"
 
+
+def dice(a, b):
+    return 2.0 * np.logical_and(a, b).sum() / max(a.sum() + b.sum(), 1)
+
+
+# The source labels carried into the target by each bone's .tfm (SimpleITK and ANTs) against
+# the field, bone by bone.
+through_field = sitk.GetArrayFromImage(
+    sitk.Resample(labels, target, transform, sitk.sitkNearestNeighbor, 0))
+ants_target = ants.image_read(str(folder / "target.nii.gz"))
+ants_labels = ants.image_read(str(folder / "source_labels.nii.gz"))
+ants_source = ants.image_read(str(folder / "source.nii.gz"))
+ants_warped = ants.apply_transforms(fixed=ants_target, moving=ants_source,
+                                    transformlist=[str(folder / "field.nii.gz")])
+r = np.corrcoef(ants_warped.numpy()[body.T], ours.T[body.T])[0, 1]
+print(f"ANTs apply_transforms with posereg's field vs posereg's warped image: r = {r:.6f}")
+assert r >= 0.999, f"ANTs: correlation {r} < 0.999"
+back = ants.image_read(str(folder / "target_on_source.nii.gz")).numpy()
+for name, code in bones.items():
+    tfm = str(folder / "bones" / f"{name}.tfm")
+    by_sitk = sitk.GetArrayFromImage(sitk.Resample(
+        labels, target, sitk.ReadTransform(tfm), sitk.sitkNearestNeighbor, 0))
+    by_ants = ants.apply_transforms(fixed=ants_target, moving=ants_labels, transformlist=[tfm],
+                                    interpolator="nearestNeighbor").numpy()
+    d_sitk = dice(by_sitk == code, through_field == code)
+    d_ants = dice(by_ants == code, through_field.T == code)
+    inverse = ants.apply_transforms(fixed=ants_source, moving=ants_target,
+                                    transformlist=[str(folder / "bones" / f"{name}.mat")],
+                                    whichtoinvert=[True]).numpy()
+    bone = ants_labels.numpy() == code
+    r_back = np.corrcoef(inverse[bone], back[bone])[0, 1]
+    print(f"bones/{name}: Dice with the field's labels {d_sitk:.4f} (SimpleITK, .tfm), "
+          f"{d_ants:.4f} (ANTs, .tfm); target brought back by ANTs through the inverted .mat vs "
+          f"posereg's inverse field, inside the bone: r = {r_back:.5f}")
+    assert d_sitk >= 0.99 and d_ants >= 0.99, f"{name}: Dice {d_sitk}, {d_ants}"
+    assert r_back >= 0.99, f"{name}: r = {r_back}"
+
 reference = nib.load(str(folder / "target.nii.gz")).affine
-for name in ["warped.nii.gz", "field.nii.gz"]:
+for name in ["warped.nii.gz", "field.nii.gz", "jacobian.nii.gz"]:
     img = nib.load(str(folder / name))
     gap = np.abs(img.affine - reference).max()
     print(f"nibabel reads {name}: shape {img.shape}, affine differs from the target's by {gap:.2e}")

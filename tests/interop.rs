@@ -1,11 +1,12 @@
-//! Runs tests/interop.py (SimpleITK and nibabel) on a registration written by `posereg demo`.
+//! Runs tests/interop.py (SimpleITK, ANTs and nibabel) on a registration written by
+//! `posereg demo` and `posereg apply --inverse`.
 //! Without Python or those packages the test is skipped, unless REQUIRE_INTEROP=1 (CI sets it).
 
 use std::process::Command;
 
 fn python_has_packages() -> bool {
     Command::new("python3")
-        .args(["-c", "import SimpleITK, nibabel, numpy"])
+        .args(["-c", "import SimpleITK, nibabel, numpy, ants"])
         .status()
         .map(|s| s.success())
         .unwrap_or(false)
@@ -17,9 +18,11 @@ fn simpleitk_applies_our_field_and_nibabel_reads_our_outputs() {
         assert_ne!(
             std::env::var("REQUIRE_INTEROP").as_deref(),
             Ok("1"),
-            "REQUIRE_INTEROP=1 but python3 with SimpleITK, nibabel and numpy is missing"
+            "REQUIRE_INTEROP=1 but python3 with SimpleITK, nibabel, numpy and antspyx is missing"
         );
-        eprintln!("interop test skipped: python3 with SimpleITK, nibabel, numpy not found");
+        eprintln!(
+            "interop test skipped: python3 with SimpleITK, nibabel, numpy, antspyx not found"
+        );
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -42,6 +45,18 @@ fn simpleitk_applies_our_field_and_nibabel_reads_our_outputs() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    let back = dir.path().join("target_on_source.nii.gz");
+    let applied = Command::new(env!("CARGO_BIN_EXE_posereg"))
+        .arg("apply")
+        .arg(dir.path().join("transform.json"))
+        .arg(dir.path().join("target.nii.gz"))
+        .arg("--like")
+        .arg(dir.path().join("source.nii.gz"))
+        .args(["--inverse", "--device", "cpu", "-o"])
+        .arg(&back)
+        .output()
+        .unwrap();
+    assert!(applied.status.success(), "{applied:?}");
     let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/interop.py");
     let check = Command::new("python3")
         .arg(script)
