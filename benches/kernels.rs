@@ -338,6 +338,7 @@ fn kernels(c: &mut Criterion) {
         let u = field(&g);
         let label = format!("{}x{}x{}", dims[0], dims[1], dims[2]);
         let uf: Vec<f32> = bytemuck::cast_slice(&u.data).to_vec();
+        let ones = vec![1.0f32; g.len()];
         let sample = ResampleParams::new(&g, &g, 0.0, Interpolation::Linear);
         group(c, "resample", g.len() as u64, &label, &backends, |b| {
             posereg::on_backend!(b, b => resident(b, &[&source.data, &uf], |b, [s, f]| {
@@ -350,7 +351,7 @@ fn kernels(c: &mut Criterion) {
             g.len() as u64,
             &label,
             &backends,
-            |b| posereg::on_backend!(b, b => resident(b, &[&uf], |b, [f]| b.coverage(&sample, f))),
+            |b| posereg::on_backend!(b, b => resident(b, &[&uf, &ones], |b, [f, m]| b.coverage(&sample, f, m))),
         );
         group(c, "jacobian", g.len() as u64, &label, &backends, |b| {
             posereg::on_backend!(b, b => resident(b, &[&uf], |b, [f]| {

@@ -300,6 +300,8 @@ struct Level<B: Backend> {
     fixed: DeviceImage<B>,
     moving: DeviceImage<B>,
     covered: DeviceImage<B>,
+    /// [`Moving::mask_share`].
+    mask_share: f64,
 }
 
 impl<B: Backend> Level<B> {
@@ -477,6 +479,9 @@ pub struct Moving<'a, B: Backend> {
     pub coverage: &'a DeviceImage<B>,
     /// Whether the articulated initialisation aligned it.
     pub prealigned: bool,
+    /// Share of the target grid the user's target mask holds (1 without one): the voxels a
+    /// cell's residual is weighed against.
+    pub mask_share: f64,
 }
 
 /// Residuals where the moving image has no data from the source are not evidence: the cost
@@ -498,6 +503,7 @@ fn levels<B: Backend>(
     let count = fixed.len();
     let moving_levels = pyramid::build(backend, moving.image.clone(), count)?;
     let covered = pyramid::build(backend, moving.coverage.clone(), count)?;
+    let share = moving.mask_share;
     Ok(fixed
         .into_iter()
         .zip(moving_levels)
@@ -506,6 +512,7 @@ fn levels<B: Backend>(
             fixed,
             moving,
             covered,
+            mask_share: share,
         })
         .collect())
 }
@@ -669,7 +676,10 @@ impl<B: Backend> LevelRun<'_, B> {
         )?;
         let ssd = cell_costs(self.backend, self.level, &warped.image, cells)?;
         let means = ssd.mean();
-        let overall = ssd.total() / grid.len() as f64;
+        // Per voxel of the target mask, so that a mask does not dilute the mean and call poor
+        // the cells that fit as well as the rest. (Voxels without source data still count, as
+        // the threshold's defaults were measured with.)
+        let overall = ssd.total() / (grid.len() as f64 * self.level.mask_share);
         let cell_size = (0..3)
             .map(|a| grid.dims[a] as f64 * grid.spacing()[a] / cells[a] as f64)
             .fold(f64::INFINITY, f64::min);

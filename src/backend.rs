@@ -183,12 +183,13 @@ pub trait Backend {
         field: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
-    /// 1 where x + u(x) lies inside the source's field of view (sample.wgsl's rule), else 0,
-    /// for every voxel x of the target grid (`params` as for a resample).
+    /// 1 where x + u(x) lies inside the source's field of view (sample.wgsl's rule) and x in
+    /// `mask` (> 0), else 0, for every voxel x of the target grid (`params` as for a resample).
     fn coverage(
         &self,
         params: &ResampleParams,
         field: &Self::Buffer<f32>,
+        mask: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
     /// Per voxel of a label map: 1 + the position of its label among `params`' codes, 0 for

@@ -90,6 +90,38 @@ pub fn load_pair(paths: PairPaths, chain: &[Link]) -> Result<Pair> {
     })
 }
 
+/// Reads a target mask (`--target-mask`): a label map on the target's grid whose non-zero
+/// voxels are the evidence the non-rigid stage fits. Refused when on another grid or when it
+/// holds less than [`MIN_CONTENT_SHARE`] of the target.
+pub fn load_target_mask(path: &Path, target: &Grid, target_path: &Path) -> Result<Labels> {
+    let grid = spatial_grid(path, &read_header(path)?, "a mask")?;
+    if !grid.same_as(target, 1e-3) {
+        return Err(Error::bad_file(
+            path,
+            format!(
+                "mask grid {:?} differs from the target's ({:?}, {}): a target mask must be on \
+                 the target's grid",
+                grid.dims,
+                target.dims,
+                target_path.display()
+            ),
+        ));
+    }
+    let mask = labels_from_raw(path, read_raw(path)?)?;
+    let inside = mask.data.iter().filter(|&&m| m > 0).count();
+    let share = inside as f64 / mask.data.len() as f64;
+    if share < MIN_CONTENT_SHARE {
+        return Err(Error::bad_file(
+            path,
+            format!(
+                "the mask holds {inside} voxels ({:.3}% of the target): too few to register on",
+                100.0 * share
+            ),
+        ));
+    }
+    Ok(mask)
+}
+
 fn check_overlap(target: &Grid, source: &Grid, paths: PairPaths) -> Result<()> {
     let overlap = target.share_inside(source);
     if overlap < 0.01 {

@@ -227,6 +227,9 @@ pub struct Inputs<'a> {
     pub target: &'a Volume,
     /// Bone motions to start from instead of registering the bones (`register --init`).
     pub given: Option<&'a BoneTransforms>,
+    /// The target's voxels that count as evidence in the non-rigid stage (non-zero inside),
+    /// on its grid; none: all of them.
+    pub target_mask: Option<&'a Labels>,
 }
 
 impl<'a> Inputs<'a> {
@@ -237,6 +240,7 @@ impl<'a> Inputs<'a> {
             labels,
             target,
             given: None,
+            target_mask: None,
         }
     }
 }
@@ -265,6 +269,7 @@ pub fn register_observed<B: Backend>(
         labels,
         target,
         given,
+        target_mask,
     } = inputs;
     let clock = std::time::Instant::now();
     let at_start = backend.traffic();
@@ -288,8 +293,17 @@ pub fn register_observed<B: Backend>(
     let initialisation = clock.elapsed().as_secs_f64();
     let after_init = backend.traffic();
     let coverage = ResampleParams::new(&pair.source.grid, &target.grid, 0.0, Interpolation::Linear);
+    let mask: Vec<f32> = match target_mask {
+        Some(mask) => {
+            crate::backend::check_grids(&mask.grid, &target.grid)?;
+            mask.data.iter().map(|&m| (m > 0) as u8 as f32).collect()
+        }
+        None => vec![1.0; target.grid.len()],
+    };
+    let mask_share = mask.iter().filter(|&&m| m > 0.0).count().max(1) as f64 / mask.len() as f64;
+    let mask = backend.upload("target mask", mask)?;
     let coverage = DeviceImage {
-        data: backend.coverage(&coverage, &images.field.data)?,
+        data: backend.coverage(&coverage, &images.field.data, &mask)?,
         grid: target.grid.clone(),
     };
     let adaptive = adaptive::register(
@@ -298,6 +312,7 @@ pub fn register_observed<B: Backend>(
             image: &images.initialised,
             coverage: &coverage,
             prealigned: init.is_some(),
+            mask_share,
         },
         &pair.target,
         &pins,

@@ -789,3 +789,59 @@ fn gpu_by_index_and_the_device_list() {
     let named = resample_onto_itself(&src, &field, &out_path, &["--gpu", "no-such-gpu"]);
     assert_fails_naming(&named, "matches none");
 }
+
+/// --target-mask: a mask of the whole target changes nothing, bit for bit; a slab of it leaves
+/// the rest out of the non-rigid fit (fewer control points); a mask on another grid or nearly
+/// empty is refused naming the file, leaving no output folder.
+#[test]
+fn a_target_mask_limits_the_evidence() {
+    let dir = tempfile::tempdir().unwrap();
+    let pair = quarter_pair(dir.path());
+    let target = load_volume(&pair[2]).unwrap();
+    let save_mask = |name: &str, keep: &dyn Fn(usize) -> bool| {
+        let [nx, ny, _] = target.grid.dims;
+        let data = (0..target.grid.len())
+            .map(|n| keep(n / (nx * ny)) as u16)
+            .collect();
+        let mask = posereg::Image::from_data(target.grid.clone(), data).unwrap();
+        let path = dir.path().join(name);
+        posereg::io::nifti::save_labels(&path, &mask).unwrap();
+        path
+    };
+    let whole = save_mask("whole.nii.gz", &|_| true);
+    let slab = save_mask("slab.nii.gz", &|k| k < target.grid.dims[2] / 3);
+    let empty = save_mask("empty.nii.gz", &|_| false);
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let ran = run_verb("register", &pair, &out, extra);
+        assert!(ran.status.success(), "{ran:?}");
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                .unwrap();
+        let field = posereg::io::field::load_field(&out.join("field.nii.gz")).unwrap();
+        (report["control_points"].as_u64().unwrap(), field.data)
+    };
+    let (points, field) = run("plain", &[]);
+    let (_, whole_field) = run("whole", &["--target-mask", s(&whole)]);
+    assert!(
+        field == whole_field,
+        "a mask of the whole target changed the field"
+    );
+    let (slab_points, _) = run("slab", &["--fixed-mask", s(&slab)]);
+    assert!(
+        slab_points < points,
+        "slab mask: {slab_points} control points, {points} without"
+    );
+    let other_grid = dir.path().join("other.nii.gz");
+    let straight_labels = posereg::io::nifti::load_labels(&pair[1]).unwrap();
+    let mut moved = straight_labels.clone();
+    moved.grid.affine[(0, 3)] += 7.0;
+    posereg::io::nifti::save_labels(&other_grid, &moved).unwrap();
+    let no = dir.path().join("refused");
+    for (mask, problem) in [(&other_grid, "target's grid"), (&empty, "too few")] {
+        let out = run_verb("register", &pair, &no, &["--target-mask", s(mask)]);
+        assert_fails_naming(&out, s(mask));
+        assert!(String::from_utf8_lossy(&out.stderr).contains(problem));
+        assert!(!no.exists());
+    }
+}

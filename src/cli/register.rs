@@ -8,7 +8,7 @@ use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
 use posereg::device::{open_backend, DeviceWanted};
-use posereg::inputs::{check_settings, Pair};
+use posereg::inputs::{check_settings, load_target_mask, Pair};
 use posereg::io::config::{load_options, options_toml};
 use posereg::levels::PerLevel;
 use posereg::register::{register, Inputs, RegisterOptions};
@@ -42,6 +42,10 @@ pub struct RegisterArgs {
     /// point, per level coarse to fine, e.g. 8x8x12.
     #[arg(long)]
     pub threshold: Option<PerLevel<f64>>,
+    /// Mask on the target's grid: only its non-zero voxels count as evidence for the
+    /// non-rigid stage (leave out another limb, an artefact, the edge of the coil).
+    #[arg(long, visible_alias = "fixed-mask")]
+    pub target_mask: Option<PathBuf>,
     /// Bone transforms to start from instead of registering the bones (transform.json or
     /// init.json of an earlier run, corrected if need be).
     #[arg(long, conflicts_with = "no_init")]
@@ -103,11 +107,16 @@ pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> a
         Some(path) => Some(load_given(path, &labels, &options.init)?),
         None => None,
     };
+    let mask = match &args.target_mask {
+        Some(path) => Some(load_target_mask(path, &target.grid, &args.pair.target)?),
+        None => None,
+    };
     let (opened, line) = open_backend(device)?;
     reporter.say(&line);
     let started = std::time::Instant::now();
     let inputs = Inputs {
         given: given.as_ref(),
+        target_mask: mask.as_ref(),
         ..Inputs::new(&source, &labels, &target)
     };
     let result = posereg::on_backend!(opened, backend => register(
@@ -127,6 +136,7 @@ pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> a
             "source_labels": args.pair.source_labels,
             "target": args.pair.target,
             "bones": args.init,
+            "target_mask": args.target_mask,
         }),
         warnings: &warnings,
         seconds,

@@ -102,9 +102,14 @@ impl Backend for CpuBackend {
         })
     }
 
-    fn coverage(&self, params: &ResampleParams, field: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
+    fn coverage(
+        &self,
+        params: &ResampleParams,
+        field: &Arc<Vec<f32>>,
+        mask: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
         filled(params.voxels(), |out| {
-            coverage::coverage(params, field, out)
+            coverage::coverage(params, field, mask, out)
         })
     }
 

@@ -256,8 +256,13 @@ impl Backend for GpuBackend {
         self.record_resample(params, source, field)
     }
 
-    fn coverage(&self, params: &ResampleParams, field: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
-        self.record_coverage(params, field)
+    fn coverage(
+        &self,
+        params: &ResampleParams,
+        field: &GpuBuffer<f32>,
+        mask: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_coverage(params, field, mask)
     }
 
     fn label_index(&self, params: &LabelParams, labels: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {

@@ -11,7 +11,7 @@ use Binding::{Read, ReadWrite, Uniform};
 /// resample bindings in the order the shader declares them.
 pub const BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
 /// coverage bindings.
-pub const COVERAGE_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
+pub const COVERAGE_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
 
 impl GpuBackend {
     /// The source sampled through the field at every target voxel.
@@ -36,12 +36,13 @@ impl GpuBackend {
         &self,
         params: &ResampleParams,
         field: &GpuBuffer<f32>,
+        mask: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
         let covered = self.output_buffer("coverage", params.voxels())?;
         self.record(
             &self.kernels.coverage,
             params,
-            &[field.raw(), covered.raw()],
+            &[field.raw(), mask.raw(), covered.raw()],
             cover(params.target_dims, 4),
         )?;
         Ok(covered)
