@@ -41,44 +41,93 @@ pub(crate) fn world_bounds(volume: &Volume) -> ([f64; 3], [f64; 3]) {
     (lo, hi)
 }
 
-/// The plane through `centre` spanned by world axes `h` (left to right of the picture, running
-/// in direction `h_sign`) and `v` (top to bottom, running towards −v: up is +v).
-pub(crate) fn plane(
-    volume: &Volume,
-    centre: [f64; 3],
+/// The world points of a plane's pixels, row-major, top row first, and how world points map
+/// back to pixels.
+pub(crate) struct PlanePoints {
+    /// Pixels across.
+    pub width: usize,
+    /// Pixels down.
+    pub height: usize,
+    /// World RAS mm of each pixel.
+    pub points: Vec<[f64; 3]>,
+    /// World axes across and down, the direction across, the bounds and the pixel size.
     h: usize,
     h_sign: f64,
     v: usize,
+    lo: [f64; 3],
+    hi: [f64; 3],
     pixel: f64,
-) -> Panel {
-    let (lo, hi) = world_bounds(volume);
-    let width = ((hi[h] - lo[h]) / pixel).ceil() as usize + 1;
-    let height = ((hi[v] - lo[v]) / pixel).ceil() as usize + 1;
-    let to_voxel = volume.grid.world_to_voxel_affine();
-    let dims = volume.grid.dims.map(|d| d as u32);
-    let mut values = Vec::with_capacity(width * height);
-    for row in 0..height {
-        for col in 0..width {
-            let mut w = centre;
-            w[h] = if h_sign > 0.0 {
-                lo[h] + col as f64 * pixel
-            } else {
-                hi[h] - col as f64 * pixel
-            };
-            w[v] = hi[v] - row as f64 * pixel;
-            let q = to_voxel * Vector4::new(w[0], w[1], w[2], 1.0);
-            values.push(trilinear(
-                &volume.data,
-                [q.x as f32, q.y as f32, q.z as f32],
-                dims,
-                f32::NAN,
-            ));
+}
+
+impl PlanePoints {
+    /// The plane through `centre` over the bounds `(lo, hi)`, spanned by world axes `h` (left
+    /// to right of the picture, running in direction `h_sign`) and `v` (top to bottom, running
+    /// towards −v: up is +v).
+    pub fn new(
+        (lo, hi): ([f64; 3], [f64; 3]),
+        centre: [f64; 3],
+        (h, h_sign, v): (usize, f64, usize),
+        pixel: f64,
+    ) -> Self {
+        let width = ((hi[h] - lo[h]) / pixel).ceil() as usize + 1;
+        let height = ((hi[v] - lo[v]) / pixel).ceil() as usize + 1;
+        let mut plane = PlanePoints {
+            width,
+            height,
+            points: Vec::with_capacity(width * height),
+            h,
+            h_sign,
+            v,
+            lo,
+            hi,
+            pixel,
+        };
+        for row in 0..height {
+            for col in 0..width {
+                let mut w = centre;
+                w[h] = match h_sign > 0.0 {
+                    true => lo[h] + col as f64 * pixel,
+                    false => hi[h] - col as f64 * pixel,
+                };
+                w[v] = hi[v] - row as f64 * pixel;
+                plane.points.push(w);
+            }
         }
+        plane
     }
-    Panel {
-        width,
-        height,
-        values,
+
+    /// The (column, row) of world point `p` projected onto the plane, in pixels.
+    pub fn pixel_of(&self, p: [f64; 3]) -> (f64, f64) {
+        let col = match self.h_sign > 0.0 {
+            true => (p[self.h] - self.lo[self.h]) / self.pixel,
+            false => (self.hi[self.h] - p[self.h]) / self.pixel,
+        };
+        (col, (self.hi[self.v] - p[self.v]) / self.pixel)
+    }
+
+    /// The world axis across the plane's normal.
+    pub fn normal(&self) -> usize {
+        3 - self.h - self.v
+    }
+
+    /// `volume` sampled at the plane's points (trilinear, NaN outside).
+    pub fn sample(&self, volume: &Volume) -> Panel {
+        let to_voxel = volume.grid.world_to_voxel_affine();
+        let dims = volume.grid.dims.map(|d| d as u32);
+        let values = self
+            .points
+            .iter()
+            .map(|w| {
+                let q = to_voxel * Vector4::new(w[0], w[1], w[2], 1.0);
+                let q = [q.x as f32, q.y as f32, q.z as f32];
+                trilinear(&volume.data, q, dims, f32::NAN)
+            })
+            .collect();
+        Panel {
+            width: self.width,
+            height: self.height,
+            values,
+        }
     }
 }
 
@@ -88,7 +137,7 @@ pub fn orthogonal_planes(volume: &Volume, centre: Option<[f64; 3]>) -> [Panel; 3
     let (lo, hi) = world_bounds(volume);
     let centre = centre.unwrap_or([0, 1, 2].map(|a| (lo[a] + hi[a]) / 2.0));
     let pixel = pixel_size(volume);
-    PLANES.map(|(h, h_sign, v)| plane(volume, centre, h, h_sign, v, pixel))
+    PLANES.map(|axes| PlanePoints::new((lo, hi), centre, axes, pixel).sample(volume))
 }
 
 /// The three planes as (horizontal world axis, its direction, vertical world axis): sagittal

@@ -83,6 +83,7 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     target.truth.save(&out("truth.json"))?;
     let run = Run {
         source: &source.image,
+        labels: &source.labels,
         target: &target.image,
         result: &result,
         options: &options,

@@ -8,9 +8,10 @@ use posereg::io::field::save_field;
 use posereg::io::itk_transform::save_bone_tfms;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::metric::correlation;
+use posereg::quicklook::Figure;
 use posereg::register::{unregistered, RegisterOptions, Registration};
 use posereg::result_checks::{result_checks, Check, Correlations};
-use posereg::{Error, Volume};
+use posereg::{Error, Labels, Volume};
 use std::path::Path;
 
 /// The version of report.json's layout: raised when a key changes meaning or goes away
@@ -21,6 +22,8 @@ pub const REPORT_SCHEMA: u32 = 1;
 pub struct Run<'a> {
     /// The moving scan.
     pub source: &'a Volume,
+    /// Its bone labels.
+    pub labels: &'a Labels,
     /// The fixed scan.
     pub target: &'a Volume,
     /// The result.
@@ -71,14 +74,23 @@ pub fn write_registration(
             .grid
             .voxel_to_world(target.grid.dims.map(|d| (d as f64 - 1.0) / 2.0)),
     };
-    posereg::quicklook::save(
-        &out("quicklook.png"),
+    let bones: Vec<(u16, String)> = posereg::chain::present(&options.init.chain, run.labels)
+        .into_iter()
+        .map(|code| (code, options.init.name_of(code)))
+        .collect();
+    let figure = Figure {
         target,
-        &before,
-        &result.warped,
-        &result.adaptive.points,
+        before: &before,
+        warped: &result.warped,
+        jacobian: &result.jacobian,
+        field: &result.field,
+        source_grid: &source.grid,
+        labels: run.labels,
+        bones: &bones,
+        points: &result.adaptive.points,
         centre,
-    )?;
+    };
+    posereg::quicklook::save(&out("quicklook.png"), &figure)?;
     let report = report(opened, run, correlations, &checks);
     let text = serde_json::to_string_pretty(&report)? + "\n";
     posereg::io::write_atomically(&out("report.json"), |tmp| {

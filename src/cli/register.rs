@@ -128,6 +128,7 @@ pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> a
     let seconds = started.elapsed().as_secs_f64();
     let run = Run {
         source: &source,
+        labels: &labels,
         target: &target,
         result: &result,
         options: &options,
