@@ -1001,7 +1001,7 @@ fn verb_cases(x: &Inputs) -> Vec<Case> {
         case(
             "an image far from the source",
             apply("far.nii.gz", false),
-            &["far.nii.gz", "outside the field's source points"],
+            &["far.nii.gz", "outside the points the field samples"],
         ),
         case(
             "resample background NaN",

@@ -40,6 +40,10 @@ impl BoneTransform {
     }
 }
 
+/// The version of the bone-transform file's layout (docs/outputs.md): raised when a key
+/// changes meaning or goes away. Files without one (hand-written) are read as this version.
+pub const TRANSFORM_SCHEMA: u64 = 1;
+
 /// A bone-transform file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BoneTransforms {
@@ -53,12 +57,14 @@ pub struct BoneTransforms {
 }
 
 impl BoneTransforms {
-    /// RAS transforms with no extra keys.
+    /// RAS transforms with only the schema's version as an extra key.
     pub fn new(bones: Vec<BoneTransform>) -> Self {
+        let mut extra = serde_json::Map::new();
+        extra.insert("schema".into(), TRANSFORM_SCHEMA.into());
         BoneTransforms {
             space: "RAS".into(),
             bones,
-            extra: Default::default(),
+            extra,
         }
     }
 
@@ -116,6 +122,14 @@ impl BoneTransforms {
     pub fn parse(path: &Path, text: &str) -> Result<Self> {
         let parsed: BoneTransforms = serde_json::from_str(text)
             .map_err(|e| Error::bad_file(path, format!("not a bone-transform file ({e})")))?;
+        let schema = parsed.extra.get("schema").map(|v| v.as_u64());
+        if let Some(version) = schema.filter(|v| *v != Some(TRANSFORM_SCHEMA)) {
+            let problem = match version {
+                Some(v) => format!("schema {v}; this posereg reads schema {TRANSFORM_SCHEMA}"),
+                None => "schema is not a whole number".into(),
+            };
+            return Err(Error::bad_file(path, problem));
+        }
         if parsed.space != "RAS" {
             return Err(Error::bad_file(
                 path,
