@@ -3,10 +3,11 @@
 //! posteriorly — the direction a knee bends.
 
 use crate::chain::{self, Link};
+use crate::cloud::{centroid, end_slab, principal_direction, world_points};
 use crate::error::{Error, Result};
 use crate::labels as label;
 use crate::volume::Labels;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 
 /// A rotation axis in world RAS mm.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -23,37 +24,6 @@ pub struct JointAxis {
 
 /// Thickness of the distal femur slab that locates the condyles (mm).
 const CONDYLE_SLAB_MM: f64 = 25.0;
-
-fn world_points(labels: &Labels, code: u16) -> Vec<Vector3<f64>> {
-    labels
-        .data
-        .iter()
-        .enumerate()
-        .filter(|(_, &l)| l == code)
-        .map(|(n, _)| labels.grid.world_of(n))
-        .collect()
-}
-
-fn centroid(points: &[Vector3<f64>]) -> Vector3<f64> {
-    points.iter().sum::<Vector3<f64>>() / points.len() as f64
-}
-
-/// Eigenvector of the points' covariance with the largest eigenvalue, after projecting out
-/// `remove` (if any).
-fn principal_direction(points: &[Vector3<f64>], remove: Option<Vector3<f64>>) -> Vector3<f64> {
-    let c = centroid(points);
-    let mut cov = Matrix3::zeros();
-    for p in points {
-        let mut d = p - c;
-        if let Some(r) = remove {
-            d -= r * r.dot(&d);
-        }
-        cov += d * d.transpose();
-    }
-    let eig = cov.symmetric_eigen();
-    let k = eig.eigenvalues.imax();
-    eig.eigenvectors.column(k).into_owned().normalize()
-}
 
 /// The label codes the flexion axis is found from: the chain's bones named femur, tibia and
 /// (when it has one) patella, so that a label map with other codes works unchanged.
@@ -115,15 +85,7 @@ pub fn flexion_axis(labels: &Labels, bones: KneeBones) -> Result<JointAxis> {
     if long_axis.dot(&(centroid(&femur) - centroid(&tibia))) < 0.0 {
         long_axis = -long_axis;
     }
-    let lowest = femur
-        .iter()
-        .map(|p| p.dot(&long_axis))
-        .fold(f64::INFINITY, f64::min);
-    let condyles: Vec<Vector3<f64>> = femur
-        .iter()
-        .filter(|p| p.dot(&long_axis) <= lowest + CONDYLE_SLAB_MM)
-        .copied()
-        .collect();
+    let condyles = end_slab(&femur, -long_axis, CONDYLE_SLAB_MM);
     let point = centroid(&condyles);
     let medio_lateral = principal_direction(&condyles, Some(long_axis));
     let patella = bones

@@ -25,10 +25,12 @@
 
 pub mod abi;
 pub mod adaptive;
+pub mod anatomy;
 pub mod articulated;
 pub mod backend;
 pub mod chain;
 pub mod check;
+pub mod cloud;
 pub mod confidence;
 pub mod cpu;
 pub mod device;
@@ -41,6 +43,7 @@ pub mod inputs;
 pub mod inverse;
 pub mod io;
 pub mod joint;
+pub mod kinematics;
 pub mod labels;
 pub mod levels;
 pub mod metric;

@@ -264,11 +264,24 @@ fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
         "report.json",
         "quicklook.png",
         "posereg.log",
+        "kinematics.json",
         "target.nii.gz",
         "source_labels.nii.gz",
     ] {
         assert!(demo.join(file).exists(), "demo did not write {file}");
     }
+    // The knee bent 30°: the tibiofemoral flexion changes by about that much.
+    let csv = std::fs::read_to_string(demo.join("kinematics.csv")).unwrap();
+    let flexion: f64 = csv
+        .lines()
+        .find(|l| l.starts_with("tibiofemoral,flexion,deg,"))
+        .and_then(|l| l.rsplit(',').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no tibiofemoral flexion in {csv}"));
+    assert!(
+        (flexion - 30.0).abs() < 2.0,
+        "flexion changed by {flexion}°"
+    );
     // init on the demo's pair writes its three outputs.
     let init = dir.path().join("init");
     let stderr = run_on_pair("init", &demo, &init, &["--quiet"]);
@@ -747,6 +760,17 @@ fn register_init_starts_from_the_given_bones() {
     let init = dir.path().join("init");
     assert!(run_verb("init", &pair, &init, &[]).status.success());
     let given = init.join("init.json");
+    assert!(
+        init.join("kinematics.csv").exists(),
+        "init wrote no kinematics"
+    );
+    // --side against the labels' fibula: kept, with a warning.
+    let left = run_verb("init", &pair, &dir.path().join("left"), &["--side", "left"]);
+    let said = String::from_utf8_lossy(&left.stderr);
+    assert!(
+        left.status.success() && said.contains("contradicts"),
+        "{said}"
+    );
     let reg = dir.path().join("reg");
     let fast = ["--iterations", "3x3x3", "--init", s(&given)];
     let ran = run_verb("register", &pair, &reg, &fast);

@@ -2,6 +2,7 @@
 //! registered (articulated initialisation, then adaptive cubic-RBF), with its figures
 //! against the known truth.
 
+use super::init::write_kinematics;
 use super::outputs::{write_registration, Run};
 use super::progress::Reporter;
 use clap::Args;
@@ -94,6 +95,16 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         seconds,
     };
     let (correlations, _) = write_registration(&args.output, &opened, &run, reporter)?;
+    if let Some(init) = &result.init {
+        let to = (args.output.as_path(), None);
+        write_kinematics(
+            to,
+            &source.labels,
+            &options.init.chain,
+            &init.motions,
+            reporter,
+        )?;
+    }
     reporter.result(&format!("done in {seconds:.1} s on {}", opened.describe()));
     let motions = result
         .init

@@ -5,6 +5,7 @@ use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
 use posereg::abi::Interpolation;
+use posereg::anatomy::Side;
 use posereg::articulated::{initialise_volumes, rigid_field, InitOptions};
 use posereg::backend::resample_volume;
 use posereg::chain::{self, Link};
@@ -64,6 +65,10 @@ pub struct PairArgs {
     /// does not name are not registered, other codes are soft tissue.
     #[arg(long, value_delimiter = ',', value_parser = bone_code)]
     pub label_map: Option<Vec<(String, u16)>>,
+    /// Which knee, for kinematics.json (default: read from the labels, the fibula lying
+    /// lateral to the tibia).
+    #[arg(long, value_enum)]
+    pub side: Option<Side>,
 }
 
 /// One `name=code` of --label-map.
@@ -110,6 +115,37 @@ impl PairArgs {
         }
         Ok((folder, pair))
     }
+}
+
+/// Writes kinematics.json and kinematics.csv for the bone `motions` into the output folder,
+/// or warns why it cannot.
+pub fn write_kinematics(
+    (folder, side): (&Path, Option<Side>),
+    labels: &posereg::Labels,
+    chain: &[Link],
+    motions: &[(u16, posereg::volume::Affine)],
+    reporter: &Reporter,
+) -> anyhow::Result<()> {
+    let (kinematics, warnings) =
+        posereg::kinematics::knee_kinematics(labels, chain, motions, side)?;
+    warnings.iter().for_each(|w| reporter.warn(w));
+    if let Some(k) = kinematics {
+        posereg::io::kinematics::save_kinematics(folder, &k)?;
+        for joint in &k.joints {
+            let each: Vec<String> = joint
+                .quantities
+                .iter()
+                .map(|q| format!("{} {:+.1} {}", q.name, q.change, q.unit))
+                .collect();
+            reporter.result(&format!(
+                "  {} ({:?} knee): {}",
+                joint.joint,
+                k.side,
+                each.join(", ")
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The bone motions of `--init`: rigid, each for a bone present in the labels, and one for
@@ -201,6 +237,14 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     transforms.save(&args.pair.output.join("init.json"))?;
     save_bone_tfms(&args.pair.output, &transforms)?;
     save_field(&args.pair.output.join("init_field.nii.gz"), &images.field)?;
+    let kinematics_to = (args.pair.output.as_path(), args.pair.side);
+    write_kinematics(
+        kinematics_to,
+        &labels,
+        &options.chain,
+        &init.motions,
+        reporter,
+    )?;
     save_volume(
         &args.pair.output.join("initialised.nii.gz"),
         &images.initialised,

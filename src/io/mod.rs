@@ -4,6 +4,7 @@
 pub mod config;
 pub mod field;
 pub mod itk_transform;
+pub mod kinematics;
 pub mod memory;
 pub mod nifti;
 pub mod points;
