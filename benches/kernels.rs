@@ -9,9 +9,9 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use posereg::abi::{
     pack_candidates, BoneLookupParams, ComposeParams, DilateParams, EdtParams, GainParams,
-    Interpolation, JacobianParams, LabelParams, MomentsParams, PyramidParams, RbfGradParams,
-    ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SsdParams,
-    SumParams, ThresholdParams, RIGID_SUMS, SCORE_SUMS,
+    Interpolation, InvertParams, JacobianParams, LabelParams, MomentsParams, PyramidParams,
+    RbfGradParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
+    SsdParams, SumParams, ThresholdParams, RIGID_SUMS, SCORE_SUMS,
 };
 use posereg::backend::{BoneImages, CostImages};
 use posereg::cpu::CpuBackend;
@@ -393,6 +393,11 @@ fn kernels(c: &mut Criterion) {
         group(c, "compose", g.len() as u64, &label, &backends, |b| {
             posereg::on_backend!(b, b => resident(b, &[&uf, &uf], |b, [r, u0]| {
                 b.compose(&ComposeParams::new(&g), r, u0)
+            }))
+        });
+        group(c, "invert_field", g.len() as u64, &label, &backends, |b| {
+            posereg::on_backend!(b, b => resident(b, &[&uf], |b, [f]| {
+                Ok(b.invert_field(&InvertParams::new(&g, &g), f)?.0)
             }))
         });
         // Articulated initialisation: a whole-volume bone region, a small motion.

@@ -6,7 +6,7 @@
 //! (crate::confidence). The knee's table is the default; a table in the settings
 //! (`[[init.chain]]` entries) replaces it, and `--label-map` renames its codes. The rotation
 //! search turns about the knee's flexion axis, found from the bones named femur and tibia
-//! (crate::joint): other joints need an axis finder of their own.
+//! (joint.rs): other joints need an axis finder of their own.
 
 use crate::check::within;
 use crate::error::{Error, Result};

@@ -18,7 +18,7 @@
 //! (positive: its superior pole lateral) and its tilt (reported as lateral tilt, positive when
 //! its lateral border goes posterior: the negated rotation about e3).
 
-use crate::anatomy::{knee_frames, Frame, KneeCodes, KneeFrames, Side};
+use crate::anatomy::{knee_frames, Frame, KneeCodes, Side};
 use crate::chain::Link;
 use crate::error::Result;
 use crate::volume::{Affine, Labels};
@@ -154,16 +154,27 @@ impl JointMotion {
     }
 }
 
-/// What kinematics.json holds: the side and how it was known, the frames in the source pose,
-/// and each joint's motion.
+/// A bone's anatomical frame in both poses (world RAS mm).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BoneFrame {
+    /// The bone.
+    pub bone: &'static str,
+    /// In the source pose, measured on its labels.
+    pub source: Frame,
+    /// Carried into the target pose by the bone's motion.
+    pub target: Frame,
+}
+
+/// What kinematics.json holds: the side and how it was known, the frames, and each joint's
+/// motion.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct KneeKinematics {
     /// Left or right knee.
     pub side: Side,
     /// How the side was known.
     pub side_from: &'static str,
-    /// The bones' frames in the source pose (world RAS mm).
-    pub frames: KneeFrames,
+    /// Femur, tibia, and the patella when registered.
+    pub frames: Vec<BoneFrame>,
     /// Tibiofemoral, then patellofemoral when the patella was registered.
     pub joints: Vec<JointMotion>,
 }
@@ -213,25 +224,34 @@ pub fn knee_kinematics(
             return Ok((None, vec![why.to_string()]));
         }
     };
-    let femur_at = frames.femur.moved(&femur_motion);
-    let mut joints = vec![JointMotion::new(
-        "tibiofemoral",
-        ["femur".into(), "tibia".into()],
-        grood_suntay(&frames.femur, &frames.tibia, side),
-        grood_suntay(&femur_at, &frames.tibia.moved(&tibia_motion), side),
-    )];
+    let frame = |bone, source: Frame, m: &Affine| BoneFrame {
+        bone,
+        source,
+        target: source.moved(m),
+    };
+    let (femur, tibia) = (
+        frame("femur", frames.femur, &femur_motion),
+        frame("tibia", frames.tibia, &tibia_motion),
+    );
+    let joint = |name, p: &BoneFrame, d: &BoneFrame| {
+        JointMotion::new(
+            name,
+            [p.bone.into(), d.bone.into()],
+            grood_suntay(&p.source, &d.source, side),
+            grood_suntay(&p.target, &d.target, side),
+        )
+    };
+    let mut joints = vec![joint("tibiofemoral", &femur, &tibia)];
+    let mut all = vec![femur.clone(), tibia];
     if let (Some(patella), Some(m)) = (frames.patella, motion(codes.patella)) {
-        joints.push(JointMotion::new(
-            "patellofemoral",
-            ["femur".into(), "patella".into()],
-            grood_suntay(&frames.femur, &patella, side),
-            grood_suntay(&femur_at, &patella.moved(&m), side),
-        ));
+        let patella = frame("patella", patella, &m);
+        joints.push(joint("patellofemoral", &femur, &patella));
+        all.push(patella);
     }
     let kinematics = KneeKinematics {
         side,
         side_from,
-        frames,
+        frames: all,
         joints,
     };
     Ok((Some(kinematics), warnings))

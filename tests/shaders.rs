@@ -3,9 +3,9 @@
 
 use posereg::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
-    JacobianParams, LabelParams, MomentsParams, PartialsParams, PyramidParams, RbfGradParams,
-    RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
-    SplatParams, SsdParams, SumParams, ThresholdParams,
+    InvertParams, JacobianParams, LabelParams, MomentsParams, PartialsParams, PyramidParams,
+    RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams,
+    SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use posereg::shaders::{locate, source, KERNELS};
 use std::mem::size_of;
@@ -68,7 +68,7 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
-    let pairs: [(&str, &str, usize); 31] = [
+    let pairs: [(&str, &str, usize); 32] = [
         ("warp_image", "RbfGradParams", size_of::<RbfGradParams>()),
         ("gain_terms", "GainParams", size_of::<GainParams>()),
         ("gain_ratio", "GainParams", size_of::<GainParams>()),
@@ -126,6 +126,7 @@ fn abi_structs_match_their_wgsl_twins() {
             size_of::<BoneLookupParams>(),
         ),
         ("jacobian", "JacobianParams", size_of::<JacobianParams>()),
+        ("invert_field", "InvertParams", size_of::<InvertParams>()),
         ("ssd_cells", "SsdParams", size_of::<SsdParams>()),
         ("pyramid", "PyramidParams", size_of::<PyramidParams>()),
         ("rigid_gn", "RigidParams", size_of::<RigidParams>()),

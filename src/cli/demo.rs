@@ -2,7 +2,7 @@
 //! registered (articulated initialisation, then adaptive cubic-RBF), with its figures
 //! against the known truth.
 
-use super::init::write_kinematics;
+use super::init::kinematics;
 use super::outputs::{write_registration, Run};
 use super::progress::Reporter;
 use clap::Args;
@@ -93,18 +93,15 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         }),
         warnings: &[],
         seconds,
+        kinematics: match &result.init {
+            Some(init) => {
+                let chain = &options.init.chain;
+                kinematics(None, &source.labels, chain, &init.motions, reporter)?
+            }
+            None => None,
+        },
     };
     let (correlations, _) = write_registration(&args.output, &opened, &run, reporter)?;
-    if let Some(init) = &result.init {
-        let to = (args.output.as_path(), None);
-        write_kinematics(
-            to,
-            &source.labels,
-            &options.init.chain,
-            &init.motions,
-            reporter,
-        )?;
-    }
     reporter.result(&format!("done in {seconds:.1} s on {}", opened.describe()));
     let motions = result
         .init

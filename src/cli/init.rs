@@ -18,6 +18,7 @@ use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::transform::BoneTransforms;
 use posereg::io::{prepare_output_folder, OutputFolder};
 use posereg::joint::rotation_degrees;
+use posereg::kinematics::KneeKinematics;
 use posereg::metric::correlation;
 use posereg::register::{unregistered, RegisterOptions};
 use posereg::Error;
@@ -117,33 +118,40 @@ impl PairArgs {
     }
 }
 
-/// Writes kinematics.json and kinematics.csv for the bone `motions` into the output folder,
-/// or warns why it cannot.
-pub fn write_kinematics(
-    (folder, side): (&Path, Option<Side>),
+/// The knee's kinematics for the bone `motions` (see posereg::kinematics), or None with the
+/// reason warned.
+pub fn kinematics(
+    side: Option<Side>,
     labels: &posereg::Labels,
     chain: &[Link],
     motions: &[(u16, posereg::volume::Affine)],
     reporter: &Reporter,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Option<KneeKinematics>> {
     let (kinematics, warnings) =
         posereg::kinematics::knee_kinematics(labels, chain, motions, side)?;
     warnings.iter().for_each(|w| reporter.warn(w));
-    if let Some(k) = kinematics {
-        posereg::io::kinematics::save_kinematics(folder, &k)?;
-        for joint in &k.joints {
-            let each: Vec<String> = joint
-                .quantities
-                .iter()
-                .map(|q| format!("{} {:+.1} {}", q.name, q.change, q.unit))
-                .collect();
-            reporter.result(&format!(
-                "  {} ({:?} knee): {}",
-                joint.joint,
-                k.side,
-                each.join(", ")
-            ));
-        }
+    Ok(kinematics)
+}
+
+/// Writes kinematics.json and kinematics.csv into `folder` and prints each joint's change.
+pub fn write_kinematics(
+    folder: &Path,
+    kinematics: &KneeKinematics,
+    reporter: &Reporter,
+) -> anyhow::Result<()> {
+    posereg::io::kinematics::save_kinematics(folder, kinematics)?;
+    for joint in &kinematics.joints {
+        let each: Vec<String> = joint
+            .quantities
+            .iter()
+            .map(|q| format!("{} {:+.1} {}", q.name, q.change, q.unit))
+            .collect();
+        let side = kinematics.side;
+        reporter.result(&format!(
+            "  {} ({side:?} knee): {}",
+            joint.joint,
+            each.join(", ")
+        ));
     }
     Ok(())
 }
@@ -237,14 +245,10 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     transforms.save(&args.pair.output.join("init.json"))?;
     save_bone_tfms(&args.pair.output, &transforms)?;
     save_field(&args.pair.output.join("init_field.nii.gz"), &images.field)?;
-    let kinematics_to = (args.pair.output.as_path(), args.pair.side);
-    write_kinematics(
-        kinematics_to,
-        &labels,
-        &options.chain,
-        &init.motions,
-        reporter,
-    )?;
+    let side = args.pair.side;
+    if let Some(k) = kinematics(side, &labels, &options.chain, &init.motions, reporter)? {
+        write_kinematics(&args.pair.output, &k, reporter)?;
+    }
     save_volume(
         &args.pair.output.join("initialised.nii.gz"),
         &images.initialised,

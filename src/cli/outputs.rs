@@ -2,11 +2,14 @@
 //! source, the field and its inverse, the Jacobian, the bone transforms (JSON and ITK .tfm),
 //! the figure, report.json and the log.
 
+use super::init::write_kinematics;
 use super::progress::Reporter;
+use posereg::anatomy::Frame;
 use posereg::device::Opened;
 use posereg::io::field::save_field;
 use posereg::io::itk_transform::save_bone_tfms;
 use posereg::io::nifti::{save_volume, DataType};
+use posereg::kinematics::KneeKinematics;
 use posereg::metric::correlation;
 use posereg::quicklook::Figure;
 use posereg::register::{unregistered, RegisterOptions, Registration};
@@ -36,6 +39,8 @@ pub struct Run<'a> {
     pub warnings: &'a [String],
     /// Wall time of the registration (s).
     pub seconds: f64,
+    /// The knee's kinematics, when they could be told.
+    pub kinematics: Option<KneeKinematics>,
 }
 
 /// Writes every output of `run` into `folder`; returns the correlations and the checks.
@@ -78,6 +83,11 @@ pub fn write_registration(
         .into_iter()
         .map(|code| (code, options.init.name_of(code)))
         .collect();
+    let frames: Vec<Frame> = run
+        .kinematics
+        .iter()
+        .flat_map(|k| k.frames.iter().map(|f| f.target))
+        .collect();
     let figure = Figure {
         target,
         before: &before,
@@ -89,6 +99,7 @@ pub fn write_registration(
         bones: &bones,
         points: &result.adaptive.points,
         centre,
+        frames: &frames,
     };
     posereg::quicklook::save(&out("quicklook.png"), &figure)?;
     let report = report(opened, run, correlations, &checks);
@@ -96,6 +107,9 @@ pub fn write_registration(
     posereg::io::write_atomically(&out("report.json"), |tmp| {
         std::fs::write(tmp, text).map_err(|e| Error::io(tmp, e))
     })?;
+    if let Some(k) = &run.kinematics {
+        write_kinematics(folder, k, reporter)?;
+    }
     for check in checks.iter().filter(|c| !c.passed) {
         reporter.warn(&format!("check {} failed: {}", check.name, check.detail));
     }

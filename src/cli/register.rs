@@ -2,7 +2,7 @@
 //! pipeline, writing warped.nii.gz, field.nii.gz, inverse_field.nii.gz, transform.json,
 //! bones/*.tfm, jacobian.nii.gz, report.json and quicklook.png.
 
-use super::init::{load_given, write_kinematics, PairArgs};
+use super::init::{kinematics, load_given, PairArgs};
 use super::outputs::{write_registration, Run};
 use super::progress::Reporter;
 use clap::Args;
@@ -141,12 +141,15 @@ pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> a
         }),
         warnings: &warnings,
         seconds,
+        kinematics: match &result.init {
+            Some(init) => {
+                let (side, chain) = (args.pair.side, &options.init.chain);
+                kinematics(side, &labels, chain, &init.motions, reporter)?
+            }
+            None => None,
+        },
     };
     let (correlations, checks) = write_registration(&args.pair.output, &opened, &run, reporter)?;
-    if let Some(init) = &result.init {
-        let to = (args.pair.output.as_path(), args.pair.side);
-        write_kinematics(to, &labels, &options.init.chain, &init.motions, reporter)?;
-    }
     reporter.result(&format!(
         "registered in {seconds:.1} s: correlation {:.3} -> {:.3}, {} control points, Jacobian min {:.3}; outputs in {}",
         correlations.before,

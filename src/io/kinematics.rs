@@ -25,7 +25,7 @@ pub fn save_kinematics(folder: &Path, kinematics: &KneeKinematics) -> Result<()>
         "conventions": CONVENTIONS,
         "side": kinematics.side,
         "side_from": kinematics.side_from,
-        "frames_in_source_pose": kinematics.frames,
+        "frames": kinematics.frames,
         "joints": kinematics.joints,
     });
     let path = folder.join("kinematics.json");

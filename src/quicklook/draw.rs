@@ -36,12 +36,16 @@ const POINT: Rgb<u8> = Rgb([60, 120, 255]);
 const PINNED: Rgb<u8> = Rgb([40, 200, 60]);
 const SAMPLED: Rgb<u8> = Rgb([230, 40, 40]);
 const PULL: Rgb<u8> = Rgb([255, 210, 0]);
+/// A frame's x (subject's right), y (anterior), z (proximal) axes.
+const AXIS_COLOURS: [Rgb<u8>; 3] = [Rgb([240, 60, 60]), Rgb([60, 210, 90]), Rgb([70, 140, 255])];
+/// Length of a frame's axes as drawn (mm).
+const FRAME_AXIS_MM: f64 = 30.0;
 /// Panels are enlarged by a whole factor until a cell is this many pixels across or down.
 const MIN_CELL: usize = 240;
 const GAP: usize = 6;
 const LEFT: usize = 190;
 const TOP: usize = 28;
-const FOOTER: usize = 96;
+const FOOTER: usize = 116;
 /// Checkerboard squares, in plane pixels.
 const CHECKER: usize = 12;
 const TITLE: f32 = 16.0;
@@ -162,6 +166,36 @@ impl Canvas {
         }
         self.outlines(row, figure, [corners[0], corners[3]]);
         self.control_points(row, figure, corners[2]);
+        self.frames(row, figure, corners[0]);
+    }
+
+    /// The canvas point of world point `p` on a plane whose panel's corner is `corner`.
+    fn to_canvas(&self, row: &PlaneImages, corner: (usize, usize), p: [f64; 3]) -> (f32, f32) {
+        let (col, line) = row.plane.pixel_of(p);
+        let zoom = self.zoom as f64;
+        (
+            (corner.0 as f64 + (col + 0.5) * zoom) as f32,
+            (corner.1 as f64 + (line + 0.5) * zoom) as f32,
+        )
+    }
+
+    /// Each frame's axes, [`FRAME_AXIS_MM`] long, projected onto the plane.
+    fn frames(&mut self, row: &PlaneImages, figure: &Figure, corner: (usize, usize)) {
+        for frame in figure.frames {
+            let origin = frame.origin;
+            let from = self.to_canvas(row, corner, [origin.x, origin.y, origin.z]);
+            for (k, colour) in AXIS_COLOURS.iter().enumerate() {
+                let end = origin + frame.axis(k) * FRAME_AXIS_MM;
+                let to = self.to_canvas(row, corner, [end.x, end.y, end.z]);
+                // Three pixels wide, to stand out over the grey levels.
+                for (dx, dy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)] {
+                    let shift = |(x, y): (f32, f32)| (x + dx, y + dy);
+                    draw_line_segment_mut(&mut self.img, shift(from), shift(to), *colour);
+                }
+            }
+            let at = (from.0 as i32, from.1 as i32);
+            draw_filled_circle_mut(&mut self.img, at, 3, TEXT);
+        }
     }
 
     /// The bones' outlines (where a pixel's bone differs from its right or lower neighbour's)
@@ -196,21 +230,14 @@ impl Canvas {
     fn control_points(&mut self, row: &PlaneImages, figure: &Figure, corner: (usize, usize)) {
         let normal = row.plane.normal();
         let pixel = crate::picture::pixel_size(figure.target);
-        let zoom = self.zoom as f64;
-        let to_canvas = |p: [f64; 3]| {
-            let (col, line) = row.plane.pixel_of(p);
-            (
-                (corner.0 as f64 + (col + 0.5) * zoom) as f32,
-                (corner.1 as f64 + (line + 0.5) * zoom) as f32,
-            )
-        };
         let near = figure
             .points
             .iter()
             .filter(|p| (p.position[normal] - figure.centre[normal]).abs() <= pixel);
         for p in near {
-            let from = to_canvas(p.position);
-            let to = to_canvas(std::array::from_fn(|a| p.position[a] + p.displacement[a]));
+            let from = self.to_canvas(row, corner, p.position);
+            let moved = std::array::from_fn(|a| p.position[a] + p.displacement[a]);
+            let to = self.to_canvas(row, corner, moved);
             draw_line_segment_mut(&mut self.img, from, to, PULL);
             let dot = |img: &mut RgbImage, (x, y): (f32, f32), colour| {
                 draw_filled_circle_mut(img, (x as i32, y as i32), 3, colour)
@@ -239,6 +266,21 @@ impl Canvas {
             SMALL,
             TEXT,
             "bone outlines: the source's labels carried by the field, over the target and the checkerboard",
+        );
+        let mut x = LEFT;
+        for (colour, label) in
+            AXIS_COLOURS
+                .iter()
+                .zip(["frame x (right)", "y (anterior)", "z (proximal)"])
+        {
+            x = self.swatch(x, legend_y + 40, *colour, label);
+        }
+        self.text(
+            x,
+            legend_y + 40,
+            SMALL,
+            TEXT,
+            "the bones' kinematic frames on the target, projected",
         );
         self.jacobian_scale(LEFT + 900, legend_y - 2);
     }

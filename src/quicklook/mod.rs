@@ -7,13 +7,15 @@
 //! checkerboard, so a bone that does not sit on the target's bone shows; target voxels whose
 //! source point lies outside the source scan are hatched where the warped source appears (they
 //! hold no data, not a mismatch). Control points near each plane are drawn on the warped
-//! column as in the paper's figures 2–3. A footer gives the correlation and the mean |target −
+//! column as in the paper's figures 2–3, and the bones' anatomical frames (the kinematics'
+//! axes, carried into the target's pose) on the target column, projected onto each plane. A footer gives the correlation and the mean |target −
 //! source| before and after, over the target's body, and the legends.
 
 mod draw;
 mod panels;
 
 use crate::adaptive::ControlPoint;
+use crate::anatomy::Frame;
 use crate::error::{Error, Result};
 use crate::picture::{pixel_size, window, world_bounds, PLANES};
 use crate::volume::{Field, Grid, Labels, Volume};
@@ -43,6 +45,8 @@ pub struct Figure<'a> {
     pub points: &'a [ControlPoint],
     /// The point the planes pass through (world RAS mm).
     pub centre: [f64; 3],
+    /// The bones' anatomical frames in the target pose (drawn on the target, projected).
+    pub frames: &'a [Frame],
 }
 
 /// Column titles.
