@@ -9,7 +9,9 @@
 //!   midline);
 //! - internal rotation = atan2(e2·X_D, e2·Y_D): about e3, positive as the distal bone's
 //!   front turns towards the midline;
-//! - with H = O_D − O_P: lateral shift H·e1, anterior drawer H·e2, proximal H·e3.
+//! - the translation H = O_D − O_P written on the same axes, H = q1 e1 + q2 e2 + q3 e3 (they
+//!   are not orthogonal: e1·e3 is the sine of the adduction): lateral shift q1, anterior
+//!   drawer q2, proximal q3.
 //!
 //! The frames' X points to the subject's right for both knees, which is lateral on a right
 //! knee and medial on a left one, so a left knee's adduction, internal rotation and lateral
@@ -22,6 +24,7 @@ use crate::anatomy::{knee_frames, Frame, KneeCodes, Side};
 use crate::chain::Link;
 use crate::error::Result;
 use crate::volume::{Affine, Labels};
+use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 
 /// The six values of a joint's pose (degrees, mm).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -45,7 +48,11 @@ pub struct JointPose {
 pub fn grood_suntay(p: &Frame, d: &Frame, side: Side) -> JointPose {
     let (e1, e3) = (p.axis(0), d.axis(2));
     let e2 = e3.cross(&e1).normalize();
-    let h = d.origin - p.origin;
+    // H's coordinates on the (oblique) axes; they are singular only at ±90° of adduction.
+    let on_axes = Matrix3::from_columns(&[e1, e2, e3]);
+    let h = on_axes
+        .try_inverse()
+        .map_or(Vector3::zeros(), |inverse| inverse * (d.origin - p.origin));
     let mirror = match side {
         Side::Right => 1.0,
         Side::Left => -1.0,
@@ -54,9 +61,40 @@ pub fn grood_suntay(p: &Frame, d: &Frame, side: Side) -> JointPose {
         flexion_deg: (-e2.dot(&p.axis(2))).atan2(e2.dot(&p.axis(1))).to_degrees(),
         about_e2_deg: mirror * e1.dot(&e3).clamp(-1.0, 1.0).asin().to_degrees(),
         about_e3_deg: mirror * e2.dot(&d.axis(0)).atan2(e2.dot(&d.axis(1))).to_degrees(),
-        lateral_mm: mirror * h.dot(&e1),
-        anterior_mm: h.dot(&e2),
-        proximal_mm: h.dot(&e3),
+        lateral_mm: mirror * h.x,
+        anterior_mm: h.y,
+        proximal_mm: h.z,
+    }
+}
+
+/// The distal frame whose joint coordinate system against `p` reads `pose` for a `side` knee:
+/// [`grood_suntay`]'s inverse. The distal axes are `p`'s turned by the Cardan sequence about
+/// X (−flexion), the intermediate Y (adduction) and the final Z (internal rotation), mirrored
+/// for a left knee; its origin is `p`'s moved along e1, e2, e3.
+pub fn distal_frame(p: &Frame, pose: &JointPose, side: Side) -> Frame {
+    let mirror = match side {
+        Side::Right => 1.0,
+        Side::Left => -1.0,
+    };
+    let turn = |axis: Vector3<f64>, degrees: f64| {
+        *Rotation3::from_axis_angle(&Unit::new_normalize(axis), degrees.to_radians()).matrix()
+    };
+    let first = turn(Vector3::x(), -pose.flexion_deg);
+    let axes = p.axes
+        * first
+        * turn(Vector3::y(), mirror * pose.about_e2_deg)
+        * turn(Vector3::z(), mirror * pose.about_e3_deg);
+    let (e1, e2, e3) = (
+        p.axis(0),
+        p.axes * first * Vector3::y(),
+        axes * Vector3::z(),
+    );
+    Frame {
+        origin: p.origin
+            + e1 * (mirror * pose.lateral_mm)
+            + e2 * pose.anterior_mm
+            + e3 * pose.proximal_mm,
+        axes,
     }
 }
 
@@ -105,8 +143,28 @@ const PATELLOFEMORAL: [(&str, &str, f64); 6] = [
     ("proximal", "mm", 1.0),
 ];
 
+impl std::ops::Add for JointPose {
+    type Output = JointPose;
+    fn add(self, b: JointPose) -> JointPose {
+        let (x, y) = (self.values(), b.values());
+        JointPose::from_values(std::array::from_fn(|k| x[k] + y[k]))
+    }
+}
+
 impl JointPose {
-    fn values(&self) -> [f64; 6] {
+    fn from_values(v: [f64; 6]) -> Self {
+        JointPose {
+            flexion_deg: v[0],
+            about_e2_deg: v[1],
+            about_e3_deg: v[2],
+            lateral_mm: v[3],
+            anterior_mm: v[4],
+            proximal_mm: v[5],
+        }
+    }
+
+    /// The six values in order: flexion, about e2, about e3, lateral, anterior, proximal.
+    pub fn values(&self) -> [f64; 6] {
         [
             self.flexion_deg,
             self.about_e2_deg,

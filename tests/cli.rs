@@ -869,3 +869,51 @@ fn a_target_mask_limits_the_evidence() {
         assert!(!no.exists());
     }
 }
+
+/// `posereg pose` writes the source re-posed with its truth; a flexion beyond ±150° is
+/// refused before anything is written.
+#[test]
+fn pose_writes_a_posed_pair_with_its_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let [source, labels, _] = quarter_pair(dir.path());
+    let out = dir.path().join("posed");
+    let args = [
+        "pose",
+        s(&source),
+        "--labels",
+        s(&labels),
+        "--device",
+        "cpu",
+        "-o",
+        s(&out),
+    ];
+    let ran = posereg(&[&args[..], &["--flexion", "25", "--varus", "-2", "-q"]].concat());
+    assert!(ran.status.success(), "{ran:?}");
+    for file in [
+        "target.nii.gz",
+        "target_labels.nii.gz",
+        "truth_field.nii.gz",
+        "picture.png",
+    ] {
+        assert!(out.join(file).exists(), "pose did not write {file}");
+    }
+    let truth = posereg::io::transform::BoneTransforms::load(&out.join("truth.json")).unwrap();
+    assert_eq!(truth.bones.len(), 4);
+    assert_eq!(
+        truth.extra["pose"]["tibiofemoral_change"]["varus_deg"],
+        -2.0
+    );
+    let far = dir.path().join("far");
+    let refused = posereg(&[
+        "pose",
+        s(&source),
+        "--labels",
+        s(&labels),
+        "--flexion",
+        "200",
+        "-o",
+        s(&far),
+    ]);
+    assert_fails_naming(&refused, "flexion");
+    assert!(!far.exists());
+}

@@ -8,7 +8,7 @@ mod common;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use posereg::anatomy::{Frame, Side};
 use posereg::articulated::{initialise_volumes, InitOptions};
-use posereg::kinematics::{grood_suntay, knee_kinematics, JointMotion};
+use posereg::kinematics::{distal_frame, grood_suntay, knee_kinematics, JointMotion, JointPose};
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
 use posereg::progress::Silent;
 use posereg::volume::Affine;
@@ -20,7 +20,8 @@ fn rotation(axis: Vector3<f64>, degrees: f64) -> Matrix3<f64> {
 }
 
 /// Random frames and motions: the distal frame is the proximal one turned by the Cardan
-/// sequence X (−flexion), Y' (adduction), Z'' (internal rotation), its origin moved by h.
+/// sequence X (−flexion), Y' (adduction), Z'' (internal rotation), its origin moved by q on
+/// the sequence's axes.
 #[test]
 fn grood_suntay_matches_the_cardan_closed_form_on_random_motions() {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
@@ -36,28 +37,19 @@ fn grood_suntay_matches_the_cardan_closed_form_on_random_motions() {
         let internal = rng.random_range(-30.0..30.0);
         let first = rotation(Vector3::x(), -flexion);
         let turn = first * rotation(Vector3::y(), adduction) * rotation(Vector3::z(), internal);
-        let h =
-            Vector3::new(rng.random(), rng.random(), rng.random()) * 40.0 - Vector3::repeat(20.0);
-        let d = Frame {
-            origin: p.origin + h,
-            axes: p_axes * turn,
-        };
         // The closed form's axes: e1 the proximal X, e2 the sequence's intermediate Y', e3
-        // the distal Z.
-        let (e1, e2, e3) = (
-            p_axes * Vector3::x(),
-            p_axes * first * Vector3::y(),
-            d.axes * Vector3::z(),
-        );
+        // the distal Z; the translation is written on them (H = q1 e1 + q2 e2 + q3 e3).
+        let axes = p_axes * turn;
+        let e1 = p_axes * Vector3::x();
+        let e2 = p_axes * first * Vector3::y();
+        let e3 = axes * Vector3::z();
+        let q: [f64; 3] = std::array::from_fn(|_| rng.random_range(-20.0..20.0));
+        let d = Frame {
+            origin: p.origin + e1 * q[0] + e2 * q[1] + e3 * q[2],
+            axes,
+        };
         let right = grood_suntay(&p, &d, Side::Right);
-        let want = [
-            flexion,
-            adduction,
-            internal,
-            h.dot(&e1),
-            h.dot(&e2),
-            h.dot(&e3),
-        ];
+        let want = [flexion, adduction, internal, q[0], q[1], q[2]];
         let got = [
             right.flexion_deg,
             right.about_e2_deg,
@@ -74,7 +66,7 @@ fn grood_suntay_matches_the_cardan_closed_form_on_random_motions() {
         assert!((left.flexion_deg - flexion).abs() < 1e-6);
         assert!((left.about_e2_deg + adduction).abs() < 1e-6);
         assert!((left.about_e3_deg + internal).abs() < 1e-6);
-        assert!((left.lateral_mm + h.dot(&e1)).abs() < 1e-6);
+        assert!((left.lateral_mm + q[0]).abs() < 1e-6);
     }
 }
 
@@ -166,4 +158,75 @@ fn knee_kinematics_recovered_on_the_phantom_on_the_cpu() {
 fn knee_kinematics_recovered_on_the_phantom_on_the_gpu() {
     let Some(gpu) = common::gpu() else { return };
     recovered_on(gpu, PhantomSize::Half, &[45.0, 120.0], "gpu");
+}
+
+/// `distal_frame` is `grood_suntay`'s inverse: random proximal frames and joint poses, both
+/// sides.
+#[test]
+fn distal_frame_inverts_grood_suntay() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    for k in 0..300 {
+        let axis = Vector3::new(rng.random(), rng.random(), rng.random()) - Vector3::repeat(0.5);
+        let p = Frame {
+            origin: Vector3::new(rng.random(), rng.random(), rng.random()) * 100.0,
+            axes: rotation(axis, rng.random_range(0.0..180.0)),
+        };
+        let pose = JointPose {
+            flexion_deg: rng.random_range(-10.0..140.0),
+            about_e2_deg: rng.random_range(-15.0..15.0),
+            about_e3_deg: rng.random_range(-30.0..30.0),
+            lateral_mm: rng.random_range(-5.0..5.0),
+            anterior_mm: rng.random_range(-10.0..10.0),
+            proximal_mm: rng.random_range(-40.0..0.0),
+        };
+        let side = if k % 2 == 0 { Side::Right } else { Side::Left };
+        let back = grood_suntay(&p, &distal_frame(&p, &pose, side), side);
+        for (g, w) in back.values().iter().zip(pose.values()) {
+            assert!((g - w).abs() < 1e-6, "{side:?}: {back:?} against {pose:?}");
+        }
+    }
+}
+
+/// `pose` moves the phantom's tibia by the joint change asked for, as the kinematics read it
+/// from the truth it writes; the fibula moves with the tibia.
+#[test]
+fn pose_sets_the_joint_change_asked_for() {
+    let cpu = posereg::cpu::CpuBackend;
+    let spec = PhantomSpec {
+        size: PhantomSize::Small,
+        ..Default::default()
+    };
+    let source = generate(&cpu, &spec).unwrap();
+    let change = JointPose {
+        flexion_deg: 40.0,
+        about_e2_deg: 3.0,
+        about_e3_deg: -6.0,
+        lateral_mm: 1.0,
+        anterior_mm: 2.5,
+        proximal_mm: -1.5,
+    };
+    let blend = posereg::abi::Blending::Linear;
+    let posed =
+        posereg::repose::pose(&cpu, &source.image, &source.labels, change, None, blend).unwrap();
+    let truth: Vec<(u16, Affine)> = posed
+        .truth
+        .bones
+        .iter()
+        .map(|b| (b.label, b.affine()))
+        .collect();
+    let got = tibiofemoral(&source.labels, &truth);
+    for (q, want) in got.quantities.iter().zip(change.values()) {
+        assert!(
+            (q.change - want).abs() < 1e-6,
+            "{} changed by {} for {want}",
+            q.name,
+            q.change
+        );
+    }
+    let motion = |code: u16| truth.iter().find(|m| m.0 == code).unwrap().1;
+    assert!(
+        (motion(5) - motion(3)).abs().max() < 1e-12,
+        "the fibula left its tibia"
+    );
+    assert_eq!(posed.field.grid, source.image.grid);
 }

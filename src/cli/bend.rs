@@ -5,12 +5,12 @@ use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
 use posereg::abi::Interpolation;
-use posereg::articulated::bend;
 use posereg::backend::resample_volume;
 use posereg::device::{open_backend, DeviceWanted};
 use posereg::io::field::save_field;
 use posereg::io::nifti::{load_labels, load_volume, save_labels, save_volume, DataType};
 use posereg::joint::JointAxis;
+use posereg::repose::{bend, Posed};
 use posereg::Error;
 use std::path::PathBuf;
 
@@ -79,7 +79,7 @@ pub fn run(args: &BendArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     };
     let (opened, line) = open_backend(device)?;
     reporter.say(&line);
-    let bent = posereg::on_backend!(opened, backend => bend(
+    let (bent, axis) = posereg::on_backend!(opened, backend => bend(
         backend,
         &source,
         &labels,
@@ -87,13 +87,35 @@ pub fn run(args: &BendArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         axis,
         args.blending,
     ))?;
-    let out = |name: &str| args.output.join(name);
-    let target = posereg::on_backend!(opened, backend => resample_volume(backend, &source, &bent.field, 0.0, Interpolation::Linear))?;
+    let knee = [axis.point.x, axis.point.y, axis.point.z];
+    write_posed(&opened, &args.output, (&source, &labels), &bent, knee)?;
+    println!(
+        "bent {}° about the axis through {:.1?} along {:.3?}; written to {}",
+        args.degrees,
+        axis.point.as_slice(),
+        axis.direction.as_slice(),
+        args.output.display()
+    );
+    Ok(())
+}
+
+/// Writes a synthetic pose of `source` and its `labels` into `folder`: target.nii.gz,
+/// target_labels.nii.gz, truth_field.nii.gz, truth.json and picture.png (three planes through
+/// `knee`).
+pub fn write_posed(
+    opened: &posereg::device::Opened,
+    folder: &std::path::Path,
+    (source, labels): (&posereg::Volume, &posereg::Labels),
+    posed: &Posed,
+    knee: [f64; 3],
+) -> anyhow::Result<()> {
+    let out = |name: &str| folder.join(name);
+    let target = posereg::on_backend!(opened, backend => resample_volume(backend, source, &posed.field, 0.0, Interpolation::Linear))?;
     let label_values: posereg::Volume = posereg::Image {
         grid: labels.grid.clone(),
         data: labels.data.iter().map(|&l| l as f32).collect(),
     };
-    let target_labels = posereg::on_backend!(opened, backend => resample_volume(backend, &label_values, &bent.field, 0.0, Interpolation::Nearest))?;
+    let target_labels = posereg::on_backend!(opened, backend => resample_volume(backend, &label_values, &posed.field, 0.0, Interpolation::Nearest))?;
     save_volume(&out("target.nii.gz"), &target, DataType::F32)?;
     save_labels(
         &out("target_labels.nii.gz"),
@@ -102,16 +124,8 @@ pub fn run(args: &BendArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
             data: target_labels.data.iter().map(|&v| v as u16).collect(),
         },
     )?;
-    save_field(&out("truth_field.nii.gz"), &bent.field)?;
-    bent.truth.save(&out("truth.json"))?;
-    let knee = [bent.axis.point.x, bent.axis.point.y, bent.axis.point.z];
+    save_field(&out("truth_field.nii.gz"), &posed.field)?;
+    posed.truth.save(&out("truth.json"))?;
     posereg::picture::save_planes_png(&out("picture.png"), &target, Some(knee))?;
-    println!(
-        "bent {}° about the axis through {:.1?} along {:.3?}; written to {}",
-        args.degrees,
-        bent.axis.point.as_slice(),
-        bent.axis.direction.as_slice(),
-        args.output.display()
-    );
     Ok(())
 }

@@ -12,6 +12,7 @@ pub mod init;
 pub mod outputs;
 pub mod phantom;
 pub mod points;
+pub mod pose;
 pub mod progress;
 pub mod register;
 pub mod resample;
@@ -66,6 +67,8 @@ pub enum Command {
     Init(init::InitArgs),
     /// Make a knee phantom in any flexion, with exact ground truth.
     Phantom(phantom::PhantomArgs),
+    /// Re-pose a labelled scan at given knee angles and translations, with the truth.
+    Pose(pose::PoseArgs),
     /// Register a straight scan with bone labels to a bent scan: the whole pipeline.
     Register(register::RegisterArgs),
     /// Resample an image through a displacement field (ITK convention) onto a target grid.
@@ -95,6 +98,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Info(args) => info::run(&args),
         Command::Init(args) => init::run(&args, device, &reporter),
         Command::Phantom(args) => phantom::run(&args),
+        Command::Pose(args) => pose::run(&args, device, &reporter),
         Command::Register(args) => register::run(&args, device, &reporter),
         Command::Resample(args) => resample::run(&args, device, &reporter),
     }
