@@ -22,9 +22,11 @@
 
 use crate::anatomy::{knee_frames, Frame, KneeCodes, Side};
 use crate::chain::Link;
+use crate::confidence::Confidence;
 use crate::error::Result;
 use crate::volume::{Affine, Labels};
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
+use std::collections::BTreeMap;
 
 /// The six values of a joint's pose (degrees, mm).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -123,6 +125,8 @@ pub struct JointMotion {
     pub bones: [String; 2],
     /// The six quantities.
     pub quantities: Vec<Quantity>,
+    /// How far each of its bones' registrations can be trusted (empty for given motions).
+    pub confidence: BTreeMap<String, Confidence>,
 }
 
 /// The names, units and signs of a joint's six quantities, in [`JointPose`]'s order.
@@ -203,6 +207,7 @@ impl JointMotion {
             joint,
             bones,
             quantities,
+            confidence: BTreeMap::new(),
         }
     }
 
@@ -235,6 +240,20 @@ pub struct KneeKinematics {
     pub frames: Vec<BoneFrame>,
     /// Tibiofemoral, then patellofemoral when the patella was registered.
     pub joints: Vec<JointMotion>,
+}
+
+impl KneeKinematics {
+    /// Each joint with the confidence `of` its bones (by name), where known.
+    pub fn with_confidence(mut self, of: impl Fn(&str) -> Option<Confidence>) -> Self {
+        for joint in &mut self.joints {
+            for bone in &joint.bones {
+                if let Some(c) = of(bone) {
+                    joint.confidence.insert(bone.clone(), c);
+                }
+            }
+        }
+        self
+    }
 }
 
 /// The knee's kinematics between the source pose and the target pose the bone `motions`

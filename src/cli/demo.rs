@@ -96,7 +96,7 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         kinematics: match &result.init {
             Some(init) => {
                 let chain = &options.init.chain;
-                kinematics(None, &source.labels, chain, &init.motions, reporter)?
+                kinematics(None, &source.labels, chain, init, reporter)?
             }
             None => None,
         },

@@ -118,19 +118,23 @@ impl PairArgs {
     }
 }
 
-/// The knee's kinematics for the bone `motions` (see posereg::kinematics), or None with the
-/// reason warned.
+/// The knee's kinematics for the initialisation's bone motions (see posereg::kinematics),
+/// each joint with its bones' confidence, or None with the reason warned.
 pub fn kinematics(
     side: Option<Side>,
     labels: &posereg::Labels,
     chain: &[Link],
-    motions: &[(u16, posereg::volume::Affine)],
+    init: &posereg::articulated::Initialisation,
     reporter: &Reporter,
 ) -> anyhow::Result<Option<KneeKinematics>> {
     let (kinematics, warnings) =
-        posereg::kinematics::knee_kinematics(labels, chain, motions, side)?;
+        posereg::kinematics::knee_kinematics(labels, chain, &init.motions, side)?;
     warnings.iter().for_each(|w| reporter.warn(w));
-    Ok(kinematics)
+    let confidence = |bone: &str| {
+        let report = init.reports.iter().find(|r| r.name == bone);
+        report.map(|r| r.confidence.clone())
+    };
+    Ok(kinematics.map(|k| k.with_confidence(confidence)))
 }
 
 /// Writes kinematics.json and kinematics.csv into `folder` and prints each joint's change.
@@ -246,7 +250,7 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     save_bone_tfms(&args.pair.output, &transforms)?;
     save_field(&args.pair.output.join("init_field.nii.gz"), &images.field)?;
     let side = args.pair.side;
-    if let Some(k) = kinematics(side, &labels, &options.chain, &init.motions, reporter)? {
+    if let Some(k) = kinematics(side, &labels, &options.chain, &init, reporter)? {
         write_kinematics(&args.pair.output, &k, reporter)?;
     }
     save_volume(

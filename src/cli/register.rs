@@ -144,7 +144,7 @@ pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> a
         kinematics: match &result.init {
             Some(init) => {
                 let (side, chain) = (args.pair.side, &options.init.chain);
-                kinematics(side, &labels, chain, &init.motions, reporter)?
+                kinematics(side, &labels, chain, init, reporter)?
             }
             None => None,
         },
