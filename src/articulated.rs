@@ -573,7 +573,7 @@ fn rigid_pyramids<B: Backend>(
 fn register_bones<B: Backend>(
     backend: &B,
     pair: &PairImages<B>,
-    axis: &JointAxis,
+    (axis, seeds): (&JointAxis, Option<&BoneTransforms>),
     bones: &[u16],
     options: &InitOptions,
     progress: &dyn Progress,
@@ -587,10 +587,17 @@ fn register_bones<B: Backend>(
             let at = found.iter().find(|f| f.0 == p).expect("parents go first");
             (options.name_of(p), at.1)
         });
-        let start = parent.as_ref().map_or_else(Affine::identity, |p| p.1);
+        let seed = seeds.and_then(|s| s.bones.iter().find(|b| b.label == code));
+        let seed = seed.map(|b| b.affine());
+        let start = match (&parent, seed) {
+            (Some(p), _) => p.1,
+            (None, seed) => seed.unwrap_or_else(Affine::identity),
+        };
         let cands = match (link.search_degrees, &parent) {
             (Some(range), Some(_)) => {
-                Some(candidates(axis, &start, range, options.search_tilt_degrees))
+                let mut all = candidates(axis, &start, range, options.search_tilt_degrees);
+                all.extend(seed.map(|s| (degrees_between(&start, &s), s)));
+                Some(all)
             }
             _ => None,
         };
@@ -637,14 +644,24 @@ fn register_bones<B: Backend>(
     Ok((motions, reports))
 }
 
-/// Runs the articulated initialisation on `pair` (`labels`: its label map on the host).
-/// `given` skips the rigid stage with known motions.
+/// Where the bones' rigid registration starts from, when not from the identity.
+#[derive(Clone, Copy, Debug)]
+pub enum Start<'a> {
+    /// These motions, kept as they are: the rigid stage is skipped (`--init`).
+    Given(&'a BoneTransforms),
+    /// These motions as first guesses beside the search's (a neighbouring pose's result): a
+    /// root starts from its own, a searched bone scores it among its candidates.
+    Seeded(&'a BoneTransforms),
+}
+
+/// Runs the articulated initialisation on `pair` (`labels`: its label map on the host), from
+/// the identity or from `start`.
 pub fn initialise<B: Backend>(
     backend: &B,
     pair: &PairImages<B>,
     labels: &Labels,
     options: &InitOptions,
-    given: Option<&BoneTransforms>,
+    start: Option<Start>,
     progress: &dyn Progress,
 ) -> Result<(Initialisation, InitialImages<B>)> {
     options.check()?;
@@ -668,11 +685,17 @@ pub fn initialise<B: Backend>(
     }
     crate::abi::check_bone_count(bones.len())?;
     let axis = flexion_axis(labels, KneeBones::of_chain(&options.chain)?)?;
-    let rigid_steps = if given.is_some() { 0 } else { bones.len() };
+    let rigid_steps = match start {
+        Some(Start::Given(_)) => 0,
+        _ => bones.len(),
+    };
     progress.begin("initialisation", rigid_steps + 1);
-    let (motions, reports) = match given {
-        Some(given) => (given_motions(given, &bones)?, Vec::new()),
-        None => register_bones(backend, pair, &axis, &bones, options, progress)?,
+    let registered =
+        |seeds| register_bones(backend, pair, (&axis, seeds), &bones, options, progress);
+    let (motions, reports) = match start {
+        Some(Start::Given(given)) => (given_motions(given, &bones)?, Vec::new()),
+        Some(Start::Seeded(seeds)) => registered(Some(seeds))?,
+        None => registered(None)?,
     };
     let weights = skinning::weights(backend, &pair.labels, &bones, skinning::SHEPARD_POWER)?;
     let matrices: Vec<Affine> = motions.iter().map(|m| m.1).collect();
@@ -720,11 +743,11 @@ pub fn initialise_volumes<B: Backend>(
     labels: &Labels,
     target: &Volume,
     options: &InitOptions,
-    given: Option<&BoneTransforms>,
+    start: Option<Start>,
     progress: &dyn Progress,
 ) -> Result<(Initialisation, InitialVolumes)> {
     let pair = PairImages::upload(backend, source, labels, target)?;
-    let (found, images) = initialise(backend, &pair, labels, options, given, progress)?;
+    let (found, images) = initialise(backend, &pair, labels, options, start, progress)?;
     Ok((found, images.download(backend)?))
 }
 

@@ -3,7 +3,9 @@
 
 use crate::abi::{BoneLookupParams, ComposeParams, Interpolation, ResampleParams};
 use crate::adaptive::{self, Adaptive, AdaptiveOptions, Moving};
-use crate::articulated::{initialise, InitOptions, InitialImages, Initialisation, PairImages};
+use crate::articulated::{
+    initialise, InitOptions, InitialImages, Initialisation, PairImages, Start,
+};
 use crate::backend::{resample_onto, Backend, DeviceImage, Traffic};
 use crate::error::{Error, Result};
 use crate::fold_repair::{determinant, unfold_registration, FoldRepair, Folds, SourceLabels};
@@ -227,6 +229,9 @@ pub struct Inputs<'a> {
     pub target: &'a Volume,
     /// Bone motions to start from instead of registering the bones (`register --init`).
     pub given: Option<&'a BoneTransforms>,
+    /// Bone motions to try first when registering the bones (a neighbouring pose's result,
+    /// `posereg series`); `given` wins over them.
+    pub seeds: Option<&'a BoneTransforms>,
     /// The target's voxels that count as evidence in the non-rigid stage (non-zero inside),
     /// on its grid; none: all of them.
     pub target_mask: Option<&'a Labels>,
@@ -240,6 +245,7 @@ impl<'a> Inputs<'a> {
             labels,
             target,
             given: None,
+            seeds: None,
             target_mask: None,
         }
     }
@@ -269,16 +275,18 @@ pub fn register_observed<B: Backend>(
         labels,
         target,
         given,
+        seeds,
         target_mask,
     } = inputs;
     let clock = std::time::Instant::now();
     let at_start = backend.traffic();
     options.check()?;
     let pair = PairImages::upload(backend, source, labels, target)?;
+    let start = given.map(Start::Given).or(seeds.map(Start::Seeded));
     let (init, images) = match options.initialise.then_some(&options.init) {
         Some(init_options) => {
             let (found, images) =
-                initialise(backend, &pair, labels, init_options, given, progress)?;
+                initialise(backend, &pair, labels, init_options, start, progress)?;
             (Some(found), images)
         }
         None => (None, no_initialisation(backend, &pair)?),

@@ -7,7 +7,7 @@ use posereg::progress::Silent;
 use common::{host_determinant, resample_volume};
 use posereg::abi::Interpolation;
 use posereg::articulated::{
-    initialise_volumes, rigid_field, InitOptions, InitialVolumes, Initialisation,
+    initialise_volumes, rigid_field, InitOptions, InitialVolumes, Initialisation, Start,
 };
 use posereg::cpu::CpuBackend;
 use posereg::labels as label;
@@ -279,7 +279,7 @@ fn given_transforms_skip_the_rigid_stage() {
         &straight().labels,
         &b.image,
         &InitOptions::default(),
-        Some(&b.truth),
+        Some(Start::Given(&b.truth)),
         &Silent,
     )
     .unwrap();

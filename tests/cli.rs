@@ -917,3 +917,66 @@ fn pose_writes_a_posed_pair_with_its_truth() {
     assert_fails_naming(&refused, "flexion");
     assert!(!far.exists());
 }
+
+/// `posereg series` registers each pose into its own folder, the previous pose's bones tried
+/// first, and tabulates the kinematics of every pose in series.csv.
+#[test]
+fn series_registers_every_pose_and_tabulates_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let [source, labels, thirty] = quarter_pair(dir.path());
+    let sixty = dir.path().join("sixty");
+    let args = [
+        "phantom",
+        "--size",
+        "quarter",
+        "--flexion",
+        "60",
+        "--seed",
+        "3",
+        "-q",
+        "-o",
+    ];
+    assert!(posereg(&[&args[..], &[s(&sixty)]].concat())
+        .status
+        .success());
+    let out = dir.path().join("series");
+    let ran = posereg(&[
+        "series",
+        "--source",
+        s(&source),
+        "--source-labels",
+        s(&labels),
+        "--targets",
+        s(&thirty),
+        s(&sixty.join("image.nii.gz")),
+        "-o",
+        s(&out),
+        "--device",
+        "cpu",
+        "-q",
+        "--config",
+        s(&fast_settings(dir.path())),
+    ]);
+    assert!(ran.status.success(), "{ran:?}");
+    for pose in ["pose_01", "pose_02"] {
+        assert!(out.join(pose).join("kinematics.csv").exists(), "no {pose}");
+    }
+    let table = std::fs::read_to_string(out.join("series.csv")).unwrap();
+    let flexion: Vec<f64> = table
+        .lines()
+        .filter(|l| l.contains(",tibiofemoral,flexion,"))
+        .map(|l| l.rsplit(',').next().unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(flexion.len(), 2, "{table}");
+    assert!(
+        (flexion[0] - 30.0).abs() < 3.0 && (flexion[1] - 60.0).abs() < 3.0,
+        "{flexion:?}"
+    );
+}
+
+/// A settings file that keeps the adaptive stage short (these tests are about the verbs).
+fn fast_settings(dir: &Path) -> PathBuf {
+    let path = dir.join("fast.toml");
+    std::fs::write(&path, "[adaptive]\niterations = \"3x3x3\"\n").unwrap();
+    path
+}

@@ -6,7 +6,7 @@ use clap::Args;
 use posereg::abi::Blending;
 use posereg::abi::Interpolation;
 use posereg::anatomy::Side;
-use posereg::articulated::{initialise_volumes, rigid_field, InitOptions};
+use posereg::articulated::{initialise_volumes, rigid_field, InitOptions, Start};
 use posereg::backend::resample_volume;
 use posereg::chain::{self, Link};
 use posereg::device::{open_backend, DeviceWanted};
@@ -73,7 +73,7 @@ pub struct PairArgs {
 }
 
 /// One `name=code` of --label-map.
-fn bone_code(text: &str) -> Result<(String, u16), String> {
+pub fn bone_code(text: &str) -> Result<(String, u16), String> {
     let (name, code) = text
         .split_once('=')
         .ok_or_else(|| format!("{text:?} is not name=code (e.g. femur=1)"))?;
@@ -223,7 +223,7 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         &labels,
         &target,
         &options,
-        given.as_ref(),
+        given.as_ref().map(Start::Given),
         reporter,
     ))?;
     let seconds = started.elapsed().as_secs_f64();

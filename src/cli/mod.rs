@@ -16,6 +16,7 @@ pub mod pose;
 pub mod progress;
 pub mod register;
 pub mod resample;
+pub mod series;
 
 use clap::{Parser, Subcommand};
 use posereg::device::{DeviceChoice, DeviceWanted};
@@ -73,6 +74,8 @@ pub enum Command {
     Register(register::RegisterArgs),
     /// Resample an image through a displacement field (ITK convention) onto a target grid.
     Resample(resample::ResampleArgs),
+    /// Register one labelled scan to several poses in order, each seeded by the one before.
+    Series(series::SeriesArgs),
 }
 
 /// Runs the parsed command line.
@@ -101,5 +104,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Pose(args) => pose::run(&args, device, &reporter),
         Command::Register(args) => register::run(&args, device, &reporter),
         Command::Resample(args) => resample::run(&args, device, &reporter),
+        Command::Series(args) => series::run(&args, device, &reporter),
     }
 }

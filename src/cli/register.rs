@@ -7,12 +7,13 @@ use super::outputs::{write_registration, Run};
 use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
-use posereg::device::{open_backend, DeviceWanted};
+use posereg::device::{open_backend, DeviceWanted, Opened};
 use posereg::inputs::{check_settings, load_target_mask, Pair};
 use posereg::io::config::{load_options, options_toml};
+use posereg::io::transform::BoneTransforms;
+use posereg::kinematics::KneeKinematics;
 use posereg::levels::PerLevel;
 use posereg::register::{register, Inputs, RegisterOptions};
-use posereg::result_checks::Check;
 use std::path::PathBuf;
 
 /// Arguments of `posereg register`.
@@ -66,7 +67,7 @@ fn settings_help() -> String {
 
 impl RegisterArgs {
     /// Defaults, overridden by the config file, overridden by the flags.
-    fn options(&self) -> anyhow::Result<RegisterOptions> {
+    pub fn options(&self) -> anyhow::Result<RegisterOptions> {
         let mut options = match &self.config {
             Some(path) => load_options(path)?,
             None => RegisterOptions::default(),
@@ -95,8 +96,40 @@ impl RegisterArgs {
 /// Runs the registration and writes its outputs.
 pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.options()?;
+    let registered = register_pair(args, &options, (device, &mut None), None, reporter)?;
+    if args.strict && !registered.failed.is_empty() {
+        anyhow::bail!(
+            "--strict: {} result check(s) failed ({}); the outputs are in {} for inspection",
+            registered.failed.len(),
+            registered.failed.join(", "),
+            args.pair.output.display()
+        );
+    }
+    Ok(())
+}
+
+/// What one registration leaves for its caller.
+pub struct Registered {
+    /// The bone motions (none without the initialisation).
+    pub transforms: BoneTransforms,
+    /// The knee's kinematics, when they could be told.
+    pub kinematics: Option<KneeKinematics>,
+    /// The result checks that failed.
+    pub failed: Vec<&'static str>,
+}
+
+/// Loads the pair `args` names, registers it with `options` (trying `seeds` first for the
+/// bones) on the backend `opened` holds (opening the one `device` asks for the first time),
+/// and writes every output into its folder.
+pub fn register_pair(
+    args: &RegisterArgs,
+    options: &RegisterOptions,
+    (device, opened): (&DeviceWanted, &mut Option<Opened>),
+    seeds: Option<&BoneTransforms>,
+    reporter: &Reporter,
+) -> anyhow::Result<Registered> {
     let (_folder, pair) = args.pair.load(reporter, &options.init.chain)?;
-    check_settings(&options, &pair, args.pair.paths())?;
+    check_settings(options, &pair, args.pair.paths())?;
     let Pair {
         source,
         labels,
@@ -111,18 +144,23 @@ pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> a
         Some(path) => Some(load_target_mask(path, &target.grid, &args.pair.target)?),
         None => None,
     };
-    let (opened, line) = open_backend(device)?;
-    reporter.say(&line);
+    if opened.is_none() {
+        let (backend, line) = open_backend(device)?;
+        reporter.say(&line);
+        *opened = Some(backend);
+    }
+    let opened = opened.as_ref().expect("opened above");
     let started = std::time::Instant::now();
     let inputs = Inputs {
         given: given.as_ref(),
+        seeds,
         target_mask: mask.as_ref(),
         ..Inputs::new(&source, &labels, &target)
     };
     let result = posereg::on_backend!(opened, backend => register(
         backend,
         inputs,
-        &options,
+        options,
         reporter,
     ))?;
     let seconds = started.elapsed().as_secs_f64();
@@ -131,7 +169,7 @@ pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> a
         labels: &labels,
         target: &target,
         result: &result,
-        options: &options,
+        options,
         inputs: serde_json::json!({
             "source": args.pair.source,
             "source_labels": args.pair.source_labels,
@@ -149,7 +187,7 @@ pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> a
             None => None,
         },
     };
-    let (correlations, checks) = write_registration(&args.pair.output, &opened, &run, reporter)?;
+    let (correlations, checks) = write_registration(&args.pair.output, opened, &run, reporter)?;
     reporter.result(&format!(
         "registered in {seconds:.1} s: correlation {:.3} -> {:.3}, {} control points, Jacobian min {:.3}; outputs in {}",
         correlations.before,
@@ -159,15 +197,13 @@ pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> a
         args.pair.output.display()
     ));
     reporter.save_log(&args.pair.output.join("posereg.log"))?;
-    let failed: Vec<&Check> = checks.iter().filter(|c| !c.passed).collect();
-    if args.strict && !failed.is_empty() {
-        let names: Vec<&str> = failed.iter().map(|c| c.name).collect();
-        anyhow::bail!(
-            "--strict: {} result check(s) failed ({}); the outputs are in {} for inspection",
-            failed.len(),
-            names.join(", "),
-            args.pair.output.display()
-        );
-    }
-    Ok(())
+    Ok(Registered {
+        transforms: result.transforms(options),
+        kinematics: run.kinematics,
+        failed: checks
+            .iter()
+            .filter(|c| !c.passed)
+            .map(|c| c.name)
+            .collect(),
+    })
 }
