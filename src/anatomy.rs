@@ -15,8 +15,9 @@
 //! parts' principal directions. The side (left or right knee) is read from the fibula, which
 //! lies lateral to the tibia, or given.
 
-use crate::cloud::{centroid, end_slab, principal_direction, world_points};
+use crate::cloud::{centroid, end_slab, principal_direction, principal_directions, world_points};
 use crate::error::{Error, Result};
+use crate::joint::KneeBones;
 use crate::volume::{Affine, Labels};
 use nalgebra::{Matrix3, Vector3};
 
@@ -94,19 +95,6 @@ pub enum Side {
     Right,
 }
 
-/// The label codes of the knee's bones (the chain's bones of those names).
-#[derive(Clone, Copy, Debug)]
-pub struct KneeCodes {
-    /// Femur.
-    pub femur: u16,
-    /// Tibia.
-    pub tibia: u16,
-    /// Patella, when labelled.
-    pub patella: Option<u16>,
-    /// Fibula, when labelled.
-    pub fibula: Option<u16>,
-}
-
 /// The knee's frames in the source pose.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct KneeFrames {
@@ -151,9 +139,7 @@ fn bone_end(
 /// is its Z (a patella may be wider than it is tall, so the longest is not always proximal),
 /// the one nearest the femur's X its X.
 fn patella_frame(points: &[Vector3<f64>], femur: &Frame) -> Frame {
-    let c = centroid(points);
-    let covariance: Matrix3<f64> = points.iter().map(|p| (p - c) * (p - c).transpose()).sum();
-    let directions = covariance.symmetric_eigen().eigenvectors;
+    let directions = principal_directions(points);
     let nearest = |axis: Vector3<f64>| {
         let column = |k: usize| directions.column(k).into_owned();
         let k = (0..3)
@@ -171,11 +157,15 @@ fn patella_frame(points: &[Vector3<f64>], femur: &Frame) -> Frame {
             d
         }
     };
-    Frame::new(c, nearest(femur.axis(2)), nearest(femur.axis(0)))
+    Frame::new(
+        centroid(points),
+        nearest(femur.axis(2)),
+        nearest(femur.axis(0)),
+    )
 }
 
 /// The knee's frames from the source's labels.
-pub fn knee_frames(labels: &Labels, codes: KneeCodes) -> Result<KneeFrames> {
+pub fn knee_frames(labels: &Labels, codes: KneeBones) -> Result<KneeFrames> {
     let femur = bone_points(labels, codes.femur, "femur")?;
     let tibia = bone_points(labels, codes.tibia, "tibia")?;
     let (femur_c, tibia_c) = (centroid(&femur), centroid(&tibia));

@@ -20,9 +20,9 @@ pub fn centroid(points: &[Vector3<f64>]) -> Vector3<f64> {
     points.iter().sum::<Vector3<f64>>() / points.len() as f64
 }
 
-/// Eigenvector of the points' covariance with the largest eigenvalue, after projecting out
+/// The points' scatter about their centroid (unnormalised covariance), after projecting out
 /// `remove` (if any).
-pub fn principal_direction(points: &[Vector3<f64>], remove: Option<Vector3<f64>>) -> Vector3<f64> {
+fn scatter(points: &[Vector3<f64>], remove: Option<Vector3<f64>>) -> Matrix3<f64> {
     let c = centroid(points);
     let mut cov = Matrix3::zeros();
     for p in points {
@@ -32,9 +32,20 @@ pub fn principal_direction(points: &[Vector3<f64>], remove: Option<Vector3<f64>>
         }
         cov += d * d.transpose();
     }
-    let eig = cov.symmetric_eigen();
+    cov
+}
+
+/// Eigenvector of the points' covariance with the largest eigenvalue, after projecting out
+/// `remove` (if any).
+pub fn principal_direction(points: &[Vector3<f64>], remove: Option<Vector3<f64>>) -> Vector3<f64> {
+    let eig = scatter(points, remove).symmetric_eigen();
     let k = eig.eigenvalues.imax();
     eig.eigenvectors.column(k).into_owned().normalize()
+}
+
+/// The points' three principal directions, as the columns of a matrix (in no set order).
+pub fn principal_directions(points: &[Vector3<f64>]) -> Matrix3<f64> {
+    scatter(points, None).symmetric_eigen().eigenvectors
 }
 
 /// The points within `depth` mm of the cloud's end along `direction` (its extreme in that

@@ -25,8 +25,9 @@ pub struct JointAxis {
 /// Thickness of the distal femur slab that locates the condyles (mm).
 const CONDYLE_SLAB_MM: f64 = 25.0;
 
-/// The label codes the flexion axis is found from: the chain's bones named femur, tibia and
-/// (when it has one) patella, so that a label map with other codes works unchanged.
+/// The label codes of the knee's bones, the flexion axis's and the anatomical frames': the
+/// chain's bones named femur, tibia, patella and fibula, so that a label map with other codes
+/// works unchanged.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct KneeBones {
     /// The femur's code.
@@ -35,10 +36,12 @@ pub struct KneeBones {
     pub tibia: u16,
     /// The patella's code, if the chain has one.
     pub patella: Option<u16>,
+    /// The fibula's code, if the chain has one.
+    pub fibula: Option<u16>,
 }
 
 impl KneeBones {
-    /// The codes of the chain's bones named femur, tibia and patella.
+    /// The codes of the chain's bones named femur, tibia, patella and fibula.
     pub fn of_chain(chain: &[Link]) -> Result<Self> {
         let code = |name: &str| chain.iter().find(|l| l.name == name).map(|l| l.label);
         match (code("femur"), code("tibia")) {
@@ -46,6 +49,7 @@ impl KneeBones {
                 femur,
                 tibia,
                 patella: code("patella"),
+                fibula: code("fibula"),
             }),
             _ => Err(Error::InvalidInput(format!(
                 "the flexion axis is found from the bones named femur and tibia, and the \
@@ -57,12 +61,14 @@ impl KneeBones {
 }
 
 impl Default for KneeBones {
-    /// The codes posereg's phantom and ARCHITECTURE.md use: 2 femur, 3 tibia, 4 patella.
+    /// The codes posereg's phantom and ARCHITECTURE.md use: 2 femur, 3 tibia, 4 patella,
+    /// 5 fibula.
     fn default() -> Self {
         KneeBones {
             femur: label::FEMUR,
             tibia: label::TIBIA,
             patella: Some(label::PATELLA),
+            fibula: Some(label::FIBULA),
         }
     }
 }

@@ -20,10 +20,11 @@
 //! (positive: its superior pole lateral) and its tilt (reported as lateral tilt, positive when
 //! its lateral border goes posterior: the negated rotation about e3).
 
-use crate::anatomy::{knee_frames, Frame, KneeCodes, Side};
+use crate::anatomy::{knee_frames, Frame, Side};
 use crate::chain::Link;
 use crate::confidence::Confidence;
 use crate::error::Result;
+use crate::joint::KneeBones;
 use crate::volume::{Affine, Labels};
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 use std::collections::BTreeMap;
@@ -267,21 +268,12 @@ pub fn knee_kinematics(
     motions: &[(u16, Affine)],
     given: Option<Side>,
 ) -> Result<(Option<KneeKinematics>, Vec<String>)> {
-    let code = |name: &str| chain.iter().find(|l| l.name == name).map(|l| l.label);
-    let motion = |code: Option<u16>| {
-        code.and_then(|c| motions.iter().find(|m| m.0 == c))
-            .map(|m| m.1)
-    };
-    let (Some(femur_motion), Some(tibia_motion)) = (motion(code("femur")), motion(code("tibia")))
+    let codes = KneeBones::of_chain(chain)?;
+    let motion = |code: u16| motions.iter().find(|m| m.0 == code).map(|m| m.1);
+    let (Some(femur_motion), Some(tibia_motion)) = (motion(codes.femur), motion(codes.tibia))
     else {
         let why = "no kinematics: the femur and the tibia must both be registered".to_string();
         return Ok((None, vec![why]));
-    };
-    let codes = KneeCodes {
-        femur: code("femur").unwrap_or_default(),
-        tibia: code("tibia").unwrap_or_default(),
-        patella: code("patella").filter(|c| motion(Some(*c)).is_some()),
-        fibula: code("fibula"),
     };
     let frames = knee_frames(labels, codes)?;
     let mut warnings = Vec::new();
@@ -320,7 +312,7 @@ pub fn knee_kinematics(
     };
     let mut joints = vec![joint("tibiofemoral", &femur, &tibia)];
     let mut all = vec![femur.clone(), tibia];
-    if let (Some(patella), Some(m)) = (frames.patella, motion(codes.patella)) {
+    if let (Some(patella), Some(m)) = (frames.patella, codes.patella.and_then(motion)) {
         let patella = frame("patella", patella, &m);
         joints.push(joint("patellofemoral", &femur, &patella));
         all.push(patella);

@@ -6,7 +6,7 @@
 //! not the initialisation undoing its own model).
 
 use crate::abi::Blending;
-use crate::anatomy::{knee_frames, Frame, KneeCodes, Side};
+use crate::anatomy::{knee_frames, Frame, Side};
 use crate::articulated::bone_name;
 use crate::backend::{Backend, DeviceImage};
 use crate::chain;
@@ -145,13 +145,7 @@ pub fn pose<B: Backend>(
             "pose: every value must be finite, flexion within -150..150°".into(),
         ));
     }
-    let codes = KneeCodes {
-        femur: label::FEMUR,
-        tibia: label::TIBIA,
-        patella: Some(label::PATELLA),
-        fibula: Some(label::FIBULA),
-    };
-    let frames = knee_frames(labels, codes)?;
+    let frames = knee_frames(labels, KneeBones::default())?;
     let side = side.or(frames.side_from_fibula).ok_or_else(|| {
         Error::InvalidInput("pose: no fibula labelled to tell the side; give --side".into())
     })?;
