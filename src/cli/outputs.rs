@@ -100,6 +100,7 @@ pub fn write_registration(
         points: &result.adaptive.points,
         centre,
         frames: &frames,
+        correlations,
     };
     posereg::quicklook::save(&out("quicklook.png"), &figure)?;
     let report = report(opened, run, correlations, &checks);

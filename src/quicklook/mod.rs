@@ -18,9 +18,10 @@ use crate::adaptive::ControlPoint;
 use crate::anatomy::Frame;
 use crate::error::{Error, Result};
 use crate::picture::{pixel_size, window, world_bounds, PLANES};
+use crate::result_checks::Correlations;
 use crate::volume::{Field, Grid, Labels, Volume};
 use draw::Canvas;
-use panels::PlaneImages;
+use panels::{PlaneImages, Sampling};
 use std::path::Path;
 
 /// What the figure shows: volumes on the target's grid unless said otherwise.
@@ -47,6 +48,8 @@ pub struct Figure<'a> {
     pub centre: [f64; 3],
     /// The bones' anatomical frames in the target pose (drawn on the target, projected).
     pub frames: &'a [Frame],
+    /// The correlation of `before` and of `warped` with the target over its body.
+    pub correlations: Correlations,
 }
 
 /// Column titles.
@@ -70,9 +73,10 @@ const ROWS: [(&str, usize, &str); 3] = [
 pub fn save(path: &Path, figure: &Figure) -> Result<()> {
     let pixel = pixel_size(figure.target);
     let bounds = world_bounds(figure.target);
+    let sampling = Sampling::new(figure);
     let rows: Vec<PlaneImages> = PLANES
         .iter()
-        .map(|&axes| PlaneImages::new(figure, bounds, axes, pixel))
+        .map(|&axes| PlaneImages::new(figure, &sampling, bounds, axes, pixel))
         .collect();
     let levels = window(rows.iter().map(|r| &r.target));
     let mut canvas = Canvas::new(&rows, COLUMNS.len())?;
@@ -92,7 +96,6 @@ pub fn save(path: &Path, figure: &Figure) -> Result<()> {
 fn summary(figure: &Figure) -> String {
     let target = &figure.target.data;
     let body = |n: usize| target[n] > 0.0;
-    let r = |image: &Volume| crate::metric::correlation(&image.data, target, body);
     let mean_gap = |image: &Volume| {
         let (sum, n) = (0..target.len())
             .filter(|&n| body(n))
@@ -104,8 +107,8 @@ fn summary(figure: &Figure) -> String {
     format!(
         "Over the target's body: correlation {:.3} before -> {:.3} after; \
          mean |target - source| {:.1} before -> {:.1} after (intensity units)",
-        r(figure.before),
-        r(figure.warped),
+        figure.correlations.before,
+        figure.correlations.after,
         mean_gap(figure.before),
         mean_gap(figure.warped)
     )

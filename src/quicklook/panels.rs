@@ -3,9 +3,10 @@
 
 use super::Figure;
 use crate::picture::{Panel, PlanePoints};
-use crate::sample::{inside_source, nearest, trilinear};
+use crate::points::{components, displacement_at};
+use crate::sample::{inside_source, nearest};
 use crate::volume::Field;
-use nalgebra::Vector4;
+use nalgebra::{Vector3, Vector4};
 
 /// One plane's images, all on the same pixels.
 pub struct PlaneImages {
@@ -25,18 +26,46 @@ pub struct PlaneImages {
     pub bone: Vec<u16>,
 }
 
+/// What every plane samples besides the volumes, prepared once for the figure: the field's
+/// components and the source labels as values.
+pub struct Sampling<'a> {
+    field: &'a Field,
+    components: [Vec<f32>; 3],
+    codes: Vec<f32>,
+}
+
+impl<'a> Sampling<'a> {
+    /// For `figure`.
+    pub fn new(figure: &Figure<'a>) -> Self {
+        Sampling {
+            field: figure.field,
+            components: components(figure.field),
+            codes: figure.labels.data.iter().map(|&c| c as f32).collect(),
+        }
+    }
+
+    /// The source point of target point `p` (None outside the field's grid).
+    fn displaced(&self, p: &[f64; 3]) -> Option<[f64; 3]> {
+        let p = Vector3::from(*p);
+        self.field.grid.contains(&p).then(|| {
+            let moved = p + displacement_at(self.field, &self.components, &p);
+            [moved.x, moved.y, moved.z]
+        })
+    }
+}
+
 impl PlaneImages {
     /// The plane through the figure's centre spanned by `axes` (see picture::PLANES).
     pub fn new(
         figure: &Figure,
+        sampling: &Sampling,
         bounds: ([f64; 3], [f64; 3]),
         axes: (usize, f64, usize),
         pixel: f64,
     ) -> Self {
         let plane = PlanePoints::new(bounds, figure.centre, axes, pixel);
-        let field = FieldSampler::new(figure.field);
         let source_points: Vec<Option<[f64; 3]>> =
-            plane.points.iter().map(|p| field.displaced(p)).collect();
+            plane.points.iter().map(|p| sampling.displaced(p)).collect();
         let source_to_voxel = figure.source_grid.world_to_voxel_affine();
         let source_dims = figure.source_grid.dims.map(|d| d as u32);
         let in_source = |p: &[f64; 3]| {
@@ -47,13 +76,12 @@ impl PlaneImages {
             .iter()
             .map(|p| p.is_some_and(|p| inside_source(in_source(&p), source_dims)))
             .collect();
-        let codes: Vec<f32> = figure.labels.data.iter().map(|&c| c as f32).collect();
         let label_dims = figure.labels.grid.dims.map(|d| d as u32);
         let bone = source_points
             .iter()
             .map(|p| {
                 p.map_or(0, |p| {
-                    nearest(&codes, in_source(&p), label_dims, 0.0) as u16
+                    nearest(&sampling.codes, in_source(&p), label_dims, 0.0) as u16
                 })
             })
             .collect();
@@ -66,35 +94,5 @@ impl PlaneImages {
             bone,
             plane,
         }
-    }
-}
-
-/// A displacement field, its components apart for trilinear sampling.
-struct FieldSampler<'a> {
-    field: &'a Field,
-    components: [Vec<f32>; 3],
-}
-
-impl<'a> FieldSampler<'a> {
-    fn new(field: &'a Field) -> Self {
-        let components = std::array::from_fn(|c| field.data.iter().map(|v| v[c]).collect());
-        FieldSampler { field, components }
-    }
-
-    /// The source point of target point `p` (None outside the field's grid).
-    fn displaced(&self, p: &[f64; 3]) -> Option<[f64; 3]> {
-        let grid = &self.field.grid;
-        let q = grid.world_to_voxel_affine() * Vector4::new(p[0], p[1], p[2], 1.0);
-        let q = [q.x as f32, q.y as f32, q.z as f32];
-        let dims = grid.dims.map(|d| d as u32);
-        let mut out = *p;
-        for (value, component) in out.iter_mut().zip(&self.components) {
-            let u = trilinear(component, q, dims, f32::NAN);
-            if !u.is_finite() {
-                return None;
-            }
-            *value += u as f64;
-        }
-        Some(out)
     }
 }
