@@ -392,7 +392,7 @@ fn kernels(c: &mut Criterion) {
         });
         group(c, "compose", g.len() as u64, &label, &backends, |b| {
             posereg::on_backend!(b, b => resident(b, &[&uf, &uf], |b, [r, u0]| {
-                b.compose(&ComposeParams::new(&g), r, u0)
+                b.compose(&ComposeParams::new(&g, &g), r, u0)
             }))
         });
         group(c, "invert_field", g.len() as u64, &label, &backends, |b| {

@@ -1088,23 +1088,32 @@ impl PartialsParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct ComposeParams {
-    /// nx, ny, nz of the fields' grid, unused.
+    /// nx, ny, nz of the warp's (and the total field's) grid, unused.
     pub dims: [u32; 4],
-    /// Rows of the inverse of the grid's linear part: a displacement in mm → index delta.
-    pub mm_to_index: [[f32; 4]; 3],
+    /// nx, ny, nz of the initial field's grid, unused.
+    pub initial_dims: [u32; 4],
+    /// Rows of (initial world→index) · (warp index→world): a warp voxel → initial index.
+    pub index_to_initial: [[f32; 4]; 3],
+    /// Rows of the linear part of initial world→index: a displacement in mm → index delta.
+    pub mm_to_initial: [[f32; 4]; 3],
 }
 
 impl ComposeParams {
-    /// Voxels of the fields' grid.
+    /// Voxels of the warp's grid.
     pub fn voxels(&self) -> usize {
         count(&self.dims)
     }
 
-    /// For fields on `grid`.
-    pub fn new(grid: &Grid) -> Self {
+    /// For a warp on `grid` and an initial field on `initial` (the same grid inside one
+    /// registration; the previous pose's grid when `posereg series` chains poses). The rows
+    /// are resampling's, so one grid maps every voxel exactly onto itself.
+    pub fn new(grid: &Grid, initial: &Grid) -> Self {
+        let rows = ResampleParams::new(initial, grid, 0.0, Interpolation::Linear);
         ComposeParams {
-            dims: dims4(grid, 0),
-            mm_to_index: mm_to_index_rows(grid),
+            dims: rows.target_dims,
+            initial_dims: rows.source_dims,
+            index_to_initial: rows.index_to_source,
+            mm_to_initial: rows.mm_to_source,
         }
     }
 }

@@ -22,7 +22,7 @@ use crate::rigid::{
 };
 use crate::skinning;
 use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
-use crate::vsd::initial_field;
+use crate::vsd::{initial_field, InitialField};
 use nalgebra::{Rotation3, Unit, Vector3};
 
 /// Name of a bone label code.
@@ -666,6 +666,36 @@ pub enum Start<'a> {
     /// These motions as first guesses beside the search's (a neighbouring pose's result): a
     /// root starts from its own, a searched bone scores it among its candidates.
     Seeded(&'a BoneTransforms),
+    /// A pose reached through the one before it: motions and initial field given, neither the
+    /// rigid stage nor the blend run.
+    Chained(&'a Chained),
+}
+
+impl Start<'_> {
+    /// How the bones' registration started, in words (report.json's `inputs.start`).
+    pub fn describe(start: Option<Start>) -> &'static str {
+        match start {
+            None => "identity: each bone found by its rotation search",
+            Some(Start::Given(_)) => "given: the bones' motions as --init gave them",
+            Some(Start::Seeded(_)) => "seeded: the previous pose's bone motions tried first",
+            Some(Start::Chained(_)) => {
+                "chained: bones registered from the previous pose, composed with its registration"
+            }
+        }
+    }
+}
+
+/// A pose reached through its neighbour in a series (crate::series): the bone motions and
+/// the initial field composed along the series, and the reports of the bones' registration
+/// from the neighbouring pose.
+#[derive(Clone, Debug)]
+pub struct Chained {
+    /// Bone motions, source → this pose (RAS).
+    pub motions: BoneTransforms,
+    /// Initial field on this pose's grid: its point → source point (RAS mm).
+    pub field: Field,
+    /// The bones' registration from the neighbouring pose to this one.
+    pub reports: Vec<BoneReport>,
 }
 
 /// Runs the articulated initialisation on `pair` (`labels`: its label map on the host), from
@@ -700,7 +730,7 @@ pub fn initialise<B: Backend>(
     crate::abi::check_bone_count(bones.len())?;
     let axis = flexion_axis(labels, KneeBones::of_chain(&options.chain)?)?;
     let rigid_steps = match start {
-        Some(Start::Given(_)) => 0,
+        Some(Start::Given(_) | Start::Chained(_)) => 0,
         _ => bones.len(),
     };
     progress.begin("initialisation", rigid_steps + 1);
@@ -708,24 +738,24 @@ pub fn initialise<B: Backend>(
         |seeds| register_bones(backend, pair, (&axis, seeds), &bones, options, progress);
     let (motions, reports) = match start {
         Some(Start::Given(given)) => (given_motions(given, &bones)?, Vec::new()),
+        Some(Start::Chained(c)) => (given_motions(&c.motions, &bones)?, c.reports.clone()),
         Some(Start::Seeded(seeds)) => registered(Some(seeds))?,
         None => registered(None)?,
     };
     let weights = skinning::weights(backend, &pair.labels, &bones, skinning::SHEPARD_POWER)?;
-    let matrices: Vec<Affine> = motions.iter().map(|m| m.1).collect();
-    let source_labels = SourceLabels {
-        host: labels,
-        device: &pair.labels,
-    };
     let target = &pair.target.grid;
-    let initial = initial_field(
-        backend,
-        &weights,
-        &source_labels,
-        &matrices,
-        options.blending,
-        target,
-    )?;
+    let initial = match start {
+        Some(Start::Chained(c)) => chained_field(backend, c, target)?,
+        _ => {
+            let matrices: Vec<Affine> = motions.iter().map(|m| m.1).collect();
+            let source_labels = SourceLabels {
+                host: labels,
+                device: &pair.labels,
+            };
+            let blend = options.blending;
+            initial_field(backend, &weights, &source_labels, &matrices, blend, target)?
+        }
+    };
     let resample = ResampleParams::new(&pair.source.grid, target, 0.0, Interpolation::Linear);
     let initialised = DeviceImage {
         data: backend.resample(&resample, &pair.source.data, &initial.field.data)?,
@@ -747,6 +777,28 @@ pub fn initialise<B: Backend>(
         initialised,
     };
     Ok((found, images))
+}
+
+/// A chained pose's initial field where the backend computes, with no blend residual and no
+/// repair (the blend ran in the poses it was composed from).
+fn chained_field<B: Backend>(
+    backend: &B,
+    chained: &Chained,
+    target: &Grid,
+) -> Result<InitialField<B>> {
+    if !chained.field.grid.same_as(target, 1e-3) {
+        return Err(Error::InvalidInput(
+            "the chained initial field is not on the target's grid".into(),
+        ));
+    }
+    Ok(InitialField {
+        field: DeviceImage::upload_field(backend, "chained initial field", chained.field.clone())?,
+        residual: DeviceImage {
+            data: backend.zeros("no blend residual", target.len())?,
+            grid: target.clone(),
+        },
+        repair: FoldRepair::default(),
+    })
 }
 
 /// [`initialise`] from host volumes to host volumes: the pair goes up once, the three images

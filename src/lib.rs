@@ -62,6 +62,7 @@ pub mod repose;
 pub mod result_checks;
 pub mod rigid;
 pub mod sample;
+pub mod series;
 pub mod shaders;
 pub mod skinning;
 pub mod volume;

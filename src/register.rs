@@ -227,11 +227,10 @@ pub struct Inputs<'a> {
     pub labels: &'a Labels,
     /// The fixed scan (bent pose): the result is on its grid.
     pub target: &'a Volume,
-    /// Bone motions to start from instead of registering the bones (`register --init`).
-    pub given: Option<&'a BoneTransforms>,
-    /// Bone motions to try first when registering the bones (a neighbouring pose's result,
-    /// `posereg series`); `given` wins over them.
-    pub seeds: Option<&'a BoneTransforms>,
+    /// Where the bones' registration starts when not from the identity: given motions
+    /// (`register --init`), a neighbouring pose's to try first, or a pose reached through its
+    /// neighbour (`posereg series`).
+    pub start: Option<Start<'a>>,
     /// The target's voxels that count as evidence in the non-rigid stage (non-zero inside),
     /// on its grid; none: all of them.
     pub target_mask: Option<&'a Labels>,
@@ -244,8 +243,7 @@ impl<'a> Inputs<'a> {
             source,
             labels,
             target,
-            given: None,
-            seeds: None,
+            start: None,
             target_mask: None,
         }
     }
@@ -274,15 +272,13 @@ pub fn register_observed<B: Backend>(
         source,
         labels,
         target,
-        given,
-        seeds,
+        start,
         target_mask,
     } = inputs;
     let clock = std::time::Instant::now();
     let at_start = backend.traffic();
     options.check()?;
     let pair = PairImages::upload(backend, source, labels, target)?;
-    let start = given.map(Start::Given).or(seeds.map(Start::Seeded));
     let (init, images) = match options.initialise.then_some(&options.init) {
         Some(init_options) => {
             let (found, images) =
@@ -422,7 +418,11 @@ fn finish<B: Backend>(
         scale *= 0.5;
     };
     let mut field = DeviceImage {
-        data: backend.compose(&ComposeParams::new(grid), &warp.data, &initial.data)?,
+        data: backend.compose(
+            &ComposeParams::new(grid, &initial.grid),
+            &warp.data,
+            &initial.data,
+        )?,
         grid: grid.clone(),
     };
     let (mut det, mut folds) = determinant(backend, &field, &nothing_held)?;

@@ -17,7 +17,8 @@ use posereg::abi::{
 };
 use posereg::backend::BoneImages;
 use posereg::cpu::CpuBackend;
-use posereg::volume::{Field, Grid, Volume};
+use posereg::volume::{Field, Grid, Image, Volume};
+use posereg::Affine;
 use posereg::Backend;
 
 const RESAMPLE_TOLERANCE: f32 = 1e-3;
@@ -711,30 +712,94 @@ fn final_field_kernels_parity_at_odd_sizes() {
     let got = warp_field_on(gpu, &params, &lattice);
     // Trilinear weights of mm-sized node values: ulps.
     close("warp_field", &got, &want, 1e-5, 1e-6);
-    // compose: a warp of a few mm, some of it reaching beyond the grid (clamped there).
+    // compose: a warp of a few mm, some of it reaching beyond the grid (clamped there); the
+    // initial field on the same grid, then on another (chained poses).
     let warp = smooth_field(&grid, 71, 4.0);
-    let initial = smooth_field(&grid, 72, 10.0);
-    let params = ComposeParams::new(&grid);
-    let want = CpuBackend
-        .download_one(
-            &CpuBackend
-                .compose(
-                    &params,
-                    &field_on(&CpuBackend, &warp),
-                    &field_on(&CpuBackend, &initial),
-                )
-                .unwrap(),
-        )
-        .unwrap();
-    let got = gpu
-        .download_one(
-            &gpu.compose(&params, &field_on(gpu, &warp), &field_on(gpu, &initial))
-                .unwrap(),
-        )
-        .unwrap();
-    // As resampling: an FMA moves a sample point by an ulp; gradients of u0 are below 1 mm
-    // per voxel here.
-    close("compose", &got, &want, 1e-4, 1e-5);
+    let other = Grid::new([19, 21, 11], oblique_affine([1.3, 0.8, 1.9])).unwrap();
+    for initial_grid in [&grid, &other] {
+        let initial = smooth_field(initial_grid, 72, 10.0);
+        let params = ComposeParams::new(&grid, initial_grid);
+        let want = compose_on(&CpuBackend, &params, &warp, &initial);
+        let got = compose_on(gpu, &params, &warp, &initial);
+        // As resampling: an FMA moves a sample point by an ulp; gradients of u0 are below
+        // 1 mm per voxel here.
+        close("compose", &got, &want, 1e-4, 1e-5);
+    }
+}
+
+/// The compose kernel on host fields, brought back.
+fn compose_on<B: Backend>(
+    backend: &B,
+    params: &ComposeParams,
+    warp: &Field,
+    initial: &Field,
+) -> Vec<f32> {
+    let (r, u0) = (field_on(backend, warp), field_on(backend, initial));
+    backend
+        .download_one(&backend.compose(params, &r, &u0).unwrap())
+        .unwrap()
+}
+
+/// Composing with an initial field on another grid: u0 affine in world space (which trilinear
+/// interpolation reproduces), so u(x) = r + u0(x + r) exactly where x + r lies inside u0's
+/// grid.
+#[test]
+fn compose_reads_the_initial_field_on_its_own_grid() {
+    let grid = Grid::new([12, 10, 8], oblique_affine([1.1, 0.9, 1.7])).unwrap();
+    // An axis-aligned grid of 1.3 mm voxels over most of the oblique one's box.
+    let corners: Vec<nalgebra::Vector3<f64>> = (0..8)
+        .map(|c| {
+            let ijk: [f64; 3] =
+                std::array::from_fn(|a| ((c >> a) & 1) as f64 * grid.dims[a] as f64);
+            grid.voxel_to_world(ijk).into()
+        })
+        .collect();
+    let low = corners.iter().fold(corners[0], |m, c| m.inf(c));
+    let high = corners.iter().fold(corners[0], |m, c| m.sup(c));
+    let mut affine = Affine::new_scaling(1.3);
+    affine[(3, 3)] = 1.0;
+    affine
+        .fixed_view_mut::<3, 1>(0, 3)
+        .copy_from(&(low + nalgebra::Vector3::repeat(2.0)));
+    let dims: [usize; 3] = std::array::from_fn(|a| ((high[a] - low[a]) / 1.3) as usize);
+    let initial_grid = Grid::new(dims, affine).unwrap();
+    let u0 = |y: nalgebra::Vector3<f64>| -> [f64; 3] {
+        [
+            0.02 * y[0] - 0.01 * y[2] + 1.5,
+            0.03 * y[1] + 0.01 * y[0] - 2.0,
+            -0.02 * y[2] + 0.5,
+        ]
+    };
+    let initial = Image::from_data(
+        initial_grid.clone(),
+        (0..initial_grid.len())
+            .map(|n| u0(initial_grid.world_of(n)).map(|v| v as f32))
+            .collect(),
+    )
+    .unwrap();
+    let r = [0.7f32, -1.2, 0.4];
+    let warp = Image::filled(grid.clone(), r);
+    let params = ComposeParams::new(&grid, &initial_grid);
+    let got = compose_on(&CpuBackend, &params, &warp, &initial);
+    let mut checked = 0;
+    for n in 0..grid.len() {
+        let y = grid.world_of(n) + nalgebra::Vector3::new(r[0], r[1], r[2]).cast::<f64>();
+        let index = initial_grid.world_to_voxel_affine() * y.push(1.0);
+        if (0..3).any(|a| index[a] < 0.0 || index[a] > initial_grid.dims[a] as f64 - 1.0) {
+            continue;
+        }
+        let want = u0(y);
+        for c in 0..3 {
+            let expected = r[c] as f64 + want[c];
+            assert!(
+                (got[3 * n + c] as f64 - expected).abs() < 1e-4,
+                "voxel {n} component {c}: {} against {expected}",
+                got[3 * n + c]
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked > grid.len() / 2, "only {checked} voxels inside");
 }
 
 /// A label map of codes 0..6 in runs along x, as f32, on `grid`.

@@ -7,6 +7,7 @@ use super::outputs::{write_registration, Run};
 use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
+use posereg::articulated::{Chained, Start};
 use posereg::device::{open_backend, DeviceWanted, Opened};
 use posereg::inputs::{check_settings, load_target_mask, Pair};
 use posereg::io::config::{load_options, options_toml};
@@ -14,6 +15,7 @@ use posereg::io::transform::BoneTransforms;
 use posereg::kinematics::KneeKinematics;
 use posereg::levels::PerLevel;
 use posereg::register::{register, Inputs, RegisterOptions};
+use posereg::{Field, Volume};
 use std::path::PathBuf;
 
 /// Arguments of `posereg register`.
@@ -96,7 +98,9 @@ impl RegisterArgs {
 /// Runs the registration and writes its outputs.
 pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.options()?;
-    let registered = register_pair(args, &options, (device, &mut None), None, reporter)?;
+    let unchained: StartOf = &|_, _| Ok(None);
+    let starts = (None, unchained);
+    let registered = register_pair(args, &options, (device, &mut None), starts, reporter)?;
     if args.strict && !registered.failed.is_empty() {
         anyhow::bail!(
             "--strict: {} result check(s) failed ({}); the outputs are in {} for inspection",
@@ -116,20 +120,36 @@ pub struct Registered {
     pub kinematics: Option<KneeKinematics>,
     /// The result checks that failed.
     pub failed: Vec<&'static str>,
+    /// The registered field: target point → source point.
+    pub field: Field,
+    /// The source resampled through it.
+    pub warped: Volume,
 }
 
-/// Loads the pair `args` names, registers it with `options` (trying `seeds` first for the
-/// bones) on the backend `opened` holds (opening the one `device` asks for the first time),
-/// and writes every output into its folder.
+/// Where the bones' registration of a loaded pair starts: `posereg series` works it out from
+/// the pair and the backend (its previous pose), `register` starts from the identity.
+pub type StartOf<'s> = &'s dyn Fn(&Opened, &Pair) -> anyhow::Result<Option<Chained>>;
+
+/// Loads the pair `args` names, registers it with `options` on the backend `opened` holds
+/// (opening the one `device` asks for the first time), and writes every output into its
+/// folder. The bones start from `args`' given motions, else from a chained pose `chained`
+/// makes, else from `seeds` tried first, else from the identity.
 pub fn register_pair(
     args: &RegisterArgs,
     options: &RegisterOptions,
     (device, opened): (&DeviceWanted, &mut Option<Opened>),
-    seeds: Option<&BoneTransforms>,
+    (seeds, chained): (Option<&BoneTransforms>, StartOf),
     reporter: &Reporter,
 ) -> anyhow::Result<Registered> {
     let (_folder, pair) = args.pair.load(reporter, &options.init.chain)?;
     check_settings(options, &pair, args.pair.paths())?;
+    if opened.is_none() {
+        let (backend, line) = open_backend(device)?;
+        reporter.say(&line);
+        *opened = Some(backend);
+    }
+    let opened = opened.as_ref().expect("opened above");
+    let chained = chained(opened, &pair)?;
     let Pair {
         source,
         labels,
@@ -144,16 +164,12 @@ pub fn register_pair(
         Some(path) => Some(load_target_mask(path, &target.grid, &args.pair.target)?),
         None => None,
     };
-    if opened.is_none() {
-        let (backend, line) = open_backend(device)?;
-        reporter.say(&line);
-        *opened = Some(backend);
-    }
-    let opened = opened.as_ref().expect("opened above");
     let started = std::time::Instant::now();
+    let start = (given.as_ref().map(Start::Given))
+        .or(chained.as_ref().map(Start::Chained))
+        .or(seeds.map(Start::Seeded));
     let inputs = Inputs {
-        given: given.as_ref(),
-        seeds,
+        start,
         target_mask: mask.as_ref(),
         ..Inputs::new(&source, &labels, &target)
     };
@@ -176,6 +192,7 @@ pub fn register_pair(
             "target": args.pair.target,
             "bones": args.init,
             "target_mask": args.target_mask,
+            "start": Start::describe(start),
         }),
         warnings: &warnings,
         seconds,
@@ -197,13 +214,16 @@ pub fn register_pair(
         args.pair.output.display()
     ));
     reporter.save_log(&args.pair.output.join("posereg.log"))?;
+    let kinematics = run.kinematics;
     Ok(Registered {
         transforms: result.transforms(options),
-        kinematics: run.kinematics,
+        kinematics,
         failed: checks
             .iter()
             .filter(|c| !c.passed)
             .map(|c| c.name)
             .collect(),
+        field: result.field,
+        warped: result.warped,
     })
 }

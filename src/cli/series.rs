@@ -1,16 +1,18 @@
 //! `posereg series --source S --source-labels L --targets T1 T2 ... -o DIR`: one labelled scan
 //! and the same knee in several poses, in pose order. Each pose is registered as `register`
-//! would, into DIR/pose_01, DIR/pose_02, …, with the previous pose's bone motions tried first by
-//! the rigid search (a neighbouring pose is the best guess for the next); DIR/series.csv
-//! tabulates every pose's kinematics.
+//! would, into DIR/pose_01, DIR/pose_02, …; from the second on, it is reached through the pose
+//! before it (posereg::series: the bones registered from the previous pose's warped source,
+//! the fields composed), or with `--unchained` registered from the source with the previous
+//! pose's bone motions tried first. DIR/series.csv tabulates every pose's kinematics.
 
 use super::init::PairArgs;
 use super::progress::Reporter;
-use super::register::{register_pair, RegisterArgs};
+use super::register::{register_pair, RegisterArgs, Registered, StartOf};
 use clap::Args;
 use posereg::anatomy::Side;
 use posereg::device::DeviceWanted;
 use posereg::io::transform::BoneTransforms;
+use posereg::series::{chain_step, Reached};
 use posereg::Error;
 use std::path::PathBuf;
 
@@ -38,6 +40,11 @@ pub struct SeriesArgs {
     /// Which knee, for the kinematics (default: from the labels' fibula).
     #[arg(long, value_enum)]
     pub side: Option<Side>,
+    /// Register each pose from the source with the previous pose's bone motions tried first,
+    /// instead of reaching it through the previous pose (its labels carried there, the bones
+    /// registered from it and the fields composed).
+    #[arg(long)]
+    pub unchained: bool,
 }
 
 impl SeriesArgs {
@@ -65,12 +72,19 @@ impl SeriesArgs {
     }
 }
 
+/// The pose registered last, as the next one needs it.
+struct Previous {
+    done: Registered,
+    /// The bone motions of the step that reached it from its own neighbour.
+    step: Option<BoneTransforms>,
+}
+
 /// Registers every pose in order and writes series.csv.
 pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.pose(0).options()?;
     let _folder = posereg::io::prepare_output_folder(&args.output)?;
     let mut opened = None;
-    let mut previous: Option<BoneTransforms> = None;
+    let mut previous: Option<Previous> = None;
     let mut table = String::from("pose,target,joint,quantity,unit,value,change\n");
     for index in 0..args.targets.len() {
         let pose = args.pose(index);
@@ -80,28 +94,36 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
             args.targets.len(),
             pose.pair.target.display()
         ));
+        let step = std::cell::RefCell::new(None);
+        let chained: StartOf = &|opened, pair| {
+            let Some(p) = previous.as_ref().filter(|_| !args.unchained) else {
+                return Ok(None);
+            };
+            let reached = Reached {
+                scan: &p.done.warped,
+                field: &p.done.field,
+                motions: &p.done.transforms,
+                step: p.step.as_ref(),
+            };
+            let found = posereg::on_backend!(opened, backend => chain_step(
+                backend, &pair.labels, reached, &pair.target, &options.init, reporter,
+            ))?;
+            *step.borrow_mut() = Some(found.step);
+            Ok(Some(found.chained))
+        };
+        let seeds = previous.as_ref().map(|p| &p.done.transforms);
         let done = register_pair(
             &pose,
             &options,
             (device, &mut opened),
-            previous.as_ref(),
+            (seeds, chained),
             reporter,
         )?;
-        for joint in done.kinematics.iter().flat_map(|k| &k.joints) {
-            for q in &joint.quantities {
-                table += &format!(
-                    "{},{},{},{},{},{:.4},{:.4}\n",
-                    index + 1,
-                    pose.pair.target.display(),
-                    joint.joint,
-                    q.name,
-                    q.unit,
-                    q.target,
-                    q.change
-                );
-            }
-        }
-        previous = Some(done.transforms);
+        table += &kinematics_rows(index, &pose, &done);
+        previous = Some(Previous {
+            done,
+            step: step.into_inner(),
+        });
     }
     let path = args.output.join("series.csv");
     posereg::io::write_atomically(&path, |tmp| {
@@ -113,4 +135,24 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
         args.output.display()
     ));
     Ok(())
+}
+
+/// series.csv's rows for pose `index`.
+fn kinematics_rows(index: usize, pose: &RegisterArgs, done: &Registered) -> String {
+    let mut rows = String::new();
+    for joint in done.kinematics.iter().flat_map(|k| &k.joints) {
+        for q in &joint.quantities {
+            rows += &format!(
+                "{},{},{},{},{},{:.4},{:.4}\n",
+                index + 1,
+                pose.pair.target.display(),
+                joint.joint,
+                q.name,
+                q.unit,
+                q.target,
+                q.change
+            );
+        }
+    }
+    rows
 }
