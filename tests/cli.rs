@@ -918,8 +918,9 @@ fn pose_writes_a_posed_pair_with_its_truth() {
     assert!(!far.exists());
 }
 
-/// `posereg series` registers each pose into its own folder, the previous pose's bones tried
-/// first, and tabulates the kinematics of every pose in series.csv.
+/// `posereg series` registers each pose into its own folder, the second reached through the
+/// first, and tabulates and plots the kinematics of every pose (series.csv, series.json,
+/// series.png).
 #[test]
 fn series_registers_every_pose_and_tabulates_them() {
     let dir = tempfile::tempdir().unwrap();
@@ -961,6 +962,26 @@ fn series_registers_every_pose_and_tabulates_them() {
     for pose in ["pose_01", "pose_02"] {
         assert!(out.join(pose).join("kinematics.csv").exists(), "no {pose}");
     }
+    let start = |out: &Path, pose: &str| {
+        let report = std::fs::read_to_string(out.join(pose).join("report.json")).unwrap();
+        let report: serde_json::Value = serde_json::from_str(&report).unwrap();
+        report["inputs"]["start"].as_str().unwrap().to_string()
+    };
+    assert!(start(&out, "pose_01").starts_with("identity"));
+    assert!(start(&out, "pose_02").starts_with("chained"));
+    let summary = std::fs::read_to_string(out.join("series.json")).unwrap();
+    let summary: serde_json::Value = serde_json::from_str(&summary).unwrap();
+    let poses = summary["poses"].as_array().unwrap();
+    assert_eq!(poses.len(), 2);
+    assert!(
+        poses[1]["registration"]["correlation"]["after"]
+            .as_f64()
+            .unwrap()
+            > 0.8
+    );
+    assert_eq!(poses[1]["kinematics"][0]["joint"], "tibiofemoral");
+    let png = std::fs::read(out.join("series.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG"), "series.png is not a PNG");
     let table = std::fs::read_to_string(out.join("series.csv")).unwrap();
     let flexion: Vec<f64> = table
         .lines()
@@ -972,6 +993,30 @@ fn series_registers_every_pose_and_tabulates_them() {
         (flexion[0] - 30.0).abs() < 3.0 && (flexion[1] - 60.0).abs() < 3.0,
         "{flexion:?}"
     );
+    // --unchained: the second pose registered from the source, the first pose's bones tried
+    // first.
+    let unchained = dir.path().join("unchained");
+    let sixty_image = sixty.join("image.nii.gz");
+    let second = [s(&thirty), s(&sixty_image)];
+    let ran = posereg(
+        &[
+            &[
+                "series",
+                "--unchained",
+                "--source",
+                s(&source),
+                "--source-labels",
+                s(&labels),
+            ][..],
+            &["--targets"],
+            &second,
+            &["-o", s(&unchained), "--device", "cpu", "-q"],
+            &["--config", s(&fast_settings(dir.path()))],
+        ]
+        .concat(),
+    );
+    assert!(ran.status.success(), "{ran:?}");
+    assert!(start(&unchained, "pose_02").starts_with("seeded"));
 }
 
 /// A settings file that keeps the adaptive stage short (these tests are about the verbs).

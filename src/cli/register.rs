@@ -124,6 +124,8 @@ pub struct Registered {
     pub field: Field,
     /// The source resampled through it.
     pub warped: Volume,
+    /// report.json's headline figures, for a summary over several registrations.
+    pub summary: serde_json::Value,
 }
 
 /// Where the bones' registration of a loaded pair starts: `posereg series` works it out from
@@ -215,14 +217,25 @@ pub fn register_pair(
     ));
     reporter.save_log(&args.pair.output.join("posereg.log"))?;
     let kinematics = run.kinematics;
+    let failed: Vec<&'static str> = checks
+        .iter()
+        .filter(|c| !c.passed)
+        .map(|c| c.name)
+        .collect();
     Ok(Registered {
         transforms: result.transforms(options),
         kinematics,
-        failed: checks
-            .iter()
-            .filter(|c| !c.passed)
-            .map(|c| c.name)
-            .collect(),
+        failed: failed.clone(),
+        summary: serde_json::json!({
+            "folder": args.pair.output,
+            "target": args.pair.target,
+            "start": Start::describe(start),
+            "seconds": seconds,
+            "correlation": { "before": correlations.before, "after": correlations.after },
+            "control_points": result.adaptive.points.len(),
+            "jacobian_min": result.min_jacobian,
+            "checks_failed": failed,
+        }),
         field: result.field,
         warped: result.warped,
     })

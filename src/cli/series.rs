@@ -12,6 +12,8 @@ use clap::Args;
 use posereg::anatomy::Side;
 use posereg::device::DeviceWanted;
 use posereg::io::transform::BoneTransforms;
+use posereg::kinematics::KneeKinematics;
+use posereg::quicklook::chart::{save_chart, Chart, Curve, Plot};
 use posereg::series::{chain_step, Reached};
 use posereg::Error;
 use std::path::PathBuf;
@@ -86,6 +88,7 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
     let mut opened = None;
     let mut previous: Option<Previous> = None;
     let mut table = String::from("pose,target,joint,quantity,unit,value,change\n");
+    let mut poses: Vec<(serde_json::Value, Option<KneeKinematics>)> = Vec::new();
     for index in 0..args.targets.len() {
         let pose = args.pose(index);
         reporter.say(&format!(
@@ -120,17 +123,26 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
             reporter,
         )?;
         table += &kinematics_rows(index, &pose, &done);
+        poses.push((done.summary.clone(), done.kinematics.clone()));
         previous = Some(Previous {
             done,
             step: step.into_inner(),
         });
     }
-    let path = args.output.join("series.csv");
-    posereg::io::write_atomically(&path, |tmp| {
-        std::fs::write(tmp, &table).map_err(|e| Error::io(tmp, e))
-    })?;
+    let write = |name: &str, text: &str| {
+        let path = args.output.join(name);
+        posereg::io::write_atomically(&path, |tmp| {
+            std::fs::write(tmp, text).map_err(|e| Error::io(tmp, e))
+        })
+    };
+    write("series.csv", &table)?;
+    write(
+        "series.json",
+        &(serde_json::to_string_pretty(&summary(&poses))? + "\n"),
+    )?;
+    save_chart(&args.output.join("series.png"), &chart(&poses))?;
     reporter.result(&format!(
-        "{} poses registered; series.csv and one folder per pose in {}",
+        "{} poses registered; series.csv, series.json, series.png and one folder per pose in {}",
         args.targets.len(),
         args.output.display()
     ));
@@ -155,4 +167,61 @@ fn kinematics_rows(index: usize, pose: &RegisterArgs, done: &Registered) -> Stri
         }
     }
     rows
+}
+
+/// series.json: every pose's headline figures and kinematics, in pose order.
+fn summary(poses: &[(serde_json::Value, Option<KneeKinematics>)]) -> serde_json::Value {
+    let entries: Vec<serde_json::Value> = (poses.iter().enumerate())
+        .map(|(k, (figures, kinematics))| {
+            let mut entry = serde_json::json!({ "pose": k + 1 });
+            entry["registration"] = figures.clone();
+            entry["kinematics"] = serde_json::json!(kinematics.as_ref().map(|k| &k.joints));
+            entry
+        })
+        .collect();
+    serde_json::json!({ "schema": 1, "poses": entries })
+}
+
+/// series.png: each joint's rotations and translations, the source's values first, then each
+/// pose's; the x axis names each pose with its tibiofemoral flexion.
+fn chart(poses: &[(serde_json::Value, Option<KneeKinematics>)]) -> Chart {
+    let joints = poses
+        .iter()
+        .find_map(|p| p.1.as_ref())
+        .map_or(&[][..], |k| &k.joints[..]);
+    let value = |pose: usize, joint: &str, name: &str| -> f64 {
+        let k = poses[pose].1.as_ref();
+        let j = k.and_then(|k| k.joints.iter().find(|j| j.joint == joint));
+        j.and_then(|j| j.quantity(name))
+            .map_or(f64::NAN, |q| q.target)
+    };
+    let mut labels = vec!["source".to_string()];
+    labels.extend(
+        (0..poses.len()).map(|p| match value(p, "tibiofemoral", "flexion") {
+            f if f.is_finite() => format!("{} ({f:.0}°)", p + 1),
+            _ => format!("{}", p + 1),
+        }),
+    );
+    let mut plots = Vec::new();
+    for joint in joints {
+        for (unit, what) in [("deg", "rotations"), ("mm", "translations")] {
+            let curves = (joint.quantities.iter().filter(|q| q.unit == unit))
+                .map(|q| Curve {
+                    name: q.name.replace('_', " "),
+                    values: std::iter::once(q.source)
+                        .chain((0..poses.len()).map(|p| value(p, joint.joint, q.name)))
+                        .collect(),
+                })
+                .collect();
+            plots.push(Plot {
+                title: format!("{} {what}", joint.joint),
+                unit,
+                curves,
+            });
+        }
+    }
+    Chart {
+        poses: labels,
+        plots,
+    }
 }

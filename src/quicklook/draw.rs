@@ -51,6 +51,12 @@ const CHECKER: usize = 12;
 const TITLE: f32 = 16.0;
 const SMALL: f32 = 13.0;
 
+/// The bundled font, ready to draw with.
+pub fn font() -> Result<FontRef<'static>> {
+    FontRef::try_from_slice(FONT)
+        .map_err(|e| Error::InvalidInput(format!("the bundled font cannot be read: {e}")))
+}
+
 /// The picture being drawn.
 pub struct Canvas {
     img: RgbImage,
@@ -63,8 +69,7 @@ pub struct Canvas {
 impl Canvas {
     /// A canvas for `rows` planes and `columns` panels each.
     pub fn new(rows: &[PlaneImages], columns: usize) -> Result<Self> {
-        let font = FontRef::try_from_slice(FONT)
-            .map_err(|e| Error::InvalidInput(format!("the bundled font cannot be read: {e}")))?;
+        let font = font()?;
         let w = rows.iter().map(|r| r.plane.width).max().unwrap_or(1);
         let h = rows.iter().map(|r| r.plane.height).max().unwrap_or(1);
         let zoom = MIN_CELL.div_ceil(w.max(h)).max(1);

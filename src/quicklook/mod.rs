@@ -9,8 +9,10 @@
 //! hold no data, not a mismatch). Control points near each plane are drawn on the warped
 //! column as in the paper's figures 2–3, and the bones' anatomical frames (the kinematics'
 //! axes, carried into the target's pose) on the target column, projected onto each plane. A footer gives the correlation and the mean |target −
-//! source| before and after, over the target's body, and the legends.
+//! source| before and after, over the target's body, and the legends. chart.rs draws
+//! `posereg series`' series.png.
 
+pub mod chart;
 mod draw;
 mod panels;
 
