@@ -3,16 +3,19 @@
 //! right (world +x, RAS), Y anterior and Z proximal; left knees are mirrored when angles are
 //! read, not here.
 //!
-//! - Femur: Z along the shaft (the bone's principal direction, away from the tibia); origin
+//! - Femur: Z along the shaft (the bone's principal direction nearest the line from the
+//!   tibia's centroid to the femur's, away from the tibia); origin
 //!   at the centre of the condyles (the distal 25 mm); X the condyles' medio-lateral principal
 //!   direction, perpendicular to Z.
-//! - Tibia: Z along the shaft (towards the femur); origin at the centre of the plateau (the
+//! - Tibia: Z along the shaft (its principal direction nearest that line, towards the femur);
+//!   origin at the centre of the plateau (the
 //!   proximal 20 mm); X the plateau's medio-lateral principal direction, perpendicular to Z.
 //! - Patella: Z and X its principal directions nearest the femur's Z and X (proximal and to
 //!   the right), X made perpendicular to Z; origin at its centroid.
 //!
 //! Knee-only fields of view see neither hip nor ankle, so the shafts' axes are the visible
-//! parts' principal directions. The side (left or right knee) is read from the fibula, which
+//! parts' principal directions — the ones along the leg, which in a short field of view need
+//! not be the largest. The side (left or right knee) is read from the fibula, which
 //! lies lateral to the tibia, or given.
 
 use crate::cloud::{centroid, end_slab, principal_direction, principal_directions, world_points};
@@ -119,18 +122,35 @@ fn bone_points(labels: &Labels, code: u16, name: &str) -> Result<Vec<Vector3<f64
     Ok(points)
 }
 
-/// A long bone's end nearest `towards`: the centre of the slab `depth` mm deep there, the
-/// bone's principal direction pointed towards `towards`, and the slab's principal direction
-/// across it.
+/// Of `points`' three principal directions, the one nearest `axis` (either way), pointed
+/// along it.
+fn principal_nearest(points: &[Vector3<f64>], axis: Vector3<f64>) -> Vector3<f64> {
+    let directions = principal_directions(points);
+    let column = |k: usize| directions.column(k).into_owned();
+    let along = |k: usize| column(k).dot(&axis).abs();
+    let k = (0..3)
+        .max_by(|&a, &b| along(a).total_cmp(&along(b)))
+        .unwrap_or(0);
+    let d = column(k);
+    if d.dot(&axis) < 0.0 {
+        -d
+    } else {
+        d
+    }
+}
+
+/// A long bone's end nearest `towards` (the other bone's centroid): the centre of the slab
+/// `depth` mm deep there, the bone's long axis pointed towards `towards`, and the slab's
+/// principal direction across it. The long axis is the principal direction nearest the line
+/// between the two bones' centroids, not the largest: a field of view that cuts the tibia a
+/// few cm below the plateau leaves it wider than long (the shared knee's tibia: its largest
+/// direction is medio-lateral).
 fn bone_end(
     points: &[Vector3<f64>],
     towards: Vector3<f64>,
     depth: f64,
 ) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
-    let mut long = principal_direction(points, None);
-    if long.dot(&(towards - centroid(points))) < 0.0 {
-        long = -long;
-    }
+    let long = principal_nearest(points, towards - centroid(points));
     let end = end_slab(points, long, depth);
     (centroid(&end), long, principal_direction(&end, Some(long)))
 }
@@ -139,28 +159,10 @@ fn bone_end(
 /// is its Z (a patella may be wider than it is tall, so the longest is not always proximal),
 /// the one nearest the femur's X its X.
 fn patella_frame(points: &[Vector3<f64>], femur: &Frame) -> Frame {
-    let directions = principal_directions(points);
-    let nearest = |axis: Vector3<f64>| {
-        let column = |k: usize| directions.column(k).into_owned();
-        let k = (0..3)
-            .max_by(|&a, &b| {
-                column(a)
-                    .dot(&axis)
-                    .abs()
-                    .total_cmp(&column(b).dot(&axis).abs())
-            })
-            .unwrap_or(0);
-        let d = column(k);
-        if d.dot(&axis) < 0.0 {
-            -d
-        } else {
-            d
-        }
-    };
     Frame::new(
         centroid(points),
-        nearest(femur.axis(2)),
-        nearest(femur.axis(0)),
+        principal_nearest(points, femur.axis(2)),
+        principal_nearest(points, femur.axis(0)),
     )
 }
 

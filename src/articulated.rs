@@ -239,12 +239,7 @@ impl<B: Backend> PairImages<B> {
 impl Initialisation {
     /// The bone motions in the on-disk format, named as `options`' chain names them.
     pub fn transforms(&self, options: &InitOptions) -> BoneTransforms {
-        BoneTransforms::new(
-            self.motions
-                .iter()
-                .map(|(code, m)| BoneTransform::new(*code, &options.name_of(*code), m))
-                .collect(),
-        )
+        transforms_of(&self.motions, options)
     }
 }
 
@@ -708,27 +703,7 @@ pub fn initialise<B: Backend>(
     start: Option<Start>,
     progress: &dyn Progress,
 ) -> Result<(Initialisation, InitialImages<B>)> {
-    options.check()?;
-    if !labels.grid.same_as(&pair.source.grid, 1e-3) {
-        return Err(Error::InvalidInput(
-            "the label map is not on the source image's grid".into(),
-        ));
-    }
-    let bones = options.bones_in(labels);
-    for b in &bones {
-        if !labels.data.contains(b) {
-            return Err(Error::InvalidInput(format!(
-                "bone label {b} has no voxels in the label map"
-            )));
-        }
-    }
-    if bones.is_empty() {
-        return Err(Error::InvalidInput(
-            "the label map has no bone labels (2 femur, 3 tibia, 4 patella, 5 fibula)".into(),
-        ));
-    }
-    crate::abi::check_bone_count(bones.len())?;
-    let axis = flexion_axis(labels, KneeBones::of_chain(&options.chain)?)?;
+    let (bones, axis) = bones_and_axis(pair, labels, options)?;
     let rigid_steps = match start {
         Some(Start::Given(_) | Start::Chained(_)) => 0,
         _ => bones.len(),
@@ -799,6 +774,65 @@ fn chained_field<B: Backend>(
         },
         repair: FoldRepair::default(),
     })
+}
+
+/// The bones `options` registers in `labels` (on the source's grid) and the knee's flexion
+/// axis, or why the labels cannot be registered.
+fn bones_and_axis<B: Backend>(
+    pair: &PairImages<B>,
+    labels: &Labels,
+    options: &InitOptions,
+) -> Result<(Vec<u16>, JointAxis)> {
+    options.check()?;
+    if !labels.grid.same_as(&pair.source.grid, 1e-3) {
+        return Err(Error::InvalidInput(
+            "the label map is not on the source image's grid".into(),
+        ));
+    }
+    let bones = options.bones_in(labels);
+    for b in &bones {
+        if !labels.data.contains(b) {
+            return Err(Error::InvalidInput(format!(
+                "bone label {b} has no voxels in the label map"
+            )));
+        }
+    }
+    if bones.is_empty() {
+        return Err(Error::InvalidInput(
+            "the label map has no bone labels (2 femur, 3 tibia, 4 patella, 5 fibula)".into(),
+        ));
+    }
+    crate::abi::check_bone_count(bones.len())?;
+    let axis = flexion_axis(labels, KneeBones::of_chain(&options.chain)?)?;
+    Ok((bones, axis))
+}
+
+/// The bones' rigid registration alone, without the blend: each bone's motion (source →
+/// target) and report, in the order `options` registers them, `seeds` tried first.
+pub fn bone_motions<B: Backend>(
+    backend: &B,
+    (source, labels, target): (&Volume, &Labels, &Volume),
+    options: &InitOptions,
+    seeds: Option<&BoneTransforms>,
+    progress: &dyn Progress,
+) -> Result<(BoneTransforms, Vec<BoneReport>)> {
+    let pair = PairImages::upload(backend, source, labels, target)?;
+    let (bones, axis) = bones_and_axis(&pair, labels, options)?;
+    progress.begin("bones", bones.len());
+    let (motions, reports) =
+        register_bones(backend, &pair, (&axis, seeds), &bones, options, progress)?;
+    progress.end();
+    Ok((transforms_of(&motions, options), reports))
+}
+
+/// Bone motions in the bone-transform format, named as the chain names them.
+fn transforms_of(motions: &[(u16, Affine)], options: &InitOptions) -> BoneTransforms {
+    BoneTransforms::new(
+        motions
+            .iter()
+            .map(|(code, m)| BoneTransform::new(*code, &options.name_of(*code), m))
+            .collect(),
+    )
 }
 
 /// [`initialise`] from host volumes to host volumes: the pair goes up once, the three images

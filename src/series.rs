@@ -1,77 +1,64 @@
 //! Poses reached through their neighbours (`posereg series`). Registering a straight scan
 //! straight to 120° of flexion leaves the soft tissue far off: the blend of the bone motions
 //! moves tissue the way the straight pose's distances say, which at large angles is not where
-//! it went. A pose is instead reached through the one before it: the source is seen in the
-//! previous pose through that pose's registered field (its warped source, the labels carried
-//! the same way), the bones are registered from there to this pose (a step of a few tens of
-//! degrees, seeded by the step before) and blended, and the step's field and motions are
-//! composed with the previous pose's. Registering from the warped source rather than the
-//! previous scan keeps the bones' errors from adding up along the series: a bone in the
-//! warped source is the source's bone moved by exactly the previous pose's motion. The
-//! registration from the source then starts from that composition (`Start::Chained`) and
+//! it went. A pose is instead reached through the one before it. Its bones are registered
+//! from the source (their errors do not add up along the series), the previous pose's motions
+//! tried first; the source's labels are carried onto the previous pose by its registered
+//! field, and the step between the two poses' bone motions is blended there (the blend of a
+//! step of a few tens of degrees, from where the tissue already is); the step's field is
+//! composed with the previous pose's. Inside each bone the composition is exactly the bone's
+//! motion. The registration from the source then starts from it (`Start::Chained`) and
 //! refines it as it refines any initial field, so each pose's outputs are the source's.
 
 use crate::abi::{ComposeParams, Interpolation};
-use crate::articulated::{initialise_volumes, Chained, InitOptions, Start};
+use crate::articulated::{bone_motions, initialise_volumes, Chained, InitOptions, Start};
 use crate::backend::{resample_volume, Backend, DeviceImage};
-use crate::chain::{self, Link};
 use crate::error::{Error, Result};
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::progress::Progress;
-use crate::volume::{Affine, Field, Image, Labels, Volume};
+use crate::volume::{Field, Image, Labels, Volume};
 
 /// The pose before the one to reach, as its registration left it.
 #[derive(Clone, Copy)]
 pub struct Reached<'a> {
-    /// The source resampled through its field (register's warped.nii.gz).
+    /// Its scan (only its grid is used: the blend reads labels, not intensities).
     pub scan: &'a Volume,
     /// Its registered field: its point → source point (RAS mm), on its grid.
     pub field: &'a Field,
     /// Its bone motions, source → it.
     pub motions: &'a BoneTransforms,
-    /// The step's motions that reached it from its own neighbour (none for the first pose).
-    pub step: Option<&'a BoneTransforms>,
 }
 
-/// How the next pose is reached.
-pub struct Step {
-    /// Where its registration from the source starts.
-    pub chained: Chained,
-    /// The bone motions from the previous pose to it: the seeds of the step after.
-    pub step: BoneTransforms,
-}
-
-/// Reaches `target` from `previous`: the source `labels` carried onto the previous pose, the
-/// bones registered from the warped source there to `target` and blended, composed with the
-/// previous pose.
+/// Reaches `target` from `previous`: the bones registered from the `source` (with its
+/// `labels`), their step from the previous pose blended on the labels carried there, composed
+/// with the previous pose's field.
 pub fn chain_step<B: Backend>(
     backend: &B,
-    labels: &Labels,
+    (source, labels): (&Volume, &Labels),
     previous: Reached,
     target: &Volume,
     options: &InitOptions,
     progress: &dyn Progress,
-) -> Result<Step> {
+) -> Result<Chained> {
+    let pair = (source, labels, target);
+    let (motions, reports) =
+        bone_motions(backend, pair, options, Some(previous.motions), progress)?;
+    let step = step_between(previous.motions, &motions)?;
     let carried = carry_labels(backend, labels, previous.field)?;
-    let start = previous.step.map(Start::Seeded);
-    let (init, images) = initialise_volumes(
+    let given = Some(Start::Given(&step));
+    let (_, images) = initialise_volumes(
         backend,
         previous.scan,
         &carried,
         target,
         options,
-        start,
+        given,
         progress,
     )?;
-    let step = init.transforms(options);
-    let motions = compose_motions(&step, previous.motions, &options.chain)?;
-    Ok(Step {
-        chained: Chained {
-            motions,
-            field: compose_fields(backend, &images.field, previous.field)?,
-            reports: init.reports,
-        },
-        step,
+    Ok(Chained {
+        motions,
+        field: compose_fields(backend, &images.field, previous.field)?,
+        reports,
     })
 }
 
@@ -93,32 +80,19 @@ pub fn compose_fields<B: Backend>(backend: &B, step: &Field, previous: &Field) -
     Image::from_data(step.grid.clone(), bytemuck::cast_vec(total))
 }
 
-/// Each bone's motion source → previous pose, then previous → this pose. A bone the step did
-/// not register (its carried label fell outside the previous scan) takes its nearest
-/// registered ancestor's step.
-fn compose_motions(
-    step: &BoneTransforms,
-    previous: &BoneTransforms,
-    chain: &[Link],
-) -> Result<BoneTransforms> {
-    let stepped: Vec<u16> = step.bones.iter().map(|b| b.label).collect();
-    let step_of = |code: u16| -> Affine {
-        let at = match stepped.contains(&code) {
-            true => Some(code),
-            false => chain::parent_among(chain, code, &stepped),
-        };
-        at.and_then(|a| step.bones.iter().find(|b| b.label == a))
-            .map_or_else(Affine::identity, |b| b.affine())
-    };
-    if previous.bones.iter().all(|b| !stepped.contains(&b.label)) {
-        return Err(Error::InvalidInput(
-            "no bone of the source's labels lands in the previous pose's scan".into(),
-        ));
-    }
-    let bones = previous
-        .bones
-        .iter()
-        .map(|b| BoneTransform::new(b.label, &b.name, &(step_of(b.label) * b.affine())))
-        .collect();
-    Ok(BoneTransforms::new(bones))
+/// Each bone's motion from the previous pose to this one: this pose's after the inverse of the
+/// previous pose's.
+fn step_between(previous: &BoneTransforms, next: &BoneTransforms) -> Result<BoneTransforms> {
+    let bones = next.bones.iter().map(|b| {
+        let before = previous.bones.iter().find(|p| p.label == b.label);
+        let before = before.map(|p| p.affine()).and_then(|m| m.try_inverse());
+        let before = before.ok_or_else(|| {
+            Error::InvalidInput(format!(
+                "the previous pose has no motion for bone {}",
+                b.label
+            ))
+        })?;
+        Ok(BoneTransform::new(b.label, &b.name, &(b.affine() * before)))
+    });
+    Ok(BoneTransforms::new(bones.collect::<Result<_>>()?))
 }

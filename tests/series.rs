@@ -27,7 +27,7 @@ fn registered(inputs: Inputs, options: &RegisterOptions) -> Registration {
 }
 
 /// Quarter phantom (5 mm voxels), 0° → 60° → 120° against 0° → 120°: mean field error over
-/// the target's body (measured: 2.71 against 6.98 mm).
+/// the target's body (measured: 2.82 against 6.98 mm).
 #[test]
 fn chaining_through_a_middle_pose_beats_registering_straight_to_120_degrees() {
     let source = phantom(0.0, 1);
@@ -40,11 +40,10 @@ fn chaining_through_a_middle_pose_beats_registering_straight_to_120_degrees() {
         scan: &first.warped,
         field: &first.field,
         motions: &previous,
-        step: None,
     };
     let step = chain_step(
         &CpuBackend,
-        &source.labels,
+        (&source.image, &source.labels),
         reached,
         &last.image,
         &options.init,
@@ -52,7 +51,7 @@ fn chaining_through_a_middle_pose_beats_registering_straight_to_120_degrees() {
     )
     .unwrap();
     let chained = Inputs {
-        start: Some(Start::Chained(&step.chained)),
+        start: Some(Start::Chained(&step)),
         ..pair(&last.image)
     };
     let chained = registered(chained, &options);
@@ -69,14 +68,13 @@ fn chaining_through_a_middle_pose_beats_registering_straight_to_120_degrees() {
         chained_mm < 0.6 * straight_mm && chained_mm < 3.5,
         "chained {chained_mm} mm against straight {straight_mm} mm"
     );
-    // The bones are registered from the middle pose's warped source (source intensities, so
-    // errors do not add up pose after pose) and composed: the tibia within 2° of the truth at
-    // 5 mm voxels (measured 1.73°; straight 1.09°; at the half size 0.13–0.33° over 30–120°).
+    // The bones are registered from the source, the middle pose's motions tried first: the
+    // tibia as close to the truth as registering straight there (1.09° at 5 mm voxels).
     let tibia = |t: &posereg::io::transform::BoneTransforms| {
         t.bones.iter().find(|b| b.label == 3).unwrap().affine()
     };
     let got = tibia(&chained.transforms(&options));
     let want = tibia(&last.truth);
     let degrees = posereg::joint::degrees_between(&got, &want);
-    assert!(degrees < 2.0, "tibia {degrees}° from the truth");
+    assert!(degrees < 1.5, "tibia {degrees}° from the truth");
 }

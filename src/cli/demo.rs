@@ -90,6 +90,7 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         options: &options,
         inputs: serde_json::json!({
             "phantom": format!("{:?}, straight and bent {}°", args.size, args.flexion),
+            "start": posereg::articulated::Start::describe(None),
         }),
         warnings: &[],
         seconds,

@@ -1,8 +1,9 @@
 //! `posereg series --source S --source-labels L --targets T1 T2 ... -o DIR`: one labelled scan
 //! and the same knee in several poses, in pose order. Each pose is registered as `register`
 //! would, into DIR/pose_01, DIR/pose_02, …; from the second on, it is reached through the pose
-//! before it (posereg::series: the bones registered from the previous pose's warped source,
-//! the fields composed), or with `--unchained` registered from the source with the previous
+//! before it (posereg::series: the bones registered from the source with the previous pose's
+//! motions tried first, their step from the previous pose blended there and composed with
+//! its field), or with `--unchained` registered from the source with the previous
 //! pose's bone motions tried first. DIR/series.csv tabulates every pose's kinematics.
 
 use super::init::PairArgs;
@@ -11,7 +12,6 @@ use super::register::{register_pair, RegisterArgs, Registered, StartOf};
 use clap::Args;
 use posereg::anatomy::Side;
 use posereg::device::DeviceWanted;
-use posereg::io::transform::BoneTransforms;
 use posereg::kinematics::KneeKinematics;
 use posereg::quicklook::chart::{save_chart, Chart, Curve, Plot};
 use posereg::series::{chain_step, Reached};
@@ -74,19 +74,12 @@ impl SeriesArgs {
     }
 }
 
-/// The pose registered last, as the next one needs it.
-struct Previous {
-    done: Registered,
-    /// The bone motions of the step that reached it from its own neighbour.
-    step: Option<BoneTransforms>,
-}
-
 /// Registers every pose in order and writes series.csv.
 pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.pose(0).options()?;
     let _folder = posereg::io::prepare_output_folder(&args.output)?;
     let mut opened = None;
-    let mut previous: Option<Previous> = None;
+    let mut previous: Option<Registered> = None;
     let mut table = String::from("pose,target,joint,quantity,unit,value,change\n");
     let mut poses: Vec<(serde_json::Value, Option<KneeKinematics>)> = Vec::new();
     for index in 0..args.targets.len() {
@@ -97,24 +90,21 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
             args.targets.len(),
             pose.pair.target.display()
         ));
-        let step = std::cell::RefCell::new(None);
         let chained: StartOf = &|opened, pair| {
             let Some(p) = previous.as_ref().filter(|_| !args.unchained) else {
                 return Ok(None);
             };
             let reached = Reached {
-                scan: &p.done.warped,
-                field: &p.done.field,
-                motions: &p.done.transforms,
-                step: p.step.as_ref(),
+                scan: &p.warped,
+                field: &p.field,
+                motions: &p.transforms,
             };
-            let found = posereg::on_backend!(opened, backend => chain_step(
-                backend, &pair.labels, reached, &pair.target, &options.init, reporter,
-            ))?;
-            *step.borrow_mut() = Some(found.step);
-            Ok(Some(found.chained))
+            let source = (&pair.source, &pair.labels);
+            Ok(Some(posereg::on_backend!(opened, backend => chain_step(
+                backend, source, reached, &pair.target, &options.init, reporter,
+            ))?))
         };
-        let seeds = previous.as_ref().map(|p| &p.done.transforms);
+        let seeds = previous.as_ref().map(|p| &p.transforms);
         let done = register_pair(
             &pose,
             &options,
@@ -124,10 +114,7 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
         )?;
         table += &kinematics_rows(index, &pose, &done);
         poses.push((done.summary.clone(), done.kinematics.clone()));
-        previous = Some(Previous {
-            done,
-            step: step.into_inner(),
-        });
+        previous = Some(done);
     }
     let write = |name: &str, text: &str| {
         let path = args.output.join(name);
