@@ -680,7 +680,7 @@ impl Start<'_> {
     }
 }
 
-/// A pose reached through its neighbour in a series (crate::series): the bone motions and
+/// A pose reached through its neighbour in a series (`posereg series`): the bone motions and
 /// the initial field composed along the series, and the reports of the bones' registration
 /// from the neighbouring pose.
 #[derive(Clone, Debug)]
