@@ -79,6 +79,40 @@ pub fn load_pair(paths: PairPaths, chain: &[Link]) -> Result<Pair> {
     let source = volume_from_raw(paths.source, read_raw(paths.source)?)?;
     let labels = labels_from_raw(paths.labels, read_raw(paths.labels)?)?;
     let target = volume_from_raw(paths.target, read_raw(paths.target)?)?;
+    checked_content(source, labels, target, paths, chain)
+}
+
+/// Checks three inputs that did not come from files (the Python package's arrays; `names`
+/// says what to call them): the labels on the source's grid, the scans overlapping, and their
+/// content, as [`load_pair`] checks files.
+pub fn check_pair(
+    source: Volume,
+    labels: Labels,
+    target: Volume,
+    names: PairPaths,
+    chain: &[Link],
+) -> Result<Pair> {
+    if !labels.grid.same_as(&source.grid, 1e-3) {
+        return Err(Error::bad_file(
+            names.labels,
+            format!(
+                "label map grid {:?} differs from the source's",
+                labels.grid.dims
+            ),
+        ));
+    }
+    check_overlap(&target.grid, &source.grid, names)?;
+    checked_content(source, labels, target, names, chain)
+}
+
+/// The pair after its content checks: neither scan constant, the labels holding bones.
+fn checked_content(
+    source: Volume,
+    labels: Labels,
+    target: Volume,
+    paths: PairPaths,
+    chain: &[Link],
+) -> Result<Pair> {
     check_not_constant(&source, paths.source)?;
     check_not_constant(&target, paths.target)?;
     let warnings = check_labels(&labels, paths.labels, chain)?;

@@ -58,6 +58,7 @@ pub mod rbf;
 pub mod regions;
 pub mod register;
 pub mod regularise;
+pub mod report;
 pub mod repose;
 pub mod result_checks;
 pub mod rigid;

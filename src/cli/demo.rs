@@ -3,7 +3,7 @@
 //! against the known truth.
 
 use super::init::kinematics;
-use super::outputs::{write_registration, Run};
+use super::outputs::write_registration;
 use super::progress::Reporter;
 use clap::Args;
 use posereg::articulated::bone_name;
@@ -16,6 +16,7 @@ use posereg::joint::rotation_degrees;
 use posereg::labels as label;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
 use posereg::register::{register_observed, Inputs, RegisterOptions};
+use posereg::report::Run;
 use std::path::PathBuf;
 
 /// Arguments of `posereg demo`.

@@ -127,14 +127,9 @@ pub fn kinematics(
     init: &posereg::articulated::Initialisation,
     reporter: &Reporter,
 ) -> anyhow::Result<Option<KneeKinematics>> {
-    let (kinematics, warnings) =
-        posereg::kinematics::knee_kinematics(labels, chain, &init.motions, side)?;
+    let (kinematics, warnings) = posereg::kinematics::of_initialisation(labels, chain, init, side)?;
     warnings.iter().for_each(|w| reporter.warn(w));
-    let confidence = |bone: &str| {
-        let report = init.reports.iter().find(|r| r.name == bone);
-        report.map(|r| r.confidence.clone())
-    };
-    Ok(kinematics.map(|k| k.with_confidence(confidence)))
+    Ok(kinematics)
 }
 
 /// Writes kinematics.json and kinematics.csv into `folder` and prints each joint's change.

@@ -9,39 +9,11 @@ use posereg::device::Opened;
 use posereg::io::field::save_field;
 use posereg::io::itk_transform::save_bone_tfms;
 use posereg::io::nifti::{save_volume, DataType};
-use posereg::kinematics::KneeKinematics;
-use posereg::metric::correlation;
 use posereg::quicklook::Figure;
-use posereg::register::{unregistered, RegisterOptions, Registration};
-use posereg::result_checks::{result_checks, Check, Correlations};
-use posereg::{Error, Labels, Volume};
+use posereg::report::{report, Run};
+use posereg::result_checks::{Check, Correlations};
+use posereg::Error;
 use std::path::Path;
-
-/// The version of report.json's layout: raised when a key changes meaning or goes away
-/// (docs/outputs.md describes it).
-pub const REPORT_SCHEMA: u32 = 1;
-
-/// A finished registration and what it was run on.
-pub struct Run<'a> {
-    /// The moving scan.
-    pub source: &'a Volume,
-    /// Its bone labels.
-    pub labels: &'a Labels,
-    /// The fixed scan.
-    pub target: &'a Volume,
-    /// The result.
-    pub result: &'a Registration,
-    /// The settings it ran with.
-    pub options: &'a RegisterOptions,
-    /// Where the inputs came from (file names, or the phantom's description).
-    pub inputs: serde_json::Value,
-    /// Warnings about the inputs.
-    pub warnings: &'a [String],
-    /// Wall time of the registration (s).
-    pub seconds: f64,
-    /// The knee's kinematics, when they could be told.
-    pub kinematics: Option<KneeKinematics>,
-}
 
 /// Writes every output of `run` into `folder`; returns the correlations and the checks.
 pub fn write_registration(
@@ -65,14 +37,9 @@ pub fn write_registration(
     let transform = result.transforms(options);
     transform.save(&out("transform.json"))?;
     save_bone_tfms(folder, &transform)?;
-    let before =
-        posereg::on_backend!(opened, backend => unregistered(backend, source, &target.grid))?;
-    let body = |n: usize| target.data[n] > 0.0;
-    let correlations = Correlations {
-        before: correlation(&before.data, &target.data, body),
-        after: correlation(&result.warped.data, &target.data, body),
-    };
-    let checks = result_checks(result, correlations, options);
+    let device = opened.describe();
+    let judged = posereg::on_backend!(opened, backend => report(backend, &device, run))?;
+    let (correlations, checks) = (judged.correlations, judged.checks);
     let centre = match &result.init {
         Some(init) => [init.axis.point.x, init.axis.point.y, init.axis.point.z],
         None => target
@@ -90,7 +57,7 @@ pub fn write_registration(
         .collect();
     let figure = Figure {
         target,
-        before: &before,
+        before: &judged.unregistered,
         warped: &result.warped,
         jacobian: &result.jacobian,
         field: &result.field,
@@ -103,8 +70,7 @@ pub fn write_registration(
         correlations,
     };
     posereg::quicklook::save(&out("quicklook.png"), &figure)?;
-    let report = report(opened, run, correlations, &checks);
-    let text = serde_json::to_string_pretty(&report)? + "\n";
+    let text = serde_json::to_string_pretty(&judged.json)? + "\n";
     posereg::io::write_atomically(&out("report.json"), |tmp| {
         std::fs::write(tmp, text).map_err(|e| Error::io(tmp, e))
     })?;
@@ -115,43 +81,4 @@ pub fn write_registration(
         reporter.warn(&format!("check {} failed: {}", check.name, check.detail));
     }
     Ok((correlations, checks))
-}
-
-/// report.json's content.
-fn report(
-    opened: &Opened,
-    run: &Run,
-    correlations: Correlations,
-    checks: &[Check],
-) -> serde_json::Value {
-    let result = run.result;
-    let finished = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    serde_json::json!({
-        "schema": REPORT_SCHEMA,
-        "posereg": env!("CARGO_PKG_VERSION"),
-        "command_line": std::env::args().collect::<Vec<_>>(),
-        "finished_unix_seconds": finished,
-        "device": opened.describe(),
-        "seconds": run.seconds,
-        "inputs": run.inputs,
-        "options": run.options,
-        "initialisation": result.init.as_ref().map(|i| serde_json::json!({
-            "bones": i.reports,
-            "fold_repair": i.repair,
-        })),
-        "adaptive_stages": result.adaptive.stages,
-        "control_points": result.adaptive.points.len(),
-        "correlation": {
-            "before": correlations.before,
-            "after": correlations.after,
-            "over": "the target's voxels above 0 (its body), source resampled without and with the field",
-        },
-        "jacobian": { "min": result.min_jacobian, "folded_share": result.folded_share, "unfolding": result.unfolding },
-        "inverse_round_trip": result.round_trip,
-        "device_traffic": { "stages": result.traffic, "evaluations": result.adaptive.evaluations },
-        "checks": checks,
-        "warnings": run.warnings,
-    })
 }

@@ -3,7 +3,7 @@
 //! bones/*.tfm, jacobian.nii.gz, report.json and quicklook.png.
 
 use super::init::{kinematics, load_given, PairArgs};
-use super::outputs::{write_registration, Run};
+use super::outputs::write_registration;
 use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
@@ -15,6 +15,7 @@ use posereg::io::transform::BoneTransforms;
 use posereg::kinematics::KneeKinematics;
 use posereg::levels::PerLevel;
 use posereg::register::{register, Inputs, RegisterOptions};
+use posereg::report::Run;
 use posereg::{Field, Volume};
 use std::path::PathBuf;
 

@@ -15,7 +15,7 @@ pub const INTENT_VECTOR: i32 = 1007;
 pub const INTENT_DISPVECT: i32 = 1006;
 
 /// RAS ↔ LPS for a displacement vector (its own inverse).
-fn flip_ras_lps(v: [f32; 3]) -> [f32; 3] {
+pub fn flip_ras_lps(v: [f32; 3]) -> [f32; 3] {
     [-v[0], -v[1], v[2]]
 }
 
