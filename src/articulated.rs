@@ -3,6 +3,7 @@
 
 use crate::abi::{Blending, Interpolation, ResampleParams, ThresholdParams};
 use crate::adaptive::MAX_LEVELS;
+use crate::anatomy::Side;
 use crate::backend::{Backend, DeviceImage};
 use crate::chain::{self, Link};
 use crate::check::within;
@@ -13,6 +14,7 @@ use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::joint::{
     degrees_between, flexion_axis, rotation_about, rotation_degrees, JointAxis, KneeBones,
 };
+use crate::kinematics::{knee_kinematics, KneeKinematics};
 use crate::labels as label;
 use crate::progress::Progress;
 use crate::pyramid;
@@ -240,6 +242,23 @@ impl Initialisation {
     /// The bone motions in the on-disk format, named as `options`' chain names them.
     pub fn transforms(&self, options: &InitOptions) -> BoneTransforms {
         transforms_of(&self.motions, options)
+    }
+
+    /// The knee's kinematics of these bone motions (frames from the source's `labels`), each
+    /// joint with its bones' registration confidence; None, with the reason among the
+    /// warnings, when they cannot be told (no femur or tibia, frames that cannot be measured).
+    pub fn kinematics(
+        &self,
+        labels: &Labels,
+        chain: &[Link],
+        side: Option<Side>,
+    ) -> Result<(Option<KneeKinematics>, Vec<String>)> {
+        let (kinematics, warnings) = knee_kinematics(labels, chain, &self.motions, side)?;
+        let confidence = |bone: &str| {
+            let report = self.reports.iter().find(|r| r.name == bone);
+            report.map(|r| r.confidence.clone())
+        };
+        Ok((kinematics.map(|k| k.with_confidence(confidence)), warnings))
     }
 }
 

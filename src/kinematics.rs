@@ -21,7 +21,6 @@
 //! its lateral border goes posterior: the negated rotation about e3).
 
 use crate::anatomy::{knee_frames, Frame, Side};
-use crate::articulated::Initialisation;
 use crate::chain::Link;
 use crate::confidence::Confidence;
 use crate::error::Result;
@@ -325,21 +324,4 @@ pub fn knee_kinematics(
         joints,
     };
     Ok((Some(kinematics), warnings))
-}
-
-/// The knee's kinematics of an initialisation's bone motions, each joint with its bones'
-/// registration confidence; None, with the reason among the warnings, when they cannot be
-/// told (no femur or tibia, frames that cannot be measured).
-pub fn of_initialisation(
-    labels: &Labels,
-    chain: &[Link],
-    init: &Initialisation,
-    side: Option<Side>,
-) -> Result<(Option<KneeKinematics>, Vec<String>)> {
-    let (kinematics, warnings) = knee_kinematics(labels, chain, &init.motions, side)?;
-    let confidence = |bone: &str| {
-        let report = init.reports.iter().find(|r| r.name == bone);
-        report.map(|r| r.confidence.clone())
-    };
-    Ok((kinematics.map(|k| k.with_confidence(confidence)), warnings))
 }

@@ -7,7 +7,6 @@ use posereg::device::{open_backend, DeviceChoice, DeviceWanted};
 use posereg::inputs::{check_pair, check_settings, PairPaths};
 use posereg::io::config::parse_options;
 use posereg::io::field::flip_ras_lps;
-use posereg::kinematics::of_initialisation;
 use posereg::progress::{Progress, Silent};
 use posereg::register::{register, Inputs, RegisterOptions};
 use posereg::report::{report, Run};
@@ -134,7 +133,7 @@ fn run(
         posereg::on_backend!(opened, backend => register(backend, inputs, options, shown))?;
     let seconds = started.elapsed().as_secs_f64();
     let kinematics = match &result.init {
-        Some(init) => of_initialisation(&pair.labels, &options.init.chain, init, None)?.0,
+        Some(init) => init.kinematics(&pair.labels, &options.init.chain, None)?.0,
         None => None,
     };
     let run = Run {

@@ -127,7 +127,7 @@ pub fn kinematics(
     init: &posereg::articulated::Initialisation,
     reporter: &Reporter,
 ) -> anyhow::Result<Option<KneeKinematics>> {
-    let (kinematics, warnings) = posereg::kinematics::of_initialisation(labels, chain, init, side)?;
+    let (kinematics, warnings) = init.kinematics(labels, chain, side)?;
     warnings.iter().for_each(|w| reporter.warn(w));
     Ok(kinematics)
 }
