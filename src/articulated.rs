@@ -693,22 +693,22 @@ impl Start<'_> {
             Some(Start::Given(_)) => "given: the bones' motions as --init gave them",
             Some(Start::Seeded(_)) => "seeded: the previous pose's bone motions tried first",
             Some(Start::Chained(_)) => {
-                "chained: bones registered from the previous pose, composed with its registration"
+                "chained: bones registered with the previous pose's motions tried first, the \
+                 tissue reached through the previous pose's registration"
             }
         }
     }
 }
 
-/// A pose reached through its neighbour in a series (`posereg series`): the bone motions and
-/// the initial field composed along the series, and the reports of the bones' registration
-/// from the neighbouring pose.
+/// A pose reached through its neighbour in a series (`posereg series`): the bone motions, the
+/// initial field composed along the series, and the reports of the bones' registration.
 #[derive(Clone, Debug)]
 pub struct Chained {
     /// Bone motions, source → this pose (RAS).
     pub motions: BoneTransforms,
     /// Initial field on this pose's grid: its point → source point (RAS mm).
     pub field: Field,
-    /// The bones' registration from the neighbouring pose to this one.
+    /// The bones' registration from the source (the neighbouring pose's motions tried first).
     pub reports: Vec<BoneReport>,
 }
 
@@ -736,7 +736,6 @@ pub fn initialise<B: Backend>(
         Some(Start::Seeded(seeds)) => registered(Some(seeds))?,
         None => registered(None)?,
     };
-    let weights = skinning::weights(backend, &pair.labels, &bones, skinning::SHEPARD_POWER)?;
     let target = &pair.target.grid;
     let initial = match start {
         Some(Start::Chained(c)) => chained_field(backend, c, target)?,
@@ -747,7 +746,7 @@ pub fn initialise<B: Backend>(
                 device: &pair.labels,
             };
             let blend = options.blending;
-            initial_field(backend, &weights, &source_labels, &matrices, blend, target)?
+            blended_field(backend, &source_labels, &bones, &matrices, blend, target)?
         }
     };
     let resample = ResampleParams::new(&pair.source.grid, target, 0.0, Interpolation::Linear);
@@ -760,8 +759,8 @@ pub fn initialise<B: Backend>(
     let found = Initialisation {
         motions,
         axis,
-        bones: weights.bones,
-        weight_grid: weights.grid,
+        weight_grid: skinning::skinning_grid(&pair.labels.grid).0,
+        bones,
         repair: initial.repair,
         reports,
     };
@@ -771,6 +770,51 @@ pub fn initialise<B: Backend>(
         initialised,
     };
     Ok((found, images))
+}
+
+/// The blend of the bones' `matrices` (in `bones` order) across the soft tissue of `labels`,
+/// inverted on `target`, with its folds repaired: the initial field where the backend
+/// computes.
+fn blended_field<B: Backend>(
+    backend: &B,
+    labels: &SourceLabels<B>,
+    bones: &[u16],
+    matrices: &[Affine],
+    blending: Blending,
+    target: &Grid,
+) -> Result<InitialField<B>> {
+    let weights = skinning::weights(backend, labels.device, bones, skinning::SHEPARD_POWER)?;
+    initial_field(backend, &weights, labels, matrices, blending, target)
+}
+
+/// The blend of given bone `motions` across the soft tissue of a label map (one carried into
+/// another pose, not necessarily a scan's own), inverted on `target`, as [`initialise`] blends
+/// the motions it found: the field where the backend computes. For the step between two
+/// poses of a series.
+pub fn blend_motions<B: Backend>(
+    backend: &B,
+    labels: &Labels,
+    motions: &BoneTransforms,
+    options: &InitOptions,
+    target: &Grid,
+) -> Result<DeviceImage<B>> {
+    let bones = options.bones_in(labels);
+    if bones.is_empty() {
+        return Err(Error::InvalidInput(
+            "no bone of the label map lies on its grid: nothing to blend".into(),
+        ));
+    }
+    let matrices: Vec<Affine> = given_motions(motions, &bones)?
+        .into_iter()
+        .map(|m| m.1)
+        .collect();
+    let device = DeviceImage::upload_labels(backend, labels)?;
+    let source_labels = SourceLabels {
+        host: labels,
+        device: &device,
+    };
+    let blend = options.blending;
+    Ok(blended_field(backend, &source_labels, &bones, &matrices, blend, target)?.field)
 }
 
 /// A chained pose's initial field where the backend computes, with no blend residual and no

@@ -11,7 +11,7 @@
 //! refines it as it refines any initial field, so each pose's outputs are the source's.
 
 use crate::abi::{ComposeParams, Interpolation};
-use crate::articulated::{bone_motions, initialise_volumes, Chained, InitOptions, Start};
+use crate::articulated::{blend_motions, bone_motions, Chained, InitOptions};
 use crate::backend::{resample_volume, Backend, DeviceImage};
 use crate::error::{Error, Result};
 use crate::io::transform::{BoneTransform, BoneTransforms};
@@ -21,8 +21,6 @@ use crate::volume::{Field, Image, Labels, Volume};
 /// The pose before the one to reach, as its registration left it.
 #[derive(Clone, Copy)]
 pub struct Reached<'a> {
-    /// Its scan (only its grid is used: the blend reads labels, not intensities).
-    pub scan: &'a Volume,
     /// Its registered field: its point → source point (RAS mm), on its grid.
     pub field: &'a Field,
     /// Its bone motions, source → it.
@@ -45,19 +43,10 @@ pub fn chain_step<B: Backend>(
         bone_motions(backend, pair, options, Some(previous.motions), progress)?;
     let step = step_between(previous.motions, &motions)?;
     let carried = carry_labels(backend, labels, previous.field)?;
-    let given = Some(Start::Given(&step));
-    let (_, images) = initialise_volumes(
-        backend,
-        previous.scan,
-        &carried,
-        target,
-        options,
-        given,
-        progress,
-    )?;
+    let blended = blend_motions(backend, &carried, &step, options, &target.grid)?;
     Ok(Chained {
         motions,
-        field: compose_fields(backend, &images.field, previous.field)?,
+        field: compose_fields(backend, &blended, previous.field)?,
         reports,
     })
 }
@@ -70,13 +59,17 @@ fn carry_labels<B: Backend>(backend: &B, labels: &Labels, field: &Field) -> Resu
     Image::from_data(moved.grid, moved.data.iter().map(|&c| c as u16).collect())
 }
 
-/// The field `step` (this pose → the previous one) followed by `previous` (the previous pose
-/// → the source): u = step + previous ∘ (id + step), on the step's grid.
-pub fn compose_fields<B: Backend>(backend: &B, step: &Field, previous: &Field) -> Result<Field> {
+/// The field `step` (this pose → the previous one, where the backend computes) followed by
+/// `previous` (the previous pose → the source): u = step + previous ∘ (id + step), on the
+/// step's grid.
+fn compose_fields<B: Backend>(
+    backend: &B,
+    step: &DeviceImage<B>,
+    previous: &Field,
+) -> Result<Field> {
     let params = ComposeParams::new(&step.grid, &previous.grid);
-    let r = DeviceImage::upload_field(backend, "step field", step.clone())?;
     let u0 = DeviceImage::upload_field(backend, "previous pose's field", previous.clone())?;
-    let total = backend.download_one(&backend.compose(&params, &r.data, &u0.data)?)?;
+    let total = backend.download_one(&backend.compose(&params, &step.data, &u0.data)?)?;
     Image::from_data(step.grid.clone(), bytemuck::cast_vec(total))
 }
 

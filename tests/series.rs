@@ -37,7 +37,6 @@ fn chaining_through_a_middle_pose_beats_registering_straight_to_120_degrees() {
     let first: Registration = registered(pair(&middle.image), &options);
     let previous = first.transforms(&options);
     let reached = Reached {
-        scan: &first.warped,
         field: &first.field,
         motions: &previous,
     };

@@ -16,7 +16,7 @@ use posereg::kinematics::KneeKinematics;
 use posereg::levels::PerLevel;
 use posereg::register::{register, Inputs, RegisterOptions};
 use posereg::report::Run;
-use posereg::{Field, Volume};
+use posereg::Field;
 use std::path::PathBuf;
 
 /// Arguments of `posereg register`.
@@ -123,8 +123,6 @@ pub struct Registered {
     pub failed: Vec<&'static str>,
     /// The registered field: target point → source point.
     pub field: Field,
-    /// The source resampled through it.
-    pub warped: Volume,
     /// report.json's headline figures, for a summary over several registrations.
     pub summary: serde_json::Value,
 }
@@ -238,6 +236,5 @@ pub fn register_pair(
             "checks_failed": failed,
         }),
         field: result.field,
-        warped: result.warped,
     })
 }

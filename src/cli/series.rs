@@ -95,7 +95,6 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
                 return Ok(None);
             };
             let reached = Reached {
-                scan: &p.warped,
                 field: &p.field,
                 motions: &p.transforms,
             };
