@@ -70,6 +70,11 @@ fn grood_suntay_matches_the_cardan_closed_form_on_random_motions() {
     }
 }
 
+/// Each bone's motion in a truth file, as the initialisation reports them.
+fn motions_of(truth: &posereg::io::transform::BoneTransforms) -> Vec<(u16, Affine)> {
+    truth.bones.iter().map(|b| (b.label, b.affine())).collect()
+}
+
 /// The tibiofemoral and patellofemoral motions of `motions` from the source phantom's labels.
 fn knee_joints(labels: &posereg::Labels, motions: &[(u16, Affine)]) -> Vec<JointMotion> {
     let chain = posereg::chain::knee();
@@ -111,12 +116,7 @@ fn recovered_on<B: Backend>(backend: &B, size: PhantomSize, angles: &[f64], name
             &Silent,
         )
         .unwrap();
-        let truth: Vec<(u16, Affine)> = target
-            .truth
-            .bones
-            .iter()
-            .map(|b| (b.label, b.affine()))
-            .collect();
+        let truth = motions_of(&target.truth);
         let got = knee_joints(&source.labels, &init.motions);
         let want = knee_joints(&source.labels, &truth);
         let flexion = want[0].quantity("flexion").unwrap().change;
@@ -216,12 +216,7 @@ fn pose_sets_the_joint_change_asked_for() {
     let blend = posereg::abi::Blending::Linear;
     let posed =
         posereg::repose::pose(&cpu, &source.image, &source.labels, change, None, blend).unwrap();
-    let truth: Vec<(u16, Affine)> = posed
-        .truth
-        .bones
-        .iter()
-        .map(|b| (b.label, b.affine()))
-        .collect();
+    let truth = motions_of(&posed.truth);
     let got = knee_joints(&source.labels, &truth).swap_remove(0);
     for (q, want) in got.quantities.iter().zip(change.values()) {
         assert!(
