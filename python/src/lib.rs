@@ -145,19 +145,22 @@ fn run(
         inputs: serde_json::json!({ "python": "arrays handed to posereg.register" }),
         warnings: &pair.warnings,
         seconds,
-        kinematics: kinematics.clone(),
+        kinematics,
     };
     let device = opened.describe();
     let judged = posereg::on_backend!(opened, backend => report(backend, &device, &run))?;
-    let json = |v: serde_json::Value| serde_json::to_string(&v).unwrap_or_default();
+    let kinematics = run
+        .kinematics
+        .map(|k| serde_json::to_string(&k).unwrap_or_default());
+    let transforms = serde_json::to_string(&result.transforms(options)).unwrap_or_default();
     Ok(Done {
-        warped: result.warped.data.clone(),
         field: lps(&result.field),
         inverse_field: lps(&result.inverse),
-        jacobian: result.jacobian.data.clone(),
-        transforms: json(serde_json::to_value(result.transforms(options)).unwrap_or_default()),
-        kinematics: kinematics.map(|k| json(serde_json::to_value(k).unwrap_or_default())),
-        report: json(judged.json),
+        warped: result.warped.data,
+        jacobian: result.jacobian.data,
+        transforms,
+        kinematics,
+        report: judged.json.to_string(),
     })
 }
 
