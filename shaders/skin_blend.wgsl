@@ -166,21 +166,25 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     );
     var x = p;
     var best = 3.4e38;
+    // The blend at x, kept from where x was chosen: each step reuses it instead of blending
+    // again at the same point.
+    var b: Blend;
     for (var j = 0u; j < bones; j = j + 1u) {
         let candidate = vec3<f32>(
             affine_row(params.inverse[3u * j], p),
             affine_row(params.inverse[3u * j + 1u], p),
             affine_row(params.inverse[3u * j + 2u], p),
         );
-        let miss = length(blend(candidate).point - p);
+        let at = blend(candidate);
+        let miss = length(at.point - p);
         if (miss < best) {
             best = miss;
             x = candidate;
+            b = at;
         }
     }
     var err = best;
     for (var it = 0u; it < params.blend.y && err > CONVERGED_MM; it = it + 1u) {
-        let b = blend(x);
         let e = b.point - p;
         let det = det3(b.r0, b.r1, b.r2);
         var step = e;
@@ -193,10 +197,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         var moved = false;
         for (var k = 0u; k < 5u && !moved; k = k + 1u) {
             let trial = x - t * step;
-            let miss = length(blend(trial).point - p);
+            let at = blend(trial);
+            let miss = length(at.point - p);
             if (miss < err) {
                 x = trial;
                 err = miss;
+                b = at;
                 moved = true;
             }
             t = t * 0.5;

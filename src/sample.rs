@@ -58,6 +58,26 @@ pub fn inside_source(q: [f32; 3], dims: [u32; 3]) -> bool {
     (0..3).all(|a| q[a] >= -0.5 && q[a] <= dims[a] as f32 - 0.5)
 }
 
+/// ⌊x⌋, the same value as `f32::floor` for every f32 (NaN and ±∞ included). `f32::floor` is a
+/// libm call on the baseline x86-64 target, which lacks SSE4.1's rounding instruction; the
+/// sampling loops called it for 3.5% of a registration's CPU time. Below 2²³ in magnitude
+/// the truncation is exact and is stepped down for negative fractions; above it every f32 is
+/// already whole.
+#[inline]
+pub fn floor(x: f32) -> f32 {
+    if !(x.abs() < 8_388_608.0) {
+        return x;
+    }
+    let t = x as i32 as f32;
+    if t > x {
+        t - 1.0
+    } else if t == x {
+        x // keeps −0's sign
+    } else {
+        t
+    }
+}
+
 /// Trilinear value of `source` at continuous index q; `background` outside
 /// [-0.5, n - 0.5] on any axis (NaN coordinates count as outside).
 #[inline]
@@ -75,7 +95,7 @@ pub fn nearest(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -> 
         return background;
     }
     let i: [u32; 3] =
-        std::array::from_fn(|a| ((q[a] + 0.5).floor() as i32).clamp(0, dims[a] as i32 - 1) as u32);
+        std::array::from_fn(|a| (floor(q[a] + 0.5) as i32).clamp(0, dims[a] as i32 - 1) as u32);
     source[voxel_index(i[0], i[1], i[2], dims) as usize]
 }
 
@@ -83,7 +103,7 @@ pub fn nearest(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -> 
 /// [`inside_source`]): [value, d/di, d/dj, d/dk].
 #[inline]
 pub fn trilinear_with_gradient(source: &[f32], q: [f32; 3], dims: [u32; 3]) -> [f32; 4] {
-    let base = q.map(f32::floor);
+    let base = q.map(floor);
     let t = [q[0] - base[0], q[1] - base[1], q[2] - base[2]];
     let top = dims.map(|d| d as i32 - 1);
     let i0: [u32; 3] = std::array::from_fn(|a| (base[a] as i32).clamp(0, top[a]) as u32);
@@ -110,4 +130,40 @@ pub fn trilinear_with_gradient(source: &[f32], q: [f32; 3], dims: [u32; 3]) -> [
     let dx =
         (1.0 - t[2]) * ((1.0 - t[1]) * e00 + t[1] * e10) + t[2] * ((1.0 - t[1]) * e01 + t[1] * e11);
     [value, dx, dy, dz]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::floor;
+
+    #[test]
+    fn floor_is_libm_floor_for_every_kind_of_f32() {
+        let specials = [
+            0.0f32,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            -1e-30,
+            8_388_607.5,
+            -8_388_607.5,
+            8_388_608.0,
+            3e9,
+            -3e9,
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        // And a sweep of every 4099th bit pattern (normals, subnormals, NaNs).
+        let sweep = (0..u32::MAX / 4099).map(|k| f32::from_bits(k * 4099));
+        for x in specials.into_iter().chain(sweep) {
+            let (got, want) = (floor(x), x.floor());
+            assert!(
+                got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                "floor({x:e}) = {got:e}, libm {want:e}"
+            );
+        }
+    }
 }

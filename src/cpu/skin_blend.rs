@@ -2,13 +2,14 @@
 
 use super::common::{affine_row, det3, solve3, voxel_index};
 use crate::abi::SkinBlendParams;
-use crate::sample::inside_source;
+use crate::sample::{floor, inside_source};
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
 /// A voxel whose blend lands within this of its target point needs no more steps (mm).
 const CONVERGED_MM: f32 = 1e-4;
 
+#[derive(Clone, Copy, Default)]
 struct Blend {
     point: Vec3,
     r0: Vec3,
@@ -33,7 +34,7 @@ fn bone_at(params: &SkinBlendParams, bone_of_voxel: &[f32], x: Vec3) -> u32 {
         return bones;
     }
     let i: [u32; 3] =
-        std::array::from_fn(|a| ((q[a] + 0.5).floor() as i32).clamp(0, n[a] as i32 - 1) as u32);
+        std::array::from_fn(|a| (floor(q[a] + 0.5) as i32).clamp(0, n[a] as i32 - 1) as u32);
     let b = bone_of_voxel[voxel_index(i[0], i[1], i[2], n) as usize] as u32;
     if b > 0 {
         b - 1
@@ -71,7 +72,7 @@ fn blend(params: &SkinBlendParams, weight: &[f32], bone_of_voxel: &[f32], x: Vec
         Vec3::ZERO,
         Vec3::new(n[0] as f32 - 1.0, n[1] as f32 - 1.0, n[2] as f32 - 1.0),
     );
-    let base = q.floor();
+    let base = Vec3::from_array(q.to_array().map(floor));
     let t = q - base;
     let i0 = [base.x as u32, base.y as u32, base.z as u32];
     let i1: [u32; 3] = std::array::from_fn(|a| (i0[a] + 1).min(n[a] - 1));
@@ -183,25 +184,28 @@ pub fn skin_blend(
                     let pa = p.to_array();
                     let mut x = p;
                     let mut best = 3.4e38f32;
-                    for b in 0..bones {
-                        let inv = |r: u32| params.inverse[(3 * b + r) as usize];
+                    // The blend at x, kept from where x was chosen: each step reuses it
+                    // instead of blending again at the same point.
+                    let mut b = Blend::default();
+                    for j in 0..bones {
+                        let inv = |r: u32| params.inverse[(3 * j + r) as usize];
                         let candidate = Vec3::new(
                             affine_row(inv(0), pa),
                             affine_row(inv(1), pa),
                             affine_row(inv(2), pa),
                         );
-                        let miss =
-                            (blend(params, weight, bone_of_voxel, candidate).point - p).length();
+                        let at = blend(params, weight, bone_of_voxel, candidate);
+                        let miss = (at.point - p).length();
                         if miss < best {
                             best = miss;
                             x = candidate;
+                            b = at;
                         }
                     }
                     let mut err = best;
                     let mut it = 0;
                     while it < params.blend[1] && err > CONVERGED_MM {
                         it += 1;
-                        let b = blend(params, weight, bone_of_voxel, x);
                         let e = b.point - p;
                         let det = det3(b.r0, b.r1, b.r2);
                         let step = if det.abs() > 1e-6 {
@@ -213,11 +217,12 @@ pub fn skin_blend(
                         let mut moved = false;
                         for _ in 0..5 {
                             let trial = x - t * step;
-                            let miss =
-                                (blend(params, weight, bone_of_voxel, trial).point - p).length();
+                            let at = blend(params, weight, bone_of_voxel, trial);
+                            let miss = (at.point - p).length();
                             if miss < err {
                                 x = trial;
                                 err = miss;
+                                b = at;
                                 moved = true;
                                 break;
                             }
