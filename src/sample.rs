@@ -65,7 +65,7 @@ pub fn inside_source(q: [f32; 3], dims: [u32; 3]) -> bool {
 /// already whole.
 #[inline]
 pub fn floor(x: f32) -> f32 {
-    if !(x.abs() < 8_388_608.0) {
+    if x.is_nan() || x.abs() >= 8_388_608.0 {
         return x;
     }
     let t = x as i32 as f32;
