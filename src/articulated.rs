@@ -783,7 +783,8 @@ fn blended_field<B: Backend>(
     blending: Blending,
     target: &Grid,
 ) -> Result<InitialField<B>> {
-    let weights = skinning::weights(backend, labels.device, bones, skinning::SHEPARD_POWER)?;
+    let power = skinning::SHEPARD_POWER;
+    let weights = skinning::weights(backend, labels.device, bones, Some(matrices), power)?;
     initial_field(backend, &weights, labels, matrices, blending, target)
 }
 

@@ -51,7 +51,8 @@ fn deform<B: Backend>(
     let bones = chain::present(&chain::knee(), labels);
     let motions: Vec<Affine> = bones.iter().map(|&b| motion_of(b)).collect();
     let device_labels = DeviceImage::upload_labels(backend, labels)?;
-    let weights = skinning::weights(backend, &device_labels, &bones, BEND_SHEPARD_POWER)?;
+    // Each bone reaches as itself: bend's model does not join bones into segments.
+    let weights = skinning::weights(backend, &device_labels, &bones, None, BEND_SHEPARD_POWER)?;
     let source_labels = SourceLabels {
         host: labels,
         device: &device_labels,
