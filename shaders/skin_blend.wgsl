@@ -183,6 +183,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             b = at;
         }
     }
+    if (best == 3.4e38) {
+        // No candidate's miss was finite: step from the blend at p itself.
+        b = blend(x);
+    }
     var err = best;
     for (var it = 0u; it < params.blend.y && err > CONVERGED_MM; it = it + 1u) {
         let e = b.point - p;

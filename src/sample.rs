@@ -61,8 +61,8 @@ pub fn inside_source(q: [f32; 3], dims: [u32; 3]) -> bool {
 /// ⌊x⌋, the same value as `f32::floor` for every f32 (NaN and ±∞ included). `f32::floor` is a
 /// libm call on the baseline x86-64 target, which lacks SSE4.1's rounding instruction; the
 /// sampling loops called it for 3.5% of a registration's CPU time. Below 2²³ in magnitude
-/// the truncation is exact and is stepped down for negative fractions; above it every f32 is
-/// already whole.
+/// the truncation is exact and is stepped down for negative fractions; at or above it every f32
+/// is already whole.
 #[inline]
 pub fn floor(x: f32) -> f32 {
     if x.is_nan() || x.abs() >= 8_388_608.0 {

@@ -3,11 +3,11 @@
 //!
 //! Method: normalised inverse-distance (Shepard) weights, w_j ∝ d_j⁻⁴, from exact Euclidean
 //! distance maps of each bone label (regions::distance_maps), scaled by the size of the
-//! segment the bone moves with ([`reach_scale`], [`segments`]). Chosen over harmonic weights because they need no solve
-//! (one kernel pass), are exact at the bones by construction, and depend only on the labels;
-//! their drawback — weights are not volume-aware, so tissue far from every bone blends by
-//! relative distance alone — matters little here because the adaptive stage corrects the soft
-//! tissue. Weights live on a skinning grid of about 2.5 mm (a stride of the source grid), small
+//! segment the bone moves with ([`reach_scale`], [`segments`]). Chosen over harmonic weights
+//! because they need no solve (one kernel pass), are exact at the bones by construction, and
+//! depend only on the labels and the motions; their drawback — weights are not volume-aware, so
+//! tissue far from every bone blends by relative distance alone — is left to the adaptive stage,
+//! which does not always reach it (at large flexion, in front of the knee: BENCHMARKS.md). Weights live on a skinning grid of about 2.5 mm (a stride of the source grid), small
 //! enough to bind whole on any device; they are interpolated trilinearly, so a bone is exactly
 //! rigid except within one skinning voxel of its surface.
 
@@ -41,14 +41,15 @@ pub struct SkinningWeights<B: Backend> {
 /// and [`SEGMENT_MM`]. Well above the rigid stage's error on bones that truly move together (the
 /// fibula lies within 0.5° of the tibia on the real knee pairs), well below a joint's motion.
 pub const SEGMENT_DEGREES: f64 = 2.0;
-/// Distance between two bones' motions at either bone's centroid (mm) below which they can
-/// move as one segment (with [`SEGMENT_DEGREES`]).
+/// Distance between two bones' motions at each bone's centroid (mm) below which they can move
+/// as one segment (with [`SEGMENT_DEGREES`]).
 pub const SEGMENT_MM: f64 = 1.0;
 /// Most a segment's distances are stretched by its size ([`reach_scale`]).
 pub const MAX_REACH: f64 = 2.0;
 
 /// How much farther than it is a segment's soft tissue "feels": distances to a bone are scaled
-/// by ∛(V_largest / V_segment) over the segments its bones move in, clamped to 1..[`MAX_REACH`].
+/// by ∛(V_largest / V_segment), V_segment the total volume of the bones in the bone's segment
+/// and V_largest the largest segment's, clamped to 1..[`MAX_REACH`].
 /// A small bone moving on its own (the patella, a ninth of the femur's volume) then pulls less
 /// of the tissue around it; with plain distances it drags the anterior thigh through its
 /// rotation on the project's phantom (half phantom 60° / 90°: 0.84 / 1.45 mm with the limit 2,
@@ -58,7 +59,8 @@ pub const MAX_REACH: f64 = 2.0;
 /// better than 3 on both; no limit suits only the generator's model. A small bone moving with
 /// a large one (the fibula with the tibia) reaches as far as the large one: scaled as a bone
 /// of its own, it left the tissue around it to the femur (the knee at 90°: 37 mm off there in
-/// the initial field, 8 mm as the segment; registration soft tissue 8.2 → 5.5 mm).
+/// the initial field, 8 mm as the segment; registration soft tissue 8.19 → 5.54 mm, 5.09 with the
+/// limit 2).
 pub fn reach_scale(volume: f64, largest: f64) -> f32 {
     (largest / volume.max(1.0)).cbrt().clamp(1.0, MAX_REACH) as f32
 }
@@ -80,23 +82,34 @@ pub fn skinning_grid(grid: &Grid) -> (Grid, [usize; 3]) {
 }
 
 /// For each bone, the first bone of the segment it moves in: bones whose `motions` agree within
-/// [`SEGMENT_DEGREES`] and [`SEGMENT_MM`] (at either bone's centroid), joined transitively.
+/// [`SEGMENT_DEGREES`] and [`SEGMENT_MM`] (at both bones' centroids), joined transitively. The
+/// motions are those of the blend being made: a series blends the step between two poses, so
+/// there bones join when they moved together during that step.
 pub fn segments(motions: &[Affine], centroids: &[Vector3<f64>]) -> Vec<usize> {
+    let n = motions.len();
     let moved = |m: &Affine, c: &Vector3<f64>| (m * c.push(1.0)).xyz();
-    let together = |i: usize, j: usize| {
-        let apart = |c: &Vector3<f64>| (moved(&motions[i], c) - moved(&motions[j], c)).norm();
-        crate::joint::degrees_between(&motions[i], &motions[j]) < SEGMENT_DEGREES
-            && apart(&centroids[i]).max(apart(&centroids[j])) < SEGMENT_MM
+    let apart = |i: usize, j: usize, c: &Vector3<f64>| {
+        (moved(&motions[i], c) - moved(&motions[j], c)).norm()
     };
-    let mut segment: Vec<usize> = (0..motions.len()).collect();
+    let together: Vec<Vec<bool>> = (0..n)
+        .map(|i| {
+            (0..n)
+                .map(|j| {
+                    crate::joint::degrees_between(&motions[i], &motions[j]) < SEGMENT_DEGREES
+                        && apart(i, j, &centroids[i]).max(apart(i, j, &centroids[j])) < SEGMENT_MM
+                })
+                .collect()
+        })
+        .collect();
+    let mut segment: Vec<usize> = (0..n).collect();
     // Each bone takes the lowest segment of any bone it moves with, until nothing changes (a
     // handful of bones: a few passes).
     let mut changed = true;
     while changed {
         changed = false;
-        for i in 0..motions.len() {
-            for j in 0..motions.len() {
-                if segment[j] < segment[i] && together(i, j) {
+        for i in 0..n {
+            for j in 0..n {
+                if segment[j] < segment[i] && together[i][j] {
                     segment[i] = segment[j];
                     changed = true;
                 }
@@ -104,6 +117,22 @@ pub fn segments(motions: &[Affine], centroids: &[Vector3<f64>]) -> Vec<usize> {
         }
     }
     segment
+}
+
+/// Each bone's [`reach_scale`] from its segment's total volume, given each bone's `segment` and
+/// `volumes`.
+fn segment_reach(segment: &[usize], volumes: &[f64]) -> Vec<f32> {
+    let total = |s: usize| -> f64 {
+        (0..segment.len())
+            .filter(|&j| segment[j] == s)
+            .map(|j| volumes[j])
+            .sum()
+    };
+    let largest = segment.iter().map(|&s| total(s)).fold(1.0, f64::max);
+    segment
+        .iter()
+        .map(|&s| reach_scale(total(s), largest))
+        .collect()
 }
 
 /// Skinning weights of `bones` from the source `labels` (codes, where the backend computes),
@@ -140,22 +169,17 @@ pub fn weights<B: Backend>(
         centroids.push(moments.centroid);
     }
     let segment = match motions {
-        Some(motions) => segments(motions, &centroids),
+        Some(motions) if motions.len() == bones.len() => segments(motions, &centroids),
+        Some(motions) => {
+            return Err(Error::InvalidInput(format!(
+                "{} motions for {} bones to skin",
+                motions.len(),
+                bones.len()
+            )))
+        }
         None => (0..bones.len()).collect(),
     };
-    let segment_volume: Vec<f64> = (0..bones.len())
-        .map(|i| {
-            (0..bones.len())
-                .filter(|&j| segment[j] == segment[i])
-                .map(|j| volumes[j])
-                .sum()
-        })
-        .collect();
-    let largest = segment_volume.iter().copied().fold(1.0, f64::max);
-    let reach: Vec<f32> = segment_volume
-        .iter()
-        .map(|&v| reach_scale(v, largest))
-        .collect();
+    let reach = segment_reach(&segment, &volumes);
     let index = regions::label_index(backend, &sampled, bones)?;
     let distances = regions::distance_maps(backend, &index, bones.len())?;
     let params = SkinWeightsParams::new(&grid, &reach, power);
@@ -178,7 +202,8 @@ mod tests {
 
     #[test]
     fn bones_moving_together_form_one_segment() {
-        // Centroids near the x axis, which the motions turn about: only the angles tell.
+        // The tibia, fibula and fifth bone lie near the x axis, which the motions turn about:
+        // between them only the angles tell.
         let centroids = [
             Vector3::new(0.0, 0.0, 40.0),  // femur
             Vector3::new(0.0, 0.0, -5.0),  // tibia
@@ -194,7 +219,7 @@ mod tests {
             motion(47.4, [0.0, -5.0, 0.0]), // 2.4° from the tibia, 1.2° from the fibula
         ];
         assert_eq!(segments(&motions, &centroids), vec![0, 1, 2, 1, 1]);
-        // 1.2 mm apart at the fibula's centroid: not one segment.
+        // 1.2 mm apart: not one segment.
         let mut shifted = motions;
         shifted[3] = motion(45.0, [0.0, -3.8, 0.0]);
         shifted[4] = motion(60.0, [0.0, -5.0, 0.0]);
@@ -206,5 +231,24 @@ mod tests {
         assert_eq!(reach_scale(1000.0, 1000.0), 1.0);
         assert_eq!(reach_scale(1.0, 1000.0), MAX_REACH as f32);
         assert!((reach_scale(500.0, 1000.0) - 2f32.cbrt()).abs() < 1e-6);
+        // Femur 1000, tibia 700 and fibula 100 together (800), patella 100.
+        let reach = segment_reach(&[0, 1, 2, 1], &[1000.0, 700.0, 100.0, 100.0]);
+        let want = [1.0, 1.25f32.cbrt(), MAX_REACH as f32, 1.25f32.cbrt()];
+        for (got, want) in reach.iter().zip(want) {
+            assert!((got - want).abs() < 1e-6, "{reach:?}");
+        }
+    }
+
+    #[test]
+    fn segments_join_through_several_passes() {
+        // 0 joins 2 and 2 joins 1, but 0 and 1 are 2.4° apart: the chain 0 – 2 – 1 is one
+        // segment, which the first pass (1 before 2) cannot see.
+        let centroids = [Vector3::new(10.0, 0.0, 0.0); 3];
+        let motions = [
+            motion(45.0, [0.0; 3]),
+            motion(47.4, [0.0; 3]),
+            motion(46.2, [0.0; 3]),
+        ];
+        assert_eq!(segments(&motions, &centroids), vec![0, 0, 0]);
     }
 }

@@ -8,6 +8,8 @@ use rayon::prelude::*;
 
 /// A voxel whose blend lands within this of its target point needs no more steps (mm).
 const CONVERGED_MM: f32 = 1e-4;
+/// The miss before any candidate is chosen (the shader's literal).
+const NOT_CHOSEN: f32 = 3.4e38;
 
 #[derive(Clone, Copy, Default)]
 struct Blend {
@@ -183,7 +185,7 @@ pub fn skin_blend(
                     }));
                     let pa = p.to_array();
                     let mut x = p;
-                    let mut best = 3.4e38f32;
+                    let mut best = NOT_CHOSEN;
                     // The blend at x, kept from where x was chosen: each step reuses it
                     // instead of blending again at the same point.
                     let mut b = Blend::default();
@@ -201,6 +203,10 @@ pub fn skin_blend(
                             x = candidate;
                             b = at;
                         }
+                    }
+                    if best == NOT_CHOSEN {
+                        // No candidate's miss was finite: step from the blend at p itself.
+                        b = blend(params, weight, bone_of_voxel, x);
                     }
                     let mut err = best;
                     let mut it = 0;
