@@ -50,6 +50,11 @@ struct Blend {
     r2: vec3<f32>,
 }
 
+// sample.wgsl's nearest reads the source label voxels' bone indices.
+fn sampled_value(index: u32) -> f32 {
+    return bone_of_voxel[index];
+}
+
 // The bone whose label holds x (nearest label voxel), or `bones` when x is in soft tissue or
 // outside the label grid.
 fn bone_at(x: vec3<f32>) -> u32 {
@@ -60,11 +65,7 @@ fn bone_at(x: vec3<f32>) -> u32 {
         affine_row(params.world_to_label[1], x),
         affine_row(params.world_to_label[2], x),
     );
-    if (!(all(q >= vec3<f32>(-0.5)) && all(q <= vec3<f32>(n) - vec3<f32>(0.5)))) {
-        return bones;
-    }
-    let i = vec3<u32>(clamp(vec3<i32>(floor(q + vec3<f32>(0.5))), vec3<i32>(0), vec3<i32>(n) - vec3<i32>(1)));
-    let b = u32(bone_of_voxel[voxel_index(i.x, i.y, i.z, n)]);
+    let b = u32(nearest(q, n, 0.0));
     return select(bones, b - 1u, b > 0u);
 }
 

@@ -315,6 +315,7 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         "skin_blend",
         &[
             COMMON,
+            SAMPLE,
             (
                 "skin_blend.wgsl",
                 include_str!("../shaders/skin_blend.wgsl"),

@@ -2,7 +2,7 @@
 
 use super::common::{affine_row, det3, solve3, voxel_index};
 use crate::abi::SkinBlendParams;
-use crate::sample::{floor, inside_source};
+use crate::sample::{floor, nearest};
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
@@ -32,12 +32,7 @@ fn bone_at(params: &SkinBlendParams, bone_of_voxel: &[f32], x: Vec3) -> u32 {
     ];
     let xa = x.to_array();
     let q: [f32; 3] = std::array::from_fn(|r| affine_row(params.world_to_label[r], xa));
-    if !inside_source(q, n) {
-        return bones;
-    }
-    let i: [u32; 3] =
-        std::array::from_fn(|a| (floor(q[a] + 0.5) as i32).clamp(0, n[a] as i32 - 1) as u32);
-    let b = bone_of_voxel[voxel_index(i[0], i[1], i[2], n) as usize] as u32;
+    let b = nearest(bone_of_voxel, q, n, 0.0) as u32;
     if b > 0 {
         b - 1
     } else {
