@@ -9,9 +9,10 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use posereg::abi::{
     pack_candidates, BoneLookupParams, ComposeParams, DilateParams, EdtParams, GainParams,
-    Interpolation, InvertParams, JacobianParams, LabelParams, MomentsParams, PyramidParams,
-    RbfGradParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
-    SsdParams, SumParams, ThresholdParams, RIGID_SUMS, SCORE_SUMS,
+    Interpolation, InvertParams, JacobianParams, LabelParams, LnccParams, LocalMomentsParams,
+    MomentsParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams, ScoreParams,
+    SkinBlendParams, SkinWeightsParams, SsdParams, SumParams, ThresholdParams, RIGID_SUMS,
+    SCORE_SUMS,
 };
 use posereg::backend::{BoneImages, CostImages};
 use posereg::cpu::CpuBackend;
@@ -359,6 +360,23 @@ fn kernels(c: &mut Criterion) {
             }))
         });
         label_and_fold_rows(c, &g, &label, &backends, &uf);
+        // The local correlation of two images (radius 2): three box-sum passes and the ρ² sums.
+        let [x, y, z] = LocalMomentsParams::passes(&g, 2);
+        let lncc = LnccParams::new(&g, 2);
+        group(
+            c,
+            "local_correlation",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| {
+                posereg::on_backend!(b, b => resident(b, &[&source.data, &target.data], |b, [s, t]| {
+                    let along_x = b.local_moments(&x, t, s)?;
+                    let along_y = b.local_moments(&y, &along_x, &along_x)?;
+                    b.lncc(&lncc, &b.local_moments(&z, &along_y, &along_y)?)
+                }))
+            },
+        );
         let (coarse, factors) = posereg::pyramid::next_level_grid(&g).unwrap();
         let down = PyramidParams::new(&g, coarse.dims, factors);
         group(c, "pyramid", g.len() as u64, &label, &backends, |b| {

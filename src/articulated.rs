@@ -18,6 +18,7 @@ use crate::kinematics::{knee_kinematics, KneeKinematics};
 use crate::labels as label;
 use crate::progress::Progress;
 use crate::pyramid;
+use crate::reach::{self, ReachChoice};
 use crate::regions;
 use crate::rigid::{
     refine, score_candidates, score_covered, BoneLevel, LevelReport, RefineOptions,
@@ -26,6 +27,9 @@ use crate::skinning;
 use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
 use crate::vsd::{initial_field, InitialField};
 use nalgebra::{Rotation3, Unit, Vector3};
+
+/// Most reach limits `init.reach` may list: each costs a coarse blend.
+pub const MAX_REACH_CANDIDATES: usize = 6;
 
 /// Name of a bone label code.
 pub fn bone_name(code: u16) -> String {
@@ -79,6 +83,12 @@ pub struct InitOptions {
     /// on the half phantom they lowered the initial field's mean error from 6.7 to 6.0 mm at
     /// 60° and from 14.1 to 12.2 mm at 90°, with fewer folds, than the paper's linear blend.
     pub blending: Blending,
+    /// Limits of how far a small segment's tissue reaches (skinning::reach_scale: 1 as far
+    /// as its distance, 2 twice as far as a bone of the largest segment's size would): each
+    /// is tried on a coarse grid and the one whose initialised image correlates best with the
+    /// target is kept (crate::reach); one value fixes it. The right limit differs between the
+    /// project's phantom (2) and the real knee bent by the independent generator (1).
+    pub reach: Vec<f64>,
 }
 
 impl InitOptions {
@@ -116,6 +126,14 @@ impl InitOptions {
         if !(10..=1_000_000).contains(&self.search_min_voxels) {
             return bad("search_min_voxels must be 10 to 1000000");
         }
+        if self.reach.is_empty()
+            || self.reach.len() > MAX_REACH_CANDIDATES
+            || !self.reach.iter().all(|&r| within(r, 1.0, 4.0))
+        {
+            return bad(&format!(
+                "reach must list 1 to {MAX_REACH_CANDIDATES} limits, each 1 to 4"
+            ));
+        }
         if (1..self.bones.len()).any(|i| self.bones[..i].contains(&self.bones[i])) {
             return bad("bones must not name a bone twice");
         }
@@ -141,6 +159,7 @@ impl Default for InitOptions {
             search_tilt_degrees: 15.0,
             search_min_voxels: 50,
             blending: Blending::DualQuaternion,
+            reach: vec![1.0, 1.5, 2.0],
         }
     }
 }
@@ -173,6 +192,8 @@ pub struct Initialisation {
     pub weight_grid: Grid,
     /// Folds of the blend removed from the initial field.
     pub repair: FoldRepair,
+    /// How far small segments reach, and why (crate::reach).
+    pub reach: ReachChoice,
     /// Per-bone reports.
     pub reports: Vec<BoneReport>,
 }
@@ -737,16 +758,22 @@ pub fn initialise<B: Backend>(
         None => registered(None)?,
     };
     let target = &pair.target.grid;
-    let initial = match start {
-        Some(Start::Chained(c)) => chained_field(backend, c, target)?,
+    let (initial, reach) = match start {
+        Some(Start::Chained(c)) => (chained_field(backend, c, target)?, ReachChoice::default()),
         _ => {
             let matrices: Vec<Affine> = motions.iter().map(|m| m.1).collect();
             let source_labels = SourceLabels {
                 host: labels,
                 device: &pair.labels,
             };
-            let blend = options.blending;
-            blended_field(backend, &source_labels, &bones, &matrices, blend, target)?
+            let judge = reach::Judge::new(backend, &pair.source, &pair.target)?;
+            let blend = Blend {
+                labels: &source_labels,
+                bones: &bones,
+                matrices: &matrices,
+                options,
+            };
+            blend.field(backend, target, (&judge, &|field| Ok(field)))?
         }
     };
     let resample = ResampleParams::new(&pair.source.grid, target, 0.0, Interpolation::Linear);
@@ -762,6 +789,7 @@ pub fn initialise<B: Backend>(
         weight_grid: skinning::skinning_grid(&pair.labels.grid).0,
         bones,
         repair: initial.repair,
+        reach,
         reports,
     };
     let images = InitialImages {
@@ -772,32 +800,55 @@ pub fn initialise<B: Backend>(
     Ok((found, images))
 }
 
-/// The blend of the bones' `matrices` (in `bones` order) across the soft tissue of `labels`,
-/// inverted on `target`, with its folds repaired: the initial field where the backend
-/// computes.
-fn blended_field<B: Backend>(
-    backend: &B,
-    labels: &SourceLabels<B>,
-    bones: &[u16],
-    matrices: &[Affine],
-    blending: Blending,
-    target: &Grid,
-) -> Result<InitialField<B>> {
-    let power = skinning::SHEPARD_POWER;
-    let weights = skinning::weights(backend, labels.device, bones, Some(matrices), power)?;
-    initial_field(backend, &weights, labels, matrices, blending, target)
+/// Bone motions to blend across the soft tissue of a label map.
+struct Blend<'a, B: Backend> {
+    labels: &'a SourceLabels<'a, B>,
+    /// The bones, in weight order.
+    bones: &'a [u16],
+    /// Their motions, in `bones` order.
+    matrices: &'a [Affine],
+    options: &'a InitOptions,
+}
+
+/// Brings a field on the judging grid (its point → the blend's label map) to the source
+/// scan, for [`reach::Judge::score`].
+pub type ToSource<'a, B> = &'a dyn Fn(DeviceImage<B>) -> Result<DeviceImage<B>>;
+
+impl<B: Backend> Blend<'_, B> {
+    /// The blend inverted on `target`, its folds repaired, with the reach limit among
+    /// `options.reach` whose field `judge` scores highest once brought to the source
+    /// (`to_source`): the initial field where the backend computes.
+    fn field(
+        &self,
+        backend: &B,
+        target: &Grid,
+        (judge, to_source): (&reach::Judge<B>, ToSource<B>),
+    ) -> Result<(InitialField<B>, ReachChoice)> {
+        let distances =
+            skinning::distances(backend, self.labels.device, self.bones, Some(self.matrices))?;
+        let field_on = |limit: f64, grid: &Grid| {
+            let weights = distances.weights(backend, skinning::SHEPARD_POWER, limit)?;
+            let blend = self.options.blending;
+            initial_field(backend, &weights, self.labels, self.matrices, blend, grid)
+        };
+        let choice = reach::choose(backend, &self.options.reach, judge, |limit, grid| {
+            to_source(field_on(limit, grid)?.field)
+        })?;
+        Ok((field_on(choice.limit, target)?, choice))
+    }
 }
 
 /// The blend of given bone `motions` across the soft tissue of a label map (one carried into
 /// another pose, not necessarily a scan's own), inverted on `target`, as [`initialise`] blends
 /// the motions it found: the field where the backend computes. For the step between two
-/// poses of a series.
+/// poses of a series; `judge` and `to_source` choose the reach as [`Blend::field`] does.
 pub fn blend_motions<B: Backend>(
     backend: &B,
     labels: &Labels,
     motions: &BoneTransforms,
     options: &InitOptions,
     target: &Grid,
+    judge: (&reach::Judge<B>, ToSource<B>),
 ) -> Result<DeviceImage<B>> {
     let bones = options.bones_in(labels);
     if bones.is_empty() {
@@ -814,8 +865,13 @@ pub fn blend_motions<B: Backend>(
         host: labels,
         device: &device,
     };
-    let blend = options.blending;
-    Ok(blended_field(backend, &source_labels, &bones, &matrices, blend, target)?.field)
+    let blend = Blend {
+        labels: &source_labels,
+        bones: &bones,
+        matrices: &matrices,
+        options,
+    };
+    Ok(blend.field(backend, target, judge)?.0.field)
 }
 
 /// A chained pose's initial field where the backend computes, with no blend residual and no

@@ -5,9 +5,9 @@
 use crate::abi::Interpolation;
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, MomentsParams, PyramidParams, RbfGradParams,
-    RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
-    SplatParams, SsdParams, SumParams, ThresholdParams,
+    InvertParams, JacobianParams, LabelParams, LnccParams, LocalMomentsParams, MomentsParams,
+    PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams,
+    SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
@@ -257,6 +257,21 @@ pub trait Backend {
     /// One axis's pass of exact Euclidean distance maps (mm) for a stack of volumes
     /// (`params`): the first pass reads a label index map, the others the stack.
     fn edt(&self, params: &EdtParams, input: &Self::Buffer<f32>) -> Result<Self::Buffer<f32>>;
+
+    /// One axis's pass of box sums (`params`) for the local correlation of two images: the
+    /// first pass sums abi::LOCAL_MOMENTS of the images `input` (a) and `other` (b) along x,
+    /// the others sum the stack in `input` along y, then z (`other` unused).
+    fn local_moments(
+        &self,
+        params: &LocalMomentsParams,
+        input: &Self::Buffer<f32>,
+        other: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// Per chunk of abi::STATS_CHUNK voxels of box sums (`local_moments`' last pass): the sum
+    /// of the squared local correlation and the voxels where it is defined (neither window
+    /// flat).
+    fn lncc(&self, params: &LnccParams, sums: &Self::Buffer<f32>) -> Result<Self::Buffer<f32>>;
 
     /// Per chunk of abi::STATS_CHUNK voxels of `values`: how many are at or above `params`'
     /// threshold and the sum of their world positions (4 f64 each).

@@ -88,6 +88,7 @@ fn content(
         "initialisation": result.init.as_ref().map(|i| serde_json::json!({
             "bones": i.reports,
             "fold_repair": i.repair,
+            "reach": i.reach,
         })),
         "adaptive_stages": result.adaptive.stages,
         "control_points": result.adaptive.points.len(),

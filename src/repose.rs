@@ -52,7 +52,8 @@ fn deform<B: Backend>(
     let motions: Vec<Affine> = bones.iter().map(|&b| motion_of(b)).collect();
     let device_labels = DeviceImage::upload_labels(backend, labels)?;
     // Each bone reaches as itself: bend's model does not join bones into segments.
-    let weights = skinning::weights(backend, &device_labels, &bones, None, BEND_SHEPARD_POWER)?;
+    let distances = skinning::distances(backend, &device_labels, &bones, None)?;
+    let weights = distances.weights(backend, BEND_SHEPARD_POWER, skinning::MAX_REACH)?;
     let source_labels = SourceLabels {
         host: labels,
         device: &device_labels,

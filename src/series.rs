@@ -16,6 +16,7 @@ use crate::backend::{resample_volume, Backend, DeviceImage};
 use crate::error::{Error, Result};
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::progress::Progress;
+use crate::reach::Judge;
 use crate::volume::{Field, Image, Labels, Volume};
 
 /// The pose before the one to reach, as its registration left it.
@@ -43,10 +44,26 @@ pub fn chain_step<B: Backend>(
         bone_motions(backend, pair, options, Some(previous.motions), progress)?;
     let step = step_between(previous.motions, &motions)?;
     let carried = carry_labels(backend, labels, previous.field)?;
-    let blended = blend_motions(backend, &carried, &step, options, &target.grid)?;
+    let before =
+        DeviceImage::upload_field(backend, "previous pose's field", previous.field.clone())?;
+    let source = DeviceImage::upload(backend, "source", source.clone())?;
+    let judge = Judge::new(
+        backend,
+        &source,
+        &DeviceImage::upload(backend, "target", target.clone())?,
+    )?;
+    let to_source = |step: DeviceImage<B>| compose_fields(backend, &step, &before);
+    let blended = blend_motions(
+        backend,
+        &carried,
+        &step,
+        options,
+        &target.grid,
+        (&judge, &to_source),
+    )?;
     Ok(Chained {
         motions,
-        field: compose_fields(backend, &blended, previous.field)?,
+        field: compose_fields(backend, &blended, &before)?.download_field(backend)?,
         reports,
     })
 }
@@ -65,12 +82,13 @@ fn carry_labels<B: Backend>(backend: &B, labels: &Labels, field: &Field) -> Resu
 fn compose_fields<B: Backend>(
     backend: &B,
     step: &DeviceImage<B>,
-    previous: &Field,
-) -> Result<Field> {
+    previous: &DeviceImage<B>,
+) -> Result<DeviceImage<B>> {
     let params = ComposeParams::new(&step.grid, &previous.grid);
-    let u0 = DeviceImage::upload_field(backend, "previous pose's field", previous.clone())?;
-    let total = backend.download_one(&backend.compose(&params, &step.data, &u0.data)?)?;
-    Image::from_data(step.grid.clone(), bytemuck::cast_vec(total))
+    Ok(DeviceImage {
+        data: backend.compose(&params, &step.data, &previous.data)?,
+        grid: step.grid.clone(),
+    })
 }
 
 /// Each bone's motion from the previous pose to this one: this pose's after the inverse of the

@@ -103,6 +103,20 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         ],
     ),
     (
+        "local_moments",
+        &[
+            COMMON,
+            (
+                "local_moments.wgsl",
+                include_str!("../shaders/local_moments.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "lncc",
+        &[COMMON, ("lncc.wgsl", include_str!("../shaders/lncc.wgsl"))],
+    ),
+    (
         "dilate",
         &[
             COMMON,

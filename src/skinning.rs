@@ -44,25 +44,28 @@ pub const SEGMENT_DEGREES: f64 = 2.0;
 /// Distance between two bones' motions at each bone's centroid (mm) below which they can move
 /// as one segment (with [`SEGMENT_DEGREES`]).
 pub const SEGMENT_MM: f64 = 1.0;
-/// Most a segment's distances are stretched by its size ([`reach_scale`]).
+/// Most a segment's distances are stretched by its size ([`reach_scale`]) where the limit is
+/// not chosen per pair (`posereg bend`; `init.reach` chooses among several, [`BoneDistances`]).
 pub const MAX_REACH: f64 = 2.0;
 
 /// How much farther than it is a segment's soft tissue "feels": distances to a bone are scaled
 /// by ∛(V_largest / V_segment), V_segment the total volume of the bones in the bone's segment
-/// and V_largest the largest segment's, clamped to 1..[`MAX_REACH`].
+/// and V_largest the largest segment's, clamped to 1..`limit`.
 /// A small bone moving on its own (the patella, a ninth of the femur's volume) then pulls less
 /// of the tissue around it; with plain distances it drags the anterior thigh through its
 /// rotation on the project's phantom (half phantom 60° / 90°: 0.84 / 1.45 mm with the limit 2,
 /// 1.50 / 2.56 mm without scaling). Where the truth lets tissue follow the nearest bone
 /// whatever its size (the real knee bent by the independent generator) the scaling costs
-/// accuracy instead: limit 3 → 2 → none, 2 mm 45° 2.04 → 1.97 → 1.05 mm. The limit 2 is
-/// better than 3 on both; no limit suits only the generator's model. A small bone moving with
-/// a large one (the fibula with the tibia) reaches as far as the large one: scaled as a bone
-/// of its own, it left the tissue around it to the femur (the knee at 90°: 37 mm off there in
-/// the initial field, 8 mm as the segment; registration soft tissue 8.19 → 5.54 mm, 5.09 with the
-/// limit 2).
-pub fn reach_scale(volume: f64, largest: f64) -> f32 {
-    (largest / volume.max(1.0)).cbrt().clamp(1.0, MAX_REACH) as f32
+/// accuracy instead: limit 3 → 2 → none, 2 mm 45° 2.04 → 1.97 → 1.05 mm. Which holds depends
+/// on the joint and the scan, so the initialisation tries several limits and keeps the one
+/// whose initialised image correlates best with the target (crate::reach). A small
+/// bone moving with a large one (the fibula with the tibia) reaches as far as the large one:
+/// scaled as a bone of its own, it left the tissue around it to the femur (the knee at 90°:
+/// 37 mm off there in the initial field, 8 mm as the segment).
+pub fn reach_scale(volume: f64, largest: f64, limit: f64) -> f32 {
+    (largest / volume.max(1.0))
+        .cbrt()
+        .clamp(1.0, limit.max(1.0)) as f32
 }
 
 /// A grid sampling every k-th voxel of `grid` per axis, k chosen for about 2.5 mm spacing.
@@ -119,9 +122,9 @@ pub fn segments(motions: &[Affine], centroids: &[Vector3<f64>]) -> Vec<usize> {
     segment
 }
 
-/// Each bone's [`reach_scale`] from its segment's total volume, given each bone's `segment` and
-/// `volumes`.
-fn segment_reach(segment: &[usize], volumes: &[f64]) -> Vec<f32> {
+/// Each bone's [`reach_scale`] up to `limit` from its segment's total volume, given each bone's
+/// `segment` and `volumes`.
+fn segment_reach(segment: &[usize], volumes: &[f64], limit: f64) -> Vec<f32> {
     let total = |s: usize| -> f64 {
         (0..segment.len())
             .filter(|&j| segment[j] == s)
@@ -131,21 +134,48 @@ fn segment_reach(segment: &[usize], volumes: &[f64]) -> Vec<f32> {
     let largest = segment.iter().map(|&s| total(s)).fold(1.0, f64::max);
     segment
         .iter()
-        .map(|&s| reach_scale(total(s), largest))
+        .map(|&s| reach_scale(total(s), largest, limit))
         .collect()
 }
 
-/// Skinning weights of `bones` from the source `labels` (codes, where the backend computes),
-/// on the skinning grid, falling off as d⁻ᵖᵒʷᵉʳ ([`SHEPARD_POWER`] for the initialisation).
-/// With the bones' `motions`, bones moving together reach as their segment ([`reach_scale`]);
-/// without, each bone reaches as itself.
-pub fn weights<B: Backend>(
+/// The distances to each bone on the skinning grid and how the bones group into segments:
+/// what the weights are made of, for any reach limit ([`BoneDistances::weights`]).
+pub struct BoneDistances<B: Backend> {
+    /// The skinning grid.
+    pub grid: Grid,
+    /// Bone label codes, in weight order.
+    pub bones: Vec<u16>,
+    /// bones.len() distances (mm) per voxel of the grid.
+    distances: B::Buffer<f32>,
+    /// Each bone's segment.
+    segment: Vec<usize>,
+    /// Each bone's volume (source voxels).
+    volumes: Vec<f64>,
+}
+
+impl<B: Backend> BoneDistances<B> {
+    /// Skinning weights falling off as d⁻ᵖᵒʷᵉʳ ([`SHEPARD_POWER`] for the initialisation),
+    /// distances stretched by [`reach_scale`] up to `limit`.
+    pub fn weights(&self, backend: &B, power: u32, limit: f64) -> Result<SkinningWeights<B>> {
+        let reach = segment_reach(&self.segment, &self.volumes, limit);
+        let params = SkinWeightsParams::new(&self.grid, &reach, power);
+        Ok(SkinningWeights {
+            data: backend.skin_weights(&params, &self.distances)?,
+            grid: self.grid.clone(),
+            bones: self.bones.clone(),
+        })
+    }
+}
+
+/// The distances to `bones` of the source `labels` (codes, where the backend computes) on the
+/// skinning grid. With the bones' `motions`, bones moving together form a segment and reach
+/// as one ([`reach_scale`]); without, each bone reaches as itself.
+pub fn distances<B: Backend>(
     backend: &B,
     labels: &DeviceImage<B>,
     bones: &[u16],
     motions: Option<&[Affine]>,
-    power: u32,
-) -> Result<SkinningWeights<B>> {
+) -> Result<BoneDistances<B>> {
     crate::abi::check_bone_count(bones.len())?;
     let (grid, _) = skinning_grid(&labels.grid);
     // The skinning grid's voxels are source voxels: nearest-voxel sampling picks their labels.
@@ -179,14 +209,13 @@ pub fn weights<B: Backend>(
         }
         None => (0..bones.len()).collect(),
     };
-    let reach = segment_reach(&segment, &volumes);
     let index = regions::label_index(backend, &sampled, bones)?;
-    let distances = regions::distance_maps(backend, &index, bones.len())?;
-    let params = SkinWeightsParams::new(&grid, &reach, power);
-    Ok(SkinningWeights {
-        data: backend.skin_weights(&params, &distances)?,
+    Ok(BoneDistances {
+        distances: regions::distance_maps(backend, &index, bones.len())?,
         grid,
         bones: bones.to_vec(),
+        segment,
+        volumes,
     })
 }
 
@@ -228,12 +257,13 @@ mod tests {
 
     #[test]
     fn a_segment_reaches_by_its_whole_size() {
-        assert_eq!(reach_scale(1000.0, 1000.0), 1.0);
-        assert_eq!(reach_scale(1.0, 1000.0), MAX_REACH as f32);
-        assert!((reach_scale(500.0, 1000.0) - 2f32.cbrt()).abs() < 1e-6);
+        assert_eq!(reach_scale(1000.0, 1000.0, 2.0), 1.0);
+        assert_eq!(reach_scale(1.0, 1000.0, 2.0), 2.0);
+        assert_eq!(reach_scale(1.0, 1000.0, 1.5), 1.5);
+        assert!((reach_scale(500.0, 1000.0, 2.0) - 2f32.cbrt()).abs() < 1e-6);
         // Femur 1000, tibia 700 and fibula 100 together (800), patella 100.
-        let reach = segment_reach(&[0, 1, 2, 1], &[1000.0, 700.0, 100.0, 100.0]);
-        let want = [1.0, 1.25f32.cbrt(), MAX_REACH as f32, 1.25f32.cbrt()];
+        let reach = segment_reach(&[0, 1, 2, 1], &[1000.0, 700.0, 100.0, 100.0], 2.0);
+        let want = [1.0, 1.25f32.cbrt(), 2.0, 1.25f32.cbrt()];
         for (got, want) in reach.iter().zip(want) {
             assert!((got - want).abs() < 1e-6, "{reach:?}");
         }

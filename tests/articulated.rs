@@ -296,6 +296,28 @@ fn given_transforms_skip_the_rigid_stage() {
     }
 }
 
+/// On the project's phantom at 60° (its own truth: the anterior thigh stays with the femur
+/// while the patella turns), the reach the initialisation keeps gives an initial field within
+/// 3% of the truest candidate's; the same is asked on a truth from outside the project in
+/// tests/independent_pairs.rs, where another limit is the truest.
+#[test]
+fn the_reach_kept_is_the_truest_on_the_phantom() {
+    let b = bent(60.0);
+    let body: Vec<bool> = b.labels.data.iter().map(|&l| l > 0).collect();
+    let s = straight();
+    let (fixed, (limit, error)) = common::initial_error_by_reach(
+        (&s.image, &s.labels, &b.image),
+        &b.truth,
+        &b.truth_field,
+        &body,
+    );
+    let best = fixed.iter().map(|f| f.1).fold(f64::INFINITY, f64::min);
+    assert!(
+        error <= 1.03 * best,
+        "kept {limit}: {error:.3} mm; fixed limits {fixed:?}"
+    );
+}
+
 #[test]
 fn missing_bones_are_refused() {
     let s = straight();

@@ -12,8 +12,9 @@ mod common;
 use common::*;
 use posereg::abi::{
     pack_candidates, Blending, BoneBlend, BoneLookupParams, ComposeParams, DilateParams,
-    Interpolation, InvertParams, JacobianParams, LabelParams, MomentsParams, RbfGradParams,
-    ResampleParams, RigidParams, ScoreParams, ThresholdParams, RIGID_SUMS, SCORE_SUMS,
+    Interpolation, InvertParams, JacobianParams, LabelParams, LnccParams, LocalMomentsParams,
+    MomentsParams, RbfGradParams, ResampleParams, RigidParams, ScoreParams, ThresholdParams,
+    RIGID_SUMS, SCORE_SUMS,
 };
 use posereg::backend::BoneImages;
 use posereg::cpu::CpuBackend;
@@ -1062,4 +1063,41 @@ fn inverted<B: Backend>(backend: &B, params: &InvertParams, field: &Field) -> (V
         backend.download_one(&w).unwrap(),
         backend.download_one(&r).unwrap(),
     )
+}
+
+/// The local correlation's box sums (three local_moments passes, radius 2 at an odd size, so
+/// windows are cut at every face) and the per-chunk ρ² sums, on both backends.
+#[test]
+fn local_correlation_kernels_parity() {
+    let Some(gpu) = gpu() else { return };
+    let grid = oblique_grid([19, 14, 11]);
+    let (a, b) = (smooth_volume(&grid, 21), smooth_volume(&grid, 22));
+    let cpu = local_correlation_outputs(&CpuBackend, &grid, &a.data, &b.data);
+    let got = local_correlation_outputs(gpu, &grid, &a.data, &b.data);
+    // Sums of ≤ 125 products of values ~100: a fused multiply-add moves them by ulps of 1e6.
+    close("local_moments", &got.0, &cpu.0, 0.0, 1e-5);
+    // ρ² from differences of those sums, in [0, 1], summed over 1024 voxels.
+    close("lncc", &got.1, &cpu.1, 1e-2, 1e-4);
+    assert!(cpu.1.chunks(2).all(|c| c[1] > 0.0 && c[0] > 0.0));
+}
+
+/// The box sums after the last pass and the per-chunk ρ² sums of `a` and `b`, brought back.
+fn local_correlation_outputs<B: Backend>(
+    backend: &B,
+    grid: &Grid,
+    a: &[f32],
+    b: &[f32],
+) -> (Vec<f32>, Vec<f32>) {
+    let [x, y, z] = LocalMomentsParams::passes(grid, 2);
+    let (a, b) = (
+        backend.upload("a", a.to_vec()).unwrap(),
+        backend.upload("b", b.to_vec()).unwrap(),
+    );
+    let along_x = backend.local_moments(&x, &a, &b).unwrap();
+    let along_y = backend.local_moments(&y, &along_x, &along_x).unwrap();
+    let boxed = backend.local_moments(&z, &along_y, &along_y).unwrap();
+    let sums = backend.lncc(&LnccParams::new(grid, 2), &boxed).unwrap();
+    let mut out = backend.download(&[&boxed, &sums]).unwrap();
+    let sums = out.pop().unwrap();
+    (out.pop().unwrap(), sums)
 }

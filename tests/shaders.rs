@@ -3,9 +3,10 @@
 
 use posereg::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, MomentsParams, PartialsParams, PyramidParams,
-    RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams,
-    SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
+    InvertParams, JacobianParams, LabelParams, LnccParams, LocalMomentsParams, MomentsParams,
+    PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
+    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
+    ThresholdParams,
 };
 use posereg::shaders::{locate, source, KERNELS};
 use std::mem::size_of;
@@ -68,7 +69,7 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
-    let pairs: [(&str, &str, usize); 32] = [
+    let pairs: [(&str, &str, usize); 34] = [
         ("warp_image", "RbfGradParams", size_of::<RbfGradParams>()),
         ("gain_terms", "GainParams", size_of::<GainParams>()),
         ("gain_ratio", "GainParams", size_of::<GainParams>()),
@@ -120,6 +121,12 @@ fn abi_structs_match_their_wgsl_twins() {
         ("dilate", "DilateParams", size_of::<DilateParams>()),
         ("edt", "EdtParams", size_of::<EdtParams>()),
         ("moments", "MomentsParams", size_of::<MomentsParams>()),
+        (
+            "local_moments",
+            "LocalMomentsParams",
+            size_of::<LocalMomentsParams>(),
+        ),
+        ("lncc", "LnccParams", size_of::<LnccParams>()),
         (
             "fold_smooth",
             "BoneLookupParams",

@@ -40,6 +40,10 @@ pub struct InitArgs {
     /// How the bone motions are blended across the soft tissue [default: dual-quaternion].
     #[arg(long, value_enum)]
     pub blending: Option<Blending>,
+    /// How far a small bone's tissue reaches, e.g. 1,1.5,2 (init.reach): several limits are
+    /// tried and the best fit to the target kept; one fixes it.
+    #[arg(long, value_delimiter = ',')]
+    pub reach: Option<Vec<f64>>,
     /// Bone transforms to start from instead of registering (bone-transform JSON).
     #[arg(long)]
     pub init: Option<PathBuf>,
@@ -194,6 +198,9 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     if let Some(blending) = args.blending {
         options.blending = blending;
     }
+    if let Some(reach) = &args.reach {
+        options.reach = reach.clone();
+    }
     options.chain = args.pair.chain(&options.chain)?;
     // The flags are checked before any voxel is read.
     options.check()?;
@@ -228,6 +235,7 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         serde_json::json!({
             "method": "shepard inverse-distance",
             "power": posereg::skinning::SHEPARD_POWER,
+            "reach": init.reach,
             "grid_dims": init.weight_grid.dims,
         }),
     );
@@ -293,6 +301,7 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     let residual = &images.residual.data;
     let worst = residual.iter().cloned().fold(0.0f32, f32::max);
     reporter.result(&format!("  blend inversion residual: worst {worst:.3} mm"));
+    reporter.result(&format!("  {}", reach_line(&init.reach)));
     let repair = &init.repair;
     reporter.result(&format!(
         "  folds (det J <= 0.05): {} in the blend, {} after {} smoothing rounds and {} unfolding steps",
@@ -321,4 +330,21 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     reporter.result(&format!("written to {}", args.pair.output.display()));
     reporter.save_log(&args.pair.output.join("posereg.log"))?;
     Ok(())
+}
+
+/// How far small segments reach and, when several limits were tried, each one's fit.
+pub fn reach_line(reach: &posereg::reach::ReachChoice) -> String {
+    let tried: Vec<String> = reach
+        .tried
+        .iter()
+        .map(|t| format!("{} → {:.4}", t.limit, t.local_correlation))
+        .collect();
+    match tried.is_empty() {
+        true => format!("reach limit {} (given)", reach.limit),
+        false => format!(
+            "reach limit {} (local correlation with the target: {})",
+            reach.limit,
+            tried.join(", ")
+        ),
+    }
 }

@@ -39,6 +39,10 @@ pub struct RegisterArgs {
     /// How the bone motions are blended across the soft tissue (init.blending).
     #[arg(long, value_enum)]
     pub blending: Option<Blending>,
+    /// How far a small bone's tissue reaches, e.g. 1,1.5,2 (init.reach): several limits are
+    /// tried and the best fit to the target kept; one fixes it.
+    #[arg(long, value_delimiter = ',')]
+    pub reach: Option<Vec<f64>>,
     /// Adaptive stage: L-BFGS iterations per refinement, per level coarse to fine, e.g. 40x30x20.
     #[arg(long)]
     pub iterations: Option<PerLevel<usize>>,
@@ -83,6 +87,9 @@ impl RegisterArgs {
         }
         if let Some(blending) = self.blending {
             options.init.blending = blending;
+        }
+        if let Some(reach) = &self.reach {
+            options.init.reach = reach.clone();
         }
         if let Some(iterations) = &self.iterations {
             options.adaptive.iterations = iterations.clone();

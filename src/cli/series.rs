@@ -65,6 +65,7 @@ impl SeriesArgs {
             no_init: false,
             bones: None,
             blending: None,
+            reach: None,
             iterations: None,
             threshold: None,
             target_mask: None,

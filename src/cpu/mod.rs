@@ -13,6 +13,7 @@ pub mod jacobian;
 pub mod labels;
 pub mod lattice_energy;
 pub mod lattice_splat;
+pub mod lncc;
 pub mod moments;
 pub mod pyramid;
 pub mod rbf_adjoint;
@@ -31,9 +32,10 @@ pub mod warp_image;
 
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, MomentsParams, PartialsParams, PyramidParams,
-    RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams,
-    SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
+    InvertParams, JacobianParams, LabelParams, LnccParams, LocalMomentsParams, MomentsParams,
+    PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
+    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
+    ThresholdParams,
 };
 use crate::backend::{Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -180,6 +182,21 @@ impl Backend for CpuBackend {
 
     fn edt(&self, params: &EdtParams, input: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
         filled(params.values(), |out| edt::edt(params, input, out))
+    }
+
+    fn local_moments(
+        &self,
+        params: &LocalMomentsParams,
+        input: &Arc<Vec<f32>>,
+        other: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.values(), |out| {
+            lncc::local_moments(params, input, other, out)
+        })
+    }
+
+    fn lncc(&self, params: &LnccParams, sums: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
+        filled(2 * params.chunks(), |out| lncc::lncc(params, sums, out))
     }
 
     fn moments(&self, params: &MomentsParams, values: &Arc<Vec<f32>>) -> Result<Arc<Vec<f64>>> {

@@ -12,6 +12,7 @@ pub mod fold;
 pub mod jacobian;
 pub mod kernel;
 pub mod labels;
+pub mod lncc;
 pub mod nonrigid;
 pub mod pyramid;
 pub mod regions;
@@ -22,9 +23,9 @@ pub mod skinning;
 
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, MomentsParams, PyramidParams, RbfGradParams,
-    RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
-    SplatParams, SsdParams, SumParams, ThresholdParams,
+    InvertParams, JacobianParams, LabelParams, LnccParams, LocalMomentsParams, MomentsParams,
+    PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams,
+    SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use crate::backend::{Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -50,6 +51,8 @@ pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
     ("label_index", labels::INDEX_BINDINGS),
     ("lattice_energy", nonrigid::ENERGY_BINDINGS),
     ("lattice_splat", nonrigid::SPLAT_BINDINGS),
+    ("local_moments", lncc::MOMENTS_BINDINGS),
+    ("lncc", lncc::LNCC_BINDINGS),
     ("moments", regions::MOMENTS_BINDINGS),
     ("pyramid", pyramid::BINDINGS),
     ("rbf_adjoint", nonrigid::ADJOINT_BINDINGS),
@@ -97,6 +100,10 @@ pub struct Kernels {
     pub edt: Kernel,
     /// shaders/moments.wgsl
     pub moments: Kernel,
+    /// shaders/local_moments.wgsl
+    pub local_moments: Kernel,
+    /// shaders/lncc.wgsl
+    pub lncc: Kernel,
     /// shaders/fold_smooth.wgsl
     pub fold_smooth: Kernel,
     /// shaders/ssd_cells.wgsl
@@ -174,6 +181,8 @@ impl GpuBackend {
                 dilate: compile(&ctx, "dilate")?,
                 edt: compile(&ctx, "edt")?,
                 moments: compile(&ctx, "moments")?,
+                local_moments: compile(&ctx, "local_moments")?,
+                lncc: compile(&ctx, "lncc")?,
                 fold_smooth: compile(&ctx, "fold_smooth")?,
                 ssd_cells: compile(&ctx, "ssd_cells")?,
                 jacobian: compile(&ctx, "jacobian")?,
@@ -320,6 +329,19 @@ impl Backend for GpuBackend {
 
     fn edt(&self, params: &EdtParams, input: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
         self.record_edt(params, input)
+    }
+
+    fn local_moments(
+        &self,
+        params: &LocalMomentsParams,
+        input: &GpuBuffer<f32>,
+        other: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_local_moments(params, input, other)
+    }
+
+    fn lncc(&self, params: &LnccParams, sums: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
+        self.record_lncc(params, sums)
     }
 
     fn moments(&self, params: &MomentsParams, values: &GpuBuffer<f32>) -> Result<GpuBuffer<f64>> {

@@ -187,3 +187,32 @@ pub fn skin_blend<B: posereg::Backend>(
         .flat_map(|(u, r)| [u[0], u[1], u[2], r])
         .collect())
 }
+
+/// The initial field's mean error over `body` against `truth_field` with each reach limit of
+/// the default candidates fixed, and with the default choice among them: (limit, error) per
+/// fixed limit, then (the limit chosen, its error). The bones start at `truth` so that only
+/// the reach differs.
+pub fn initial_error_by_reach(
+    (source, labels, target): (&Volume, &posereg::Labels, &Volume),
+    truth: &posereg::io::transform::BoneTransforms,
+    truth_field: &Field,
+    body: &[bool],
+) -> (Vec<(f64, f64)>, (f64, f64)) {
+    use posereg::articulated::{initialise_volumes, InitOptions, Start};
+    let run = |reach: Vec<f64>| {
+        let options = InitOptions {
+            reach,
+            ..InitOptions::default()
+        };
+        let start = Some(Start::Given(truth));
+        let backend = &posereg::cpu::CpuBackend;
+        let silent = &posereg::progress::Silent;
+        let (init, images) =
+            initialise_volumes(backend, source, labels, target, &options, start, silent).unwrap();
+        let error = posereg::evaluate::field_error(&images.field, truth_field, |n| body[n]);
+        (init.reach.limit, error.unwrap().mean_mm)
+    };
+    let candidates = InitOptions::default().reach;
+    let fixed = candidates.iter().map(|&l| run(vec![l])).collect();
+    (fixed, run(candidates))
+}
