@@ -15,7 +15,7 @@ use posereg::joint::degrees_between;
 use posereg::labels as label;
 use posereg::progress::Silent;
 use posereg::Backend;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// Runs scripts/make_pair.py with `args`; false when python3 or its packages are missing and
@@ -37,6 +37,26 @@ fn make_pair(args: &[&str]) -> bool {
             false
         }
     }
+}
+
+/// posereg's small phantom, straight, written in `dir`: its image and its labels.
+fn small_phantom(dir: &Path) -> (PathBuf, PathBuf) {
+    let straight = dir.join("straight");
+    let made = common::posereg(&[
+        "phantom",
+        "--quiet",
+        "--device",
+        "cpu",
+        "--size",
+        "small",
+        "-o",
+        straight.to_str().unwrap(),
+    ]);
+    assert!(made.status.success(), "{made:?}");
+    (
+        straight.join("image.nii.gz"),
+        straight.join("labels.nii.gz"),
+    )
 }
 
 fn initialise<B: Backend>(backend: &B, pair: &Path) -> Initialisation {
@@ -61,23 +81,8 @@ fn motion(init: &Initialisation, code: u16) -> posereg::volume::Affine {
 #[test]
 fn a_barely_seen_fibula_follows_the_tibia_on_both_backends() {
     let dir = tempfile::tempdir().unwrap();
-    let straight = dir.path().join("straight");
-    let made = common::posereg(&[
-        "phantom",
-        "--quiet",
-        "--device",
-        "cpu",
-        "--size",
-        "small",
-        "-o",
-        straight.to_str().unwrap(),
-    ]);
-    assert!(made.status.success(), "{made:?}");
+    let (image, labels) = small_phantom(dir.path());
     let pair = dir.path().join("pair");
-    let (image, labels) = (
-        straight.join("image.nii.gz"),
-        straight.join("labels.nii.gz"),
-    );
     if !make_pair(&[
         "--image",
         image.to_str().unwrap(),
@@ -140,23 +145,8 @@ fn a_barely_seen_fibula_follows_the_tibia_on_both_backends() {
 #[test]
 fn the_reach_kept_is_the_truest_on_an_independent_pair() {
     let dir = tempfile::tempdir().unwrap();
-    let straight = dir.path().join("straight");
-    let made = common::posereg(&[
-        "phantom",
-        "--quiet",
-        "--device",
-        "cpu",
-        "--size",
-        "small",
-        "-o",
-        straight.to_str().unwrap(),
-    ]);
-    assert!(made.status.success(), "{made:?}");
+    let (image, labels) = small_phantom(dir.path());
     let pair = dir.path().join("pair");
-    let (image, labels) = (
-        straight.join("image.nii.gz"),
-        straight.join("labels.nii.gz"),
-    );
     let args = ["--degrees", "45", "--spacing", "0", "--seed", "3", "-o"];
     let image_args = [
         "--image",
