@@ -766,7 +766,7 @@ pub fn initialise<B: Backend>(
                 host: labels,
                 device: &pair.labels,
             };
-            let judge = reach::Judge::new(backend, &pair.source, &pair.target)?;
+            let judge = reach::Judge::new(&pair.source, &pair.target);
             let blend = Blend {
                 labels: &source_labels,
                 bones: &bones,
@@ -811,7 +811,7 @@ struct Blend<'a, B: Backend> {
 }
 
 /// Brings a field on the judging grid (its point → the blend's label map) to the source
-/// scan, for [`reach::Judge::score`].
+/// scan, for [`reach::choose`].
 pub type ToSource<'a, B> = &'a dyn Fn(DeviceImage<B>) -> Result<DeviceImage<B>>;
 
 impl<B: Backend> Blend<'_, B> {

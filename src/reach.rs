@@ -41,30 +41,38 @@ pub struct ReachChoice {
     pub tried: Vec<ReachTried>,
 }
 
-/// The source and the target brought down to [`JUDGE_SPACING_MM`]: what the candidates are
-/// compared on.
+/// The source and the target a candidate's field is judged on; brought down to
+/// [`JUDGE_SPACING_MM`] only when there are candidates to compare ([`choose`]).
 pub struct Judge<B: Backend> {
     source: DeviceImage<B>,
     target: DeviceImage<B>,
 }
 
 impl<B: Backend> Judge<B> {
-    /// Smooths and halves `source` and `target` down to the judging spacing.
-    pub fn new(backend: &B, source: &DeviceImage<B>, target: &DeviceImage<B>) -> Result<Self> {
+    /// Judges against `source` and `target` (shared, not copied).
+    pub fn new(source: &DeviceImage<B>, target: &DeviceImage<B>) -> Self {
+        Judge {
+            source: source.clone(),
+            target: target.clone(),
+        }
+    }
+
+    /// Both images smoothed and halved down to the judging spacing.
+    fn coarse(&self, backend: &B) -> Result<Judge<B>> {
         Ok(Judge {
-            source: pyramid::down_to_spacing(backend, source.clone(), JUDGE_SPACING_MM)?,
-            target: pyramid::down_to_spacing(backend, target.clone(), JUDGE_SPACING_MM)?,
+            source: pyramid::down_to_spacing(backend, self.source.clone(), JUDGE_SPACING_MM)?,
+            target: pyramid::down_to_spacing(backend, self.target.clone(), JUDGE_SPACING_MM)?,
         })
     }
 
-    /// The grid a candidate's field must be on: the coarse target's.
-    pub fn grid(&self) -> &Grid {
+    /// The grid a candidate's field must be on: the target's.
+    fn grid(&self) -> &Grid {
         &self.target.grid
     }
 
     /// The local correlation with the target of the source seen through `field` (the
-    /// judging grid's point → source point).
-    pub fn score(&self, backend: &B, field: &DeviceImage<B>) -> Result<f64> {
+    /// target's grid point → source point).
+    fn score(&self, backend: &B, field: &DeviceImage<B>) -> Result<f64> {
         let params = ResampleParams::new(
             &self.source.grid,
             &self.target.grid,
@@ -80,7 +88,8 @@ impl<B: Backend> Judge<B> {
 }
 
 /// The limit among `limits` whose field (`field_on(limit, grid)`: the grid's point → source
-/// point) the `judge` scores highest; the first of equals. One limit is kept untried.
+/// point) scores highest on the `judge`'s images brought down to [`JUDGE_SPACING_MM`]; the
+/// first of equals. One limit is kept untried (and nothing is brought down).
 pub fn choose<B: Backend>(
     backend: &B,
     limits: &[f64],
@@ -93,10 +102,11 @@ pub fn choose<B: Backend>(
             tried: Vec::new(),
         });
     }
+    let coarse = judge.coarse(backend)?;
     let mut tried = Vec::with_capacity(limits.len());
     for &limit in limits {
-        let field = field_on(limit, judge.grid())?;
-        let local_correlation = judge.score(backend, &field)?;
+        let field = field_on(limit, coarse.grid())?;
+        let local_correlation = coarse.score(backend, &field)?;
         tried.push(ReachTried {
             limit,
             local_correlation,

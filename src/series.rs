@@ -48,10 +48,9 @@ pub fn chain_step<B: Backend>(
         DeviceImage::upload_field(backend, "previous pose's field", previous.field.clone())?;
     let source = DeviceImage::upload(backend, "source", source.clone())?;
     let judge = Judge::new(
-        backend,
         &source,
         &DeviceImage::upload(backend, "target", target.clone())?,
-    )?;
+    );
     let to_source = |step: DeviceImage<B>| compose_fields(backend, &step, &before);
     let blended = blend_motions(
         backend,

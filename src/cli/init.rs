@@ -333,7 +333,7 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
 }
 
 /// How far small segments reach and, when several limits were tried, each one's fit.
-pub fn reach_line(reach: &posereg::reach::ReachChoice) -> String {
+fn reach_line(reach: &posereg::reach::ReachChoice) -> String {
     let tried: Vec<String> = reach
         .tried
         .iter()
