@@ -14,10 +14,11 @@ use posereg::abi::{
     SkinBlendParams, SkinWeightsParams, SsdParams, SumParams, ThresholdParams, RIGID_SUMS,
     SCORE_SUMS,
 };
-use posereg::backend::{BoneImages, CostImages};
+use posereg::backend::{box_sums, BoneImages, CostImages};
 use posereg::cpu::CpuBackend;
 use posereg::device::Opened;
 use posereg::gpu::GpuBackend;
+use posereg::similarity::LnccCost;
 use posereg::volume::{Affine, Grid, Image};
 use posereg::Backend;
 
@@ -361,7 +362,7 @@ fn kernels(c: &mut Criterion) {
         });
         label_and_fold_rows(c, &g, &label, &backends, &uf);
         // The local correlation of two images (radius 2): three box-sum passes and the ρ² sums.
-        let [x, y, z] = LocalMomentsParams::passes(&g, 2);
+        let passes = LocalMomentsParams::passes(&g, 2);
         let lncc = LnccParams::new(&g, 2);
         group(
             c,
@@ -371,9 +372,7 @@ fn kernels(c: &mut Criterion) {
             &backends,
             |b| {
                 posereg::on_backend!(b, b => resident(b, &[&source.data, &target.data], |b, [s, t]| {
-                    let along_x = b.local_moments(&x, t, s)?;
-                    let along_y = b.local_moments(&y, &along_x, &along_x)?;
-                    b.lncc(&lncc, &b.local_moments(&z, &along_y, &along_y)?)
+                    b.lncc(&lncc, &box_sums(b, &passes, t, s)?)
                 }))
             },
         );
@@ -394,6 +393,16 @@ fn kernels(c: &mut Criterion) {
         group(c, "warp_image", g.len() as u64, &label, &backends, |b| {
             posereg::on_backend!(b, b => resident(b, &[&lattice, &source.data], |b, [l, s]| {
                 b.warp_image(&warp, l, s)
+            }))
+        });
+        // The LNCC image term's evaluation through the warp (radius 2): the warped image, five
+        // box-sum passes, lncc_terms and lncc_gradient, as warp_cost is for SSD.
+        let lncc_cost = LnccCost::new(&g, 2, 1.0);
+        let coverage: Vec<f32> = vec![1.0; g.len()];
+        group(c, "lncc_cost", g.len() as u64, &label, &backends, |b| {
+            posereg::on_backend!(b, b => resident(b, &[&lattice, &source.data, &target.data, &coverage], |b, [l, s, t, c]| {
+                let images = CostImages { moving: s, fixed: t, covered: c };
+                Ok(lncc_cost.evaluate(b, &warp, l, &images)?.0)
             }))
         });
         gain_rows(c, &g, &label, &backends, (&source, &target));

@@ -1,10 +1,8 @@
 // lncc.wgsl: the local correlation of two images from their box sums (local_moments.wgsl),
 // summed per chunk of consecutive voxels in index order, so that the CPU twin gives the same
-// bits: per voxel, with n the voxels of its window (cut at the grid's faces), means
-// ma = Σa / n, mb = Σb / n, variances va = Σa² / n − ma², vb likewise, covariance
-// cab = Σab / n − ma mb, and ρ² = cab² / (va vb), in [0, 1]. A window where either image is
-// flat (its variance within f32 rounding of its mean square, 1e-6 of it) has no correlation:
-// it adds 0 and is not counted. The host adds the chunks' sums.
+// bits: per voxel, ρ² = cab² / (va vb) of its window (window.wgsl; cut at the grid's faces),
+// in [0, 1]. A window where either image is flat has no correlation: it adds 0 and is not
+// counted. The host adds the chunks' sums.
 //
 // Bindings (group 0):
 //   0 uniform  LnccParams
@@ -22,27 +20,15 @@ struct LnccParams {
 @group(0) @binding(1) var<storage, read> sums: array<f32>;
 @group(0) @binding(2) var<storage, read_write> out: array<f32>;
 
-// Voxels of the window along one axis at coordinate c of n, radius r.
-fn window_length(c: u32, n: u32, r: u32) -> u32 {
-    return min(c + r + 1u, n) - (max(c, r) - r);
-}
-
 // ρ² at voxel v (index i, j, k), or -1 where a window is flat.
 fn squared_correlation(v: u32, i: u32, j: u32, k: u32) -> f32 {
-    let d = params.dims;
-    let n = f32(window_length(i, d.x, d.w) * window_length(j, d.y, d.w)
-        * window_length(k, d.z, d.w));
-    let ma = sums[5u * v] / n;
-    let mb = sums[5u * v + 1u] / n;
-    let saa = sums[5u * v + 2u] / n;
-    let sbb = sums[5u * v + 3u] / n;
-    let va = saa - ma * ma;
-    let vb = sbb - mb * mb;
-    let cab = sums[5u * v + 4u] / n - ma * mb;
-    if (va <= 1e-6 * saa || vb <= 1e-6 * sbb) {
+    let s = array<f32, 5>(sums[5u * v], sums[5u * v + 1u], sums[5u * v + 2u],
+                          sums[5u * v + 3u], sums[5u * v + 4u]);
+    let w = window_at(s, params.dims, i, j, k);
+    if (w.flat) {
         return -1.0;
     }
-    return min(cab * cab / (va * vb), 1.0);
+    return min(w.cab * w.cab / (w.va * w.vb), 1.0);
 }
 
 @compute @workgroup_size(64, 1, 1)

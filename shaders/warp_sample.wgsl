@@ -1,26 +1,45 @@
-// warp_sample.wgsl: the moving image sampled through the lattice warp at one voxel, against the
-// target's value there; shared by warp_image and warp_cost, which declare `params`, `lattice` and
-// `sampled_value` (I0). Mirrored in src/cpu/warp_image.rs (warped_sample).
+// warp_sample.wgsl: the moving image sampled through the lattice warp at one voxel; shared by
+// warp_image, warp_cost and lncc_gradient, which declare `params`, `lattice` and
+// `sampled_value` (I0). Mirrored in src/cpu/warp_image.rs (warped_sample, warped_value_gradient).
 
-// (W, ∂(W − t)²/∂R) at voxel (i, j, k): W = I0(x + R(x)), the gradient 2 (W − t) ∇I0 in world
-// mm; all zero where x + R(x) lies outside I0.
-fn warped_sample(i: u32, j: u32, k: u32, t: f32) -> vec4<f32> {
-    let d = params.dims.xyz;
+// Where voxel (i, j, k) samples I0, in I0's index space: x + R(x).
+fn warped_position(i: u32, j: u32, k: u32) -> vec3<f32> {
     let r = warp_at(i, j, k);
-    let q = vec3<f32>(f32(i), f32(j), f32(k)) + vec3<f32>(
+    return vec3<f32>(f32(i), f32(j), f32(k)) + vec3<f32>(
         linear_row(params.mm_to_index[0], r),
         linear_row(params.mm_to_index[1], r),
         linear_row(params.mm_to_index[2], r),
     );
-    if (!inside_source(q, d)) {
+}
+
+// (W, ∂(W − t)²/∂R) at voxel (i, j, k) against the target's value t: W = I0(x + R(x)), the
+// gradient 2 (W − t) ∇I0 in world mm; all zero where x + R(x) lies outside I0.
+fn warped_sample(i: u32, j: u32, k: u32, t: f32) -> vec4<f32> {
+    let q = warped_position(i, j, k);
+    if (!inside_source(q, params.dims.xyz)) {
         return vec4<f32>(0.0);
     }
-    let vg = trilinear_with_gradient(q, d);
+    let vg = trilinear_with_gradient(q, params.dims.xyz);
     let residual = 2.0 * (vg.x - t);
     return vec4<f32>(
         vg.x,
         residual * linear_row(params.gradient_to_world[0], vg.yzw),
         residual * linear_row(params.gradient_to_world[1], vg.yzw),
         residual * linear_row(params.gradient_to_world[2], vg.yzw),
+    );
+}
+
+// (W, ∇I0(x + R(x))) at voxel (i, j, k), the gradient in world mm; all zero outside I0.
+fn warped_value_gradient(i: u32, j: u32, k: u32) -> vec4<f32> {
+    let q = warped_position(i, j, k);
+    if (!inside_source(q, params.dims.xyz)) {
+        return vec4<f32>(0.0);
+    }
+    let vg = trilinear_with_gradient(q, params.dims.xyz);
+    return vec4<f32>(
+        vg.x,
+        linear_row(params.gradient_to_world[0], vg.yzw),
+        linear_row(params.gradient_to_world[1], vg.yzw),
+        linear_row(params.gradient_to_world[2], vg.yzw),
     );
 }

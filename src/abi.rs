@@ -349,9 +349,49 @@ impl LocalMomentsParams {
         })
     }
 
+    /// The x, y and z passes summing a stack of [`LOCAL_MOMENTS`] values per voxel on `grid`
+    /// (as lncc_terms writes) over the same boxes.
+    pub fn stack_passes(grid: &Grid, radius: usize) -> [LocalMomentsParams; 3] {
+        std::array::from_fn(|axis| LocalMomentsParams {
+            dims: dims4(grid, radius as u32),
+            axis: [axis as u32, 0, 0, 0],
+        })
+    }
+
     /// Values written: [`LOCAL_MOMENTS`] per voxel.
     pub fn values(&self) -> usize {
         LOCAL_MOMENTS * count(&self.dims)
+    }
+}
+
+/// Keep in sync with `LnccTermsParams` in shaders/lncc_terms.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct LnccTermsParams {
+    /// nx, ny, nz, and the window's radius (voxels).
+    pub dims: [u32; 4],
+    /// The cost's scale K, unused ×3.
+    pub scale: [f32; 4],
+}
+
+impl LnccTermsParams {
+    /// For [`LOCAL_MOMENTS`] summed on `grid` over windows of `radius` voxels; the cost is
+    /// `scale` Σ c (1 − ρ²).
+    pub fn new(grid: &Grid, radius: usize, scale: f32) -> Self {
+        LnccTermsParams {
+            dims: dims4(grid, radius as u32),
+            scale: [scale, 0.0, 0.0, 0.0],
+        }
+    }
+
+    /// Values written to the terms: [`LOCAL_MOMENTS`] per voxel.
+    pub fn values(&self) -> usize {
+        LOCAL_MOMENTS * count(&self.dims)
+    }
+
+    /// Rows of x (ny · nz): one cost sum per row.
+    pub fn rows(&self) -> usize {
+        (self.dims[1] * self.dims[2]) as usize
     }
 }
 

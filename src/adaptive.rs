@@ -30,6 +30,7 @@ use crate::progress::Progress;
 use crate::pyramid;
 use crate::rbf::{RbfCoefficients, RbfSystem};
 use crate::regularise::energy_params;
+use crate::similarity::{LnccCost, Similarity};
 use crate::volume::Grid;
 use nalgebra::Vector3;
 
@@ -76,6 +77,11 @@ pub struct AdaptiveOptions {
     /// Scale (mm) of the smooth intensity gain matched between the moving and the target
     /// image before optimising (crate::gain); 0 leaves intensities as they are.
     pub gain_scale_mm: f64,
+    /// The cost's image term per pyramid level, coarse to fine: SSD after the gain, or LNCC
+    /// (where the cells that fit poorly are still found by their SSD).
+    pub similarity: PerLevel<Similarity>,
+    /// Radius (voxels) of LNCC's windows: (2 r + 1)³ voxels.
+    pub lncc_radius: usize,
 }
 
 impl Default for AdaptiveOptions {
@@ -92,6 +98,8 @@ impl Default for AdaptiveOptions {
             membrane: PerLevel::all(MEMBRANE_DEFAULT),
             bending: PerLevel::all(BENDING_DEFAULT),
             gain_scale_mm: 20.0,
+            similarity: PerLevel::all(Similarity::Ssd),
+            lncc_radius: 2,
         }
     }
 }
@@ -132,6 +140,12 @@ impl AdaptiveOptions {
             return bad("smoothing and gain_scale_mm must be finite and zero or positive");
         }
         self.threshold.check("adaptive.threshold", self.levels)?;
+        self.similarity.check("adaptive.similarity", self.levels)?;
+        if !(1..=MAX_LNCC_RADIUS).contains(&self.lncc_radius) {
+            return bad(&format!(
+                "lncc_radius must be 1 to {MAX_LNCC_RADIUS} (voxels)"
+            ));
+        }
         self.membrane.check("adaptive.membrane", self.levels)?;
         self.bending.check("adaptive.bending", self.levels)?;
         self.tolerance.check("adaptive.tolerance", self.levels)?;
@@ -175,6 +189,8 @@ pub const MAX_LEVELS: usize = 8;
 const MAX_FIRST_CELLS: usize = 4;
 /// Most cells per axis at a refinement (64³ cells).
 const MAX_CELLS: usize = 64;
+/// Widest LNCC window radius (voxels): 17³ voxels a window.
+const MAX_LNCC_RADIUS: usize = 8;
 /// Most L-BFGS iterations per refinement.
 const MAX_ITERATIONS: usize = 10_000;
 
@@ -321,6 +337,8 @@ struct Evaluator<'a, B: Backend> {
     backend: &'a B,
     lattice: &'a Lattice<B>,
     images: CostImages<'a, B::Buffer<f32>>,
+    /// None for SSD.
+    lncc: Option<LnccCost>,
     splat: SplatParams,
     energy: EnergyParams,
     voxels: f64,
@@ -332,6 +350,7 @@ impl<'a, B: Backend> Evaluator<'a, B> {
         backend: &'a B,
         lattice: &'a Lattice<B>,
         images: CostImages<'a, B::Buffer<f32>>,
+        lncc: Option<LnccCost>,
         grid: &Grid,
         weights: [f64; 2],
     ) -> Self {
@@ -340,6 +359,7 @@ impl<'a, B: Backend> Evaluator<'a, B> {
             backend,
             lattice,
             images,
+            lncc,
             splat: SplatParams::new(lattice.dims, lattice.step, grid.dims),
             energy: energy_params(
                 lattice.dims,
@@ -358,8 +378,11 @@ impl<'a, B: Backend> Evaluator<'a, B> {
     fn evaluate(&self, coef: &RbfCoefficients, centres: &[Vector3<f64>]) -> Result<Evaluated> {
         let b = self.backend;
         let warp = self.lattice.warp(b, coef, centres)?;
-        let (per_voxel, rows) =
-            b.warp_cost(&self.lattice.voxel_params, &warp.values, &self.images)?;
+        let voxel_params = &self.lattice.voxel_params;
+        let (per_voxel, rows) = match &self.lncc {
+            None => b.warp_cost(voxel_params, &warp.values, &self.images)?,
+            Some(lncc) => lncc.evaluate(b, voxel_params, &warp.values, &self.images)?,
+        };
         let splat = b.lattice_splat(&self.splat, &per_voxel)?;
         let (node_gradient, energy) = b.lattice_energy(&self.energy, &warp.values, &splat)?;
         let partials = b.rbf_adjoint(
@@ -545,7 +568,8 @@ pub fn register<B: Backend>(
     progress.begin("adaptive RBF", levels.len() * options.cell_levels.len());
     for (index, level) in levels.iter().enumerate().rev() {
         let lattice = Lattice::new(backend, &level.fixed.grid, options.lattice_mm)?;
-        let weights = energy_weights(backend, level, index, moving.prealigned, options)?;
+        let target_variance = variance(backend, &level.fixed)?;
+        let weights = energy_weights(target_variance, index, moving.prealigned, options);
         // Once the moving image is aligned, its smooth brightness difference to the target is
         // bias, not anatomy (crate::gain): match it at each level, measured through the warp
         // found so far. Aligned means from the start after the articulated initialisation;
@@ -574,10 +598,18 @@ pub fn register<B: Backend>(
             moving: gained.as_ref().unwrap_or(&level.moving.data),
             options,
         };
+        let lncc = (options.similarity.at_level(index) == Similarity::Lncc).then(|| {
+            LnccCost::new(
+                &level.fixed.grid,
+                options.lncc_radius,
+                target_variance as f32,
+            )
+        });
         let evaluator = Evaluator::new(
             backend,
             &lattice,
             level.images(run.moving),
+            lncc,
             &level.fixed.grid,
             weights,
         );
@@ -620,23 +652,22 @@ pub fn register<B: Backend>(
 }
 
 /// The membrane's and the bending energy's weights at pyramid level `index`, scaled by the
-/// target's variance there so they do not depend on the intensity scale. The membrane charges
+/// target's variance there (`target_variance`) so they do not depend on the intensity scale
+/// (LNCC's term is scaled by it too). The membrane charges
 /// the whole warp R; after the initialisation R is the small correction, without it R carries
 /// the whole joint motion, which it would resist (half phantom 10° without initialisation,
 /// weight 10: 1.43 → 2.37 mm).
-fn energy_weights<B: Backend>(
-    backend: &B,
-    level: &Level<B>,
+fn energy_weights(
+    target_variance: f64,
     index: usize,
     prealigned: bool,
     options: &AdaptiveOptions,
-) -> Result<[f64; 2]> {
-    let target_variance = variance(backend, &level.fixed)?;
+) -> [f64; 2] {
     let membrane = match prealigned {
         true => options.membrane.at_level(index) * target_variance,
         false => 0.0,
     };
-    Ok([membrane, options.bending.at_level(index) * target_variance])
+    [membrane, options.bending.at_level(index) * target_variance]
 }
 
 /// One pyramid level of the adaptive stage: its images, lattice and moving image (with its

@@ -5,9 +5,10 @@
 use crate::abi::Interpolation;
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, LnccParams, LocalMomentsParams, MomentsParams,
-    PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams,
-    SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
+    InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
+    MomentsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
+    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
+    ThresholdParams,
 };
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
@@ -413,6 +414,28 @@ pub trait Backend {
         images: &CostImages<Self::Buffer<f32>>,
     ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
 
+    /// The local-correlation cost's terms from the box sums of W and T (`local_moments`' last
+    /// pass) and the coverage: 5 floats per voxel to box-sum again (`local_moments` over
+    /// `LocalMomentsParams::stack_passes`) and K Σ c (1 − ρ²) per row of x (ny · nz floats).
+    fn lncc_terms(
+        &self,
+        params: &LnccTermsParams,
+        sums: &Self::Buffer<f32>,
+        covered: &Self::Buffer<f32>,
+    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
+
+    /// The image part of the local-correlation cost's gradient through the warp `lattice`
+    /// (3 floats per voxel, as `warp_cost`'s) from the box-summed terms `summed`: `moving`
+    /// (I0) seen through it against `fixed`.
+    fn lncc_gradient(
+        &self,
+        params: &RbfGradParams,
+        lattice: &Self::Buffer<f32>,
+        moving: &Self::Buffer<f32>,
+        fixed: &Self::Buffer<f32>,
+        summed: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
     /// The adjoint of the lattice interpolation: 3 floats per lattice node, Σ_x w_n(x) v(x),
     /// from 3 floats per voxel.
     fn lattice_splat(
@@ -462,6 +485,20 @@ pub trait Backend {
 pub fn total<B: Backend>(backend: &B, params: &SumParams, values: &B::Buffer<f32>) -> Result<f64> {
     let sums = backend.sum_chunks(params, values)?;
     Ok(backend.download_one(&sums)?.iter().sum())
+}
+
+/// The box sums of the local correlation (abi::LOCAL_MOMENTS per voxel) of the images `a` and
+/// `b` on one grid: `passes` (`LocalMomentsParams::passes`) x, y, then z; or, with
+/// `LocalMomentsParams::stack_passes`, of the stack in `a` (`b` unused).
+pub fn box_sums<B: Backend>(
+    backend: &B,
+    passes: &[LocalMomentsParams; 3],
+    a: &B::Buffer<f32>,
+    b: &B::Buffer<f32>,
+) -> Result<B::Buffer<f32>> {
+    let along_x = backend.local_moments(&passes[0], a, b)?;
+    let along_y = backend.local_moments(&passes[1], &along_x, &along_x)?;
+    backend.local_moments(&passes[2], &along_y, &along_y)
 }
 
 /// Checks the grids of two images combined voxel by voxel are the same.

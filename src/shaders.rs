@@ -20,6 +20,7 @@ const BONE_LOOKUP: (&str, &str) = (
 );
 const THRESHOLD: (&str, &str) = ("threshold.wgsl", include_str!("../shaders/threshold.wgsl"));
 const GAIN: (&str, &str) = ("gain.wgsl", include_str!("../shaders/gain.wgsl"));
+const WINDOW: (&str, &str) = ("window.wgsl", include_str!("../shaders/window.wgsl"));
 const SUM_PARTIALS: (&str, &str) = (
     "sum_partials.wgsl",
     include_str!("../shaders/sum_partials.wgsl"),
@@ -114,7 +115,35 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
     ),
     (
         "lncc",
-        &[COMMON, ("lncc.wgsl", include_str!("../shaders/lncc.wgsl"))],
+        &[
+            COMMON,
+            WINDOW,
+            ("lncc.wgsl", include_str!("../shaders/lncc.wgsl")),
+        ],
+    ),
+    (
+        "lncc_terms",
+        &[
+            COMMON,
+            WINDOW,
+            (
+                "lncc_terms.wgsl",
+                include_str!("../shaders/lncc_terms.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "lncc_gradient",
+        &[
+            COMMON,
+            SAMPLE,
+            LATTICE_WARP,
+            WARP_SAMPLE,
+            (
+                "lncc_gradient.wgsl",
+                include_str!("../shaders/lncc_gradient.wgsl"),
+            ),
+        ],
     ),
     (
         "dilate",

@@ -3,11 +3,86 @@
 //! grid. Insensitive to each scan's own gain and offset within a window (coil shading,
 //! contrast between days), which a sum of squared differences is not: on the knee pairs bent
 //! by the independent generator the SSD of the initialised image ranked the skinning's reach
-//! wrongly where LNCC ranked it as the truth does (BENCHMARKS.md).
+//! wrongly where LNCC ranked it as the truth does (BENCHMARKS.md). Also the adaptive stage's
+//! image term: the sum of squared differences or LNCC, per pyramid level ([`Similarity`],
+//! [`LnccCost`]).
 
-use crate::abi::{LnccParams, LocalMomentsParams};
-use crate::backend::{Backend, DeviceImage};
+use crate::abi::{LnccParams, LnccTermsParams, LocalMomentsParams, RbfGradParams};
+use crate::backend::{box_sums, Backend, CostImages, DeviceImage};
 use crate::error::{Error, Result};
+use crate::volume::Grid;
+use std::fmt;
+use std::str::FromStr;
+
+/// The image term of the adaptive stage's cost.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Similarity {
+    /// Sum of squared differences after the smooth intensity gain (crate::gain).
+    Ssd,
+    /// Local normalised cross-correlation: K Σ (1 − ρ²) over windows, K the target's variance.
+    Lncc,
+}
+
+impl FromStr for Similarity {
+    type Err = String;
+
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        match text {
+            "ssd" => Ok(Similarity::Ssd),
+            "lncc" => Ok(Similarity::Lncc),
+            _ => Err(format!("'{text}' is not a similarity (ssd or lncc)")),
+        }
+    }
+}
+
+impl fmt::Display for Similarity {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Similarity::Ssd => "ssd",
+            Similarity::Lncc => "lncc",
+        })
+    }
+}
+
+/// The LNCC image term through a warp, on one grid: K Σ_w c_w (1 − ρ_w²) over the windows w
+/// of (2 radius + 1)³ voxels centred on each voxel (c_w the coverage at the centre), and its
+/// exact gradient with respect to the warped image (shaders/lncc_terms.wgsl), brought through
+/// the warp as the SSD's is. Five box-sum passes and three kernels; nothing comes back.
+pub struct LnccCost {
+    passes: [LocalMomentsParams; 3],
+    stack: [LocalMomentsParams; 3],
+    terms: LnccTermsParams,
+}
+
+impl LnccCost {
+    /// On `grid`, windows of `radius` voxels, the cost scaled by `scale` (K).
+    pub fn new(grid: &Grid, radius: usize, scale: f32) -> Self {
+        LnccCost {
+            passes: LocalMomentsParams::passes(grid, radius),
+            stack: LocalMomentsParams::stack_passes(grid, radius),
+            terms: LnccTermsParams::new(grid, radius, scale),
+        }
+    }
+
+    /// As `Backend::warp_cost`: the gradient (3 floats per voxel) and the cost per row of x, of
+    /// the warp `lattice` (`params`).
+    pub fn evaluate<B: Backend>(
+        &self,
+        backend: &B,
+        params: &RbfGradParams,
+        lattice: &B::Buffer<f32>,
+        images: &CostImages<B::Buffer<f32>>,
+    ) -> Result<(B::Buffer<f32>, B::Buffer<f32>)> {
+        let warped = backend.warp_image(params, lattice, images.moving)?;
+        let sums = box_sums(backend, &self.passes, &warped, images.fixed)?;
+        let (terms, rows) = backend.lncc_terms(&self.terms, &sums, images.covered)?;
+        let summed = box_sums(backend, &self.stack, &terms, &terms)?;
+        let gradient =
+            backend.lncc_gradient(params, lattice, images.moving, images.fixed, &summed)?;
+        Ok((gradient, rows))
+    }
+}
 
 /// The mean of ρ² over windows of (2 `radius` + 1)³ voxels of `fixed` and `moving` (on one
 /// grid), over the voxels where neither window is flat (0 where every window is); only
@@ -23,10 +98,8 @@ pub fn local_correlation<B: Backend>(
             "local correlation of images on different grids".into(),
         ));
     }
-    let [x, y, z] = LocalMomentsParams::passes(&fixed.grid, radius);
-    let along_x = backend.local_moments(&x, &fixed.data, &moving.data)?;
-    let along_y = backend.local_moments(&y, &along_x, &along_x)?;
-    let boxed = backend.local_moments(&z, &along_y, &along_y)?;
+    let passes = LocalMomentsParams::passes(&fixed.grid, radius);
+    let boxed = box_sums(backend, &passes, &fixed.data, &moving.data)?;
     let chunks =
         backend.download_one(&backend.lncc(&LnccParams::new(&fixed.grid, radius), &boxed)?)?;
     let (total, counted) = chunks.chunks_exact(2).fold((0.0f64, 0.0f64), |(t, n), c| {
@@ -39,7 +112,7 @@ pub fn local_correlation<B: Backend>(
 mod tests {
     use super::*;
     use crate::cpu::CpuBackend;
-    use crate::volume::{Affine, Grid};
+    use crate::volume::Affine;
 
     fn image(grid: &Grid, f: impl Fn(f32, f32, f32) -> f32) -> DeviceImage<CpuBackend> {
         let [nx, ny, _] = grid.dims;

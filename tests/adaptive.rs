@@ -10,9 +10,11 @@ use posereg::progress::Silent;
 use nalgebra::Vector3;
 use posereg::evaluate::{field_error, FieldError};
 use posereg::labels as label;
+use posereg::levels::PerLevel;
 use posereg::metric::correlation;
 use posereg::phantom::{generate, Phantom, PhantomSize, PhantomSpec};
 use posereg::register::{register, register_observed, Inputs, RegisterOptions, Registration};
+use posereg::similarity::Similarity;
 use posereg::{Backend, Field};
 
 fn pair(size: PhantomSize, flexion: f64) -> (Phantom, Phantom) {
@@ -128,6 +130,80 @@ fn paper_experiment_one_on_the_cpu() {
     for size in [PhantomSize::Quarter, PhantomSize::Small] {
         ten_degrees_without_initialisation(&posereg::cpu::CpuBackend, size, "cpu");
     }
+}
+
+/// A target whose contrast differs from the source's (a gamma curve on its intensities and a
+/// shading ramp across it, as between scans from different days or coils): the 10° pair without
+/// the initialisation, registered on `backend` with each of `similarities` at every level;
+/// the field errors.
+fn ten_degrees_with_other_contrast<B: Backend, const N: usize>(
+    backend: &B,
+    similarities: [Similarity; N],
+    name: &str,
+) -> [FieldError; N] {
+    let (source, mut target) = pair(PhantomSize::Quarter, 10.0);
+    let nx = target.image.grid.dims[0];
+    for (n, v) in target.image.data.iter_mut().enumerate() {
+        let shading = 0.7 + 0.6 * (n % nx) as f32 / nx as f32;
+        *v = shading * 40.0 * (v.max(0.0) / 40.0).powf(0.5);
+    }
+    let mask = evaluation_mask(&source, &target);
+    similarities.map(|similarity| {
+        let mut options = RegisterOptions {
+            initialise: false,
+            ..Default::default()
+        };
+        options.adaptive.similarity = PerLevel::all(similarity);
+        let inputs = Inputs::new(&source.image, &source.labels, &target.image);
+        let result = register(backend, inputs, &options, &Silent).unwrap();
+        let error = field_error(&result.field, &target.truth_field, |n| mask[n]).unwrap();
+        eprintln!("{name} {similarity}: mean {:.2} mm", error.mean_mm);
+        error
+    })
+}
+
+/// Local correlation holds the paper's bound for this pair (≤ 3.2 mm, which the SSD meets when
+/// the contrast is the same) across the contrast change; the SSD, even after its smooth gain,
+/// does far worse (measured: 2.57 against 37.4 mm; the gain is matched only from the second
+/// level on without the initialisation, and a gamma curve is not a gain).
+#[test]
+fn local_correlation_registers_across_a_contrast_change() {
+    let [ssd, lncc] = ten_degrees_with_other_contrast(
+        &posereg::cpu::CpuBackend,
+        [Similarity::Ssd, Similarity::Lncc],
+        "cpu",
+    );
+    assert!(
+        lncc.mean_mm <= 3.2,
+        "local correlation: {} mm",
+        lncc.mean_mm
+    );
+    assert!(
+        lncc.mean_mm < 0.5 * ssd.mean_mm,
+        "local correlation {} mm against the SSD's {} mm",
+        lncc.mean_mm,
+        ssd.mean_mm
+    );
+}
+
+/// The same on the GPU path (lavapipe in CI), its error near the CPU's: the LNCC kernels give
+/// the same bits on both backends (tests/parity.rs), the RBF's do not (see
+/// `the_whole_pipeline_agrees_on_both_backends`), and without the initialisation L-BFGS carries
+/// that difference further (measured: 2.65 against 2.57 mm); the bound is that test's field
+/// bound at 60°.
+#[test]
+fn local_correlation_registers_across_a_contrast_change_on_the_gpu() {
+    let Some(gpu) = common::gpu() else { return };
+    let [got] = ten_degrees_with_other_contrast(gpu, [Similarity::Lncc], "gpu");
+    let [want] =
+        ten_degrees_with_other_contrast(&posereg::cpu::CpuBackend, [Similarity::Lncc], "cpu");
+    assert!(got.mean_mm <= 3.2, "local correlation: {} mm", got.mean_mm);
+    assert!(
+        (got.mean_mm - want.mean_mm).abs() <= 0.15,
+        "gpu {} mm, cpu {} mm",
+        got.mean_mm,
+        want.mean_mm
+    );
 }
 
 /// 60° with the articulated initialisation, on the CPU: issue 5's bound (≤ 1.5 mm; 1.24 mm

@@ -3,10 +3,10 @@
 
 use posereg::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, LnccParams, LocalMomentsParams, MomentsParams,
-    PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
-    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
-    ThresholdParams,
+    InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
+    MomentsParams, PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams,
+    RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
+    SumParams, ThresholdParams,
 };
 use posereg::shaders::{locate, source, KERNELS};
 use std::mem::size_of;
@@ -69,7 +69,7 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
-    let pairs: [(&str, &str, usize); 34] = [
+    let pairs: [(&str, &str, usize); 36] = [
         ("warp_image", "RbfGradParams", size_of::<RbfGradParams>()),
         ("gain_terms", "GainParams", size_of::<GainParams>()),
         ("gain_ratio", "GainParams", size_of::<GainParams>()),
@@ -127,6 +127,12 @@ fn abi_structs_match_their_wgsl_twins() {
             size_of::<LocalMomentsParams>(),
         ),
         ("lncc", "LnccParams", size_of::<LnccParams>()),
+        (
+            "lncc_terms",
+            "LnccTermsParams",
+            size_of::<LnccTermsParams>(),
+        ),
+        ("lncc_gradient", "RbfGradParams", size_of::<RbfGradParams>()),
         (
             "fold_smooth",
             "BoneLookupParams",

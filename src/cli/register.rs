@@ -16,6 +16,7 @@ use posereg::kinematics::KneeKinematics;
 use posereg::levels::PerLevel;
 use posereg::register::{register, Inputs, RegisterOptions};
 use posereg::report::Run;
+use posereg::similarity::Similarity;
 use posereg::Field;
 use std::path::PathBuf;
 
@@ -50,6 +51,10 @@ pub struct RegisterArgs {
     /// point, per level coarse to fine, e.g. 8x8x12.
     #[arg(long)]
     pub threshold: Option<PerLevel<f64>>,
+    /// Adaptive stage: the image term per level coarse to fine, ssd or lncc (local normalised
+    /// cross-correlation, for scans whose shading or contrast differ), e.g. ssdxssdxlncc.
+    #[arg(long)]
+    pub similarity: Option<PerLevel<Similarity>>,
     /// Mask on the target's grid: only its non-zero voxels count as evidence for the
     /// non-rigid stage (leave out another limb, an artefact, the edge of the coil).
     #[arg(long, visible_alias = "fixed-mask")]
@@ -96,6 +101,9 @@ impl RegisterArgs {
         }
         if let Some(threshold) = &self.threshold {
             options.adaptive.threshold = threshold.clone();
+        }
+        if let Some(similarity) = &self.similarity {
+            options.adaptive.similarity = similarity.clone();
         }
         options.init.chain = self.pair.chain(&options.init.chain)?;
         options.check()?;

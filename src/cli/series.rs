@@ -68,6 +68,7 @@ impl SeriesArgs {
             reach: None,
             iterations: None,
             threshold: None,
+            similarity: None,
             target_mask: None,
             init: None,
             strict: false,

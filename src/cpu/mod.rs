@@ -32,10 +32,10 @@ pub mod warp_image;
 
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, LnccParams, LocalMomentsParams, MomentsParams,
-    PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
-    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
-    ThresholdParams,
+    InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
+    MomentsParams, PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams,
+    RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
+    SumParams, ThresholdParams,
 };
 use crate::backend::{Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -371,6 +371,31 @@ impl Backend for CpuBackend {
             &mut rows,
         );
         Ok((Arc::new(gradient), Arc::new(rows)))
+    }
+
+    fn lncc_terms(
+        &self,
+        params: &LnccTermsParams,
+        sums: &Arc<Vec<f32>>,
+        covered: &Arc<Vec<f32>>,
+    ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
+        let mut terms = vec![0.0f32; params.values()];
+        let mut rows = vec![0.0f32; params.rows()];
+        lncc::lncc_terms(params, sums, covered, &mut terms, &mut rows);
+        Ok((Arc::new(terms), Arc::new(rows)))
+    }
+
+    fn lncc_gradient(
+        &self,
+        params: &RbfGradParams,
+        lattice: &Arc<Vec<f32>>,
+        moving: &Arc<Vec<f32>>,
+        fixed: &Arc<Vec<f32>>,
+        summed: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(3 * params.voxels(), |out| {
+            lncc::lncc_gradient(params, lattice, [moving, fixed], summed, out)
+        })
     }
 
     fn lattice_splat(&self, params: &SplatParams, values: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {

@@ -93,7 +93,24 @@ pub fn warp_at(params: &RbfGradParams, lattice: &[f32], taps: &LatticeTaps, c: [
     taps.row(params, lattice, c[1], c[2]).warp_at(taps, c[0])
 }
 
-/// (W, ∂(W − t)²/∂R) at voxel (i, j, k) of `moving` through the warp `lattice`, against the
+/// Where voxel (i, j, k) samples I0 through the warp of `row`, in I0's index space: x + R(x)
+/// (warped_position in shaders/warp_sample.wgsl).
+#[inline]
+fn warped_position(
+    params: &RbfGradParams,
+    row: &RowTaps,
+    taps: &LatticeTaps,
+    [i, j, k]: [u32; 3],
+) -> [f32; 3] {
+    let r = row.warp_at(taps, i).to_array();
+    [
+        i as f32 + linear_row(params.mm_to_index[0], r),
+        j as f32 + linear_row(params.mm_to_index[1], r),
+        k as f32 + linear_row(params.mm_to_index[2], r),
+    ]
+}
+
+/// (W, ∂(W − t)²/∂R) at voxel (i, j, k) of `moving` through the warp of `row`, against the
 /// target value `t`; all zero outside (warped_sample in shaders/warp_sample.wgsl).
 #[inline]
 pub fn warped_sample(
@@ -101,16 +118,11 @@ pub fn warped_sample(
     row: &RowTaps,
     taps: &LatticeTaps,
     moving: &[f32],
-    [i, j, k]: [u32; 3],
+    ijk: [u32; 3],
     t: f32,
 ) -> [f32; 4] {
     let d = [params.dims[0], params.dims[1], params.dims[2]];
-    let r = row.warp_at(taps, i).to_array();
-    let q = [
-        i as f32 + linear_row(params.mm_to_index[0], r),
-        j as f32 + linear_row(params.mm_to_index[1], r),
-        k as f32 + linear_row(params.mm_to_index[2], r),
-    ];
+    let q = warped_position(params, row, taps, ijk);
     if !inside_source(q, d) {
         return [0.0; 4];
     }
@@ -122,6 +134,31 @@ pub fn warped_sample(
         residual * linear_row(params.gradient_to_world[0], g),
         residual * linear_row(params.gradient_to_world[1], g),
         residual * linear_row(params.gradient_to_world[2], g),
+    ]
+}
+
+/// (W, ∇I0(x + R(x))) at voxel (i, j, k) of `moving` through the warp of `row`, the gradient in
+/// world mm; all zero outside (warped_value_gradient in shaders/warp_sample.wgsl).
+#[inline]
+pub fn warped_value_gradient(
+    params: &RbfGradParams,
+    row: &RowTaps,
+    taps: &LatticeTaps,
+    moving: &[f32],
+    ijk: [u32; 3],
+) -> [f32; 4] {
+    let d = [params.dims[0], params.dims[1], params.dims[2]];
+    let q = warped_position(params, row, taps, ijk);
+    if !inside_source(q, d) {
+        return [0.0; 4];
+    }
+    let vg = trilinear_with_gradient(moving, q, d);
+    let g = [vg[1], vg[2], vg[3]];
+    [
+        vg[0],
+        linear_row(params.gradient_to_world[0], g),
+        linear_row(params.gradient_to_world[1], g),
+        linear_row(params.gradient_to_world[2], g),
     ]
 }
 

@@ -23,9 +23,10 @@ pub mod skinning;
 
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, LnccParams, LocalMomentsParams, MomentsParams,
-    PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams, ScoreParams,
-    SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
+    InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
+    MomentsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
+    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
+    ThresholdParams,
 };
 use crate::backend::{Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -53,6 +54,8 @@ pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
     ("lattice_splat", nonrigid::SPLAT_BINDINGS),
     ("local_moments", lncc::MOMENTS_BINDINGS),
     ("lncc", lncc::LNCC_BINDINGS),
+    ("lncc_terms", lncc::TERMS_BINDINGS),
+    ("lncc_gradient", lncc::GRADIENT_BINDINGS),
     ("moments", regions::MOMENTS_BINDINGS),
     ("pyramid", pyramid::BINDINGS),
     ("rbf_adjoint", nonrigid::ADJOINT_BINDINGS),
@@ -104,6 +107,10 @@ pub struct Kernels {
     pub local_moments: Kernel,
     /// shaders/lncc.wgsl
     pub lncc: Kernel,
+    /// shaders/lncc_terms.wgsl
+    pub lncc_terms: Kernel,
+    /// shaders/lncc_gradient.wgsl
+    pub lncc_gradient: Kernel,
     /// shaders/fold_smooth.wgsl
     pub fold_smooth: Kernel,
     /// shaders/ssd_cells.wgsl
@@ -183,6 +190,8 @@ impl GpuBackend {
                 moments: compile(&ctx, "moments")?,
                 local_moments: compile(&ctx, "local_moments")?,
                 lncc: compile(&ctx, "lncc")?,
+                lncc_terms: compile(&ctx, "lncc_terms")?,
+                lncc_gradient: compile(&ctx, "lncc_gradient")?,
                 fold_smooth: compile(&ctx, "fold_smooth")?,
                 ssd_cells: compile(&ctx, "ssd_cells")?,
                 jacobian: compile(&ctx, "jacobian")?,
@@ -468,6 +477,26 @@ impl Backend for GpuBackend {
         spline: &GpuBuffer<f64>,
     ) -> Result<GpuBuffer<f32>> {
         self.record_rbf_lattice(params, geometry, spline)
+    }
+
+    fn lncc_terms(
+        &self,
+        params: &LnccTermsParams,
+        sums: &GpuBuffer<f32>,
+        covered: &GpuBuffer<f32>,
+    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
+        self.record_lncc_terms(params, sums, covered)
+    }
+
+    fn lncc_gradient(
+        &self,
+        params: &RbfGradParams,
+        lattice: &GpuBuffer<f32>,
+        moving: &GpuBuffer<f32>,
+        fixed: &GpuBuffer<f32>,
+        summed: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_lncc_gradient(params, lattice, [moving, fixed], summed)
     }
 
     fn warp_cost(
