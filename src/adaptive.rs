@@ -78,9 +78,14 @@ pub struct AdaptiveOptions {
     /// image before optimising (crate::gain); 0 leaves intensities as they are.
     pub gain_scale_mm: f64,
     /// The cost's image term per pyramid level, coarse to fine: SSD after the gain, or LNCC
-    /// (where the cells that fit poorly are still found by their SSD). Unset: LNCC at the
-    /// finest level and SSD above it, however many levels ([`AdaptiveOptions::image_term`]).
-    pub similarity: Option<PerLevel<Similarity>>,
+    /// (where the cells that fit poorly are still found by their SSD). SSD by default: LNCC at
+    /// the finest level ("ssdxssdxlncc") registers the generator's knee pairs, whose scans differ
+    /// in bias and noise, better (body 0.46/1.05/2.25/1.06 → 0.42/0.95/2.20/0.95 mm at 2 mm
+    /// 20°/45°/90° and 1 mm 45°; 2026-12-03, CPU) and survives a contrast change that SSD does
+    /// not (tests/adaptive.rs), but it cost the project's phantom, whose poses share one
+    /// intensity model, 0.02–0.09 mm, takes ~1.5× the time, and as a default it put the
+    /// whole-pipeline backends 0.117 mm apart at 30° (SSD: 0.017; BENCHMARKS.md).
+    pub similarity: PerLevel<Similarity>,
     /// Radius (voxels) of LNCC's windows: (2 r + 1)³ voxels.
     pub lncc_radius: usize,
 }
@@ -99,29 +104,13 @@ impl Default for AdaptiveOptions {
             membrane: PerLevel::all(MEMBRANE_DEFAULT),
             bending: PerLevel::all(BENDING_DEFAULT),
             gain_scale_mm: 20.0,
-            similarity: None,
+            similarity: PerLevel::all(Similarity::Ssd),
             lncc_radius: 2,
         }
     }
 }
 
 impl AdaptiveOptions {
-    /// The image term at pyramid level `index` (0 finest): `similarity`'s, or by default LNCC at
-    /// the finest level and SSD above. Measured (2026-12-03, CPU) on the knee pairs of the
-    /// independent generator, whose scans differ in bias and noise, LNCC at the finest level
-    /// lowered the body's error at 2 mm 20°/45°/90° and 1 mm 45° (0.46/1.05/2.25/1.06 →
-    /// 0.42/0.95/2.20/0.95 mm; LNCC at every level 0.40/0.96/2.21/0.96, slower), and it survives
-    /// a contrast change that SSD does not (tests/adaptive.rs); on the project's phantom, whose
-    /// two poses share one intensity model, it cost 0.02–0.07 mm (30/60/90°: 0.58/0.91/1.48 →
-    /// 0.63/0.98/1.50; every level 0.69/1.03/1.53).
-    pub fn image_term(&self, index: usize) -> Similarity {
-        match &self.similarity {
-            Some(similarity) => similarity.at_level(index),
-            None if index == 0 => Similarity::Lncc,
-            None => Similarity::Ssd,
-        }
-    }
-
     /// Rejects settings the stage cannot run with, naming the setting.
     pub fn check(&self) -> Result<()> {
         let bad = |what: &str| Err(Error::InvalidInput(format!("adaptive.{what}")));
@@ -157,9 +146,7 @@ impl AdaptiveOptions {
             return bad("smoothing and gain_scale_mm must be finite and zero or positive");
         }
         self.threshold.check("adaptive.threshold", self.levels)?;
-        if let Some(similarity) = &self.similarity {
-            similarity.check("adaptive.similarity", self.levels)?;
-        }
+        self.similarity.check("adaptive.similarity", self.levels)?;
         if !(1..=MAX_LNCC_RADIUS).contains(&self.lncc_radius) {
             return bad(&format!(
                 "lncc_radius must be 1 to {MAX_LNCC_RADIUS} (voxels)"
@@ -619,7 +606,7 @@ pub fn register<B: Backend>(
             moving: gained.as_ref().unwrap_or(&level.moving.data),
             options,
         };
-        let similarity = options.image_term(index);
+        let similarity = options.similarity.at_level(index);
         let lncc = (similarity == Similarity::Lncc).then(|| {
             LnccCost::new(
                 &level.fixed.grid,

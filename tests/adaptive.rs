@@ -153,7 +153,7 @@ fn ten_degrees_with_other_contrast<B: Backend, const N: usize>(
             initialise: false,
             ..Default::default()
         };
-        options.adaptive.similarity = Some(PerLevel::all(similarity));
+        options.adaptive.similarity = PerLevel::all(similarity);
         let inputs = Inputs::new(&source.image, &source.labels, &target.image);
         let result = register(backend, inputs, &options, &Silent).unwrap();
         let error = field_error(&result.field, &target.truth_field, |n| mask[n]).unwrap();

@@ -103,7 +103,7 @@ impl RegisterArgs {
             options.adaptive.threshold = threshold.clone();
         }
         if let Some(similarity) = &self.similarity {
-            options.adaptive.similarity = Some(similarity.clone());
+            options.adaptive.similarity = similarity.clone();
         }
         options.init.chain = self.pair.chain(&options.init.chain)?;
         options.check()?;
