@@ -1,7 +1,8 @@
 //! Adaptive non-rigid registration (paper §3): cubic-RBF control points are added only in the
 //! cells that still fit poorly, from 2×2×2 cells up to 16×16×16, over a pyramid coarse to fine,
-//! and their displacements optimised by L-BFGS on the sum of squared differences (plus, after
-//! the articulated initialisation, the membrane energy of the added warp: crate::regularise).
+//! and their displacements optimised by L-BFGS on the sum of squared differences, or per level
+//! on local correlation (crate::similarity), plus, after the articulated initialisation, the
+//! membrane energy of the added warp (crate::regularise).
 //!
 //! Cost: the warp is evaluated on a coarse lattice (about every 5 mm) — nodes × control points,
 //! not voxels × control points — and interpolated per voxel; the gradient comes back through the

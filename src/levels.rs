@@ -63,7 +63,10 @@ impl<T: fmt::Display> fmt::Display for PerLevel<T> {
     }
 }
 
-impl<T: FromStr + Copy> FromStr for PerLevel<T> {
+impl<T: FromStr + Copy> FromStr for PerLevel<T>
+where
+    T::Err: fmt::Display,
+{
     type Err = String;
 
     fn from_str(text: &str) -> std::result::Result<Self, String> {
@@ -72,7 +75,7 @@ impl<T: FromStr + Copy> FromStr for PerLevel<T> {
             .map(|part| {
                 part.trim()
                     .parse::<T>()
-                    .map_err(|_| format!("'{part}' in '{text}' is not a number"))
+                    .map_err(|e| format!("'{part}' in '{text}': {e}"))
             })
             .collect::<std::result::Result<Vec<T>, String>>()?;
         PerLevel::coarse_to_fine(values).map_err(|e| e.to_string())
@@ -93,6 +96,7 @@ impl<T: fmt::Display + Serialize> Serialize for PerLevel<T> {
 impl<'de, T> Deserialize<'de> for PerLevel<T>
 where
     T: FromStr + Copy + Deserialize<'de>,
+    T::Err: fmt::Display,
 {
     fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
         #[derive(Deserialize)]

@@ -31,7 +31,7 @@ impl FromStr for Similarity {
         match text {
             "ssd" => Ok(Similarity::Ssd),
             "lncc" => Ok(Similarity::Lncc),
-            _ => Err(format!("'{text}' is not a similarity (ssd or lncc)")),
+            _ => Err("not a similarity: ssd or lncc".into()),
         }
     }
 }

@@ -582,6 +582,16 @@ fn settings_cases(x: &Inputs) -> Vec<Case> {
             &["adaptive.iterations", "above 0"],
         ),
         case(
+            "similarity per level, too few",
+            x.register(src, lab, tgt, &["--similarity", "ssdxlncc"]),
+            &["adaptive.similarity", "3 pyramid levels"],
+        ),
+        case(
+            "lncc_radius 0 (file)",
+            with(config("radius.toml", "[adaptive]\nlncc_radius = 0\n")),
+            &["radius.toml", "lncc_radius"],
+        ),
+        case(
             "threshold -1 (file)",
             with(config("neg.toml", "[adaptive]\nthreshold = \"-1\"\n")),
             &["neg.toml", "threshold"],
@@ -838,6 +848,16 @@ fn usage_cases(x: &Inputs) -> Vec<Case> {
                 &["--threshold", "abc"],
             ),
             &["--threshold", "abc"],
+        ),
+        usage(
+            "a similarity that is not one",
+            x.register(
+                "source.nii.gz",
+                "labels.nii.gz",
+                "target.nii.gz",
+                &["--similarity", "ssdxmi"],
+            ),
+            &["--similarity", "'mi'", "ssd or lncc"],
         ),
     ]
 }
