@@ -166,8 +166,14 @@ fn ten_degrees_with_other_contrast<B: Backend, const N: usize>(
 /// the contrast is the same) across the contrast change; the SSD, even after its smooth gain,
 /// does far worse (measured: 2.57 against 37.4 mm; the gain is matched only from the second
 /// level on without the initialisation, and a gamma curve is not a gain).
+///
+/// The same on the GPU path (lavapipe in CI), its error near the CPU's: the LNCC kernels give
+/// the same bits on both backends (tests/parity.rs), the RBF's do not (see
+/// `the_whole_pipeline_agrees_on_both_backends`), and without the initialisation L-BFGS carries
+/// that difference further (measured: 2.65 against 2.57 mm); the bound is that test's field
+/// bound at 60°.
 #[test]
-fn local_correlation_registers_across_a_contrast_change() {
+fn local_correlation_registers_across_a_contrast_change_on_both_backends() {
     let [ssd, lncc] = ten_degrees_with_other_contrast(
         &posereg::cpu::CpuBackend,
         [Similarity::Ssd, Similarity::Lncc],
@@ -184,25 +190,14 @@ fn local_correlation_registers_across_a_contrast_change() {
         lncc.mean_mm,
         ssd.mean_mm
     );
-}
-
-/// The same on the GPU path (lavapipe in CI), its error near the CPU's: the LNCC kernels give
-/// the same bits on both backends (tests/parity.rs), the RBF's do not (see
-/// `the_whole_pipeline_agrees_on_both_backends`), and without the initialisation L-BFGS carries
-/// that difference further (measured: 2.65 against 2.57 mm); the bound is that test's field
-/// bound at 60°.
-#[test]
-fn local_correlation_registers_across_a_contrast_change_on_the_gpu() {
     let Some(gpu) = common::gpu() else { return };
     let [got] = ten_degrees_with_other_contrast(gpu, [Similarity::Lncc], "gpu");
-    let [want] =
-        ten_degrees_with_other_contrast(&posereg::cpu::CpuBackend, [Similarity::Lncc], "cpu");
     assert!(got.mean_mm <= 3.2, "local correlation: {} mm", got.mean_mm);
     assert!(
-        (got.mean_mm - want.mean_mm).abs() <= 0.15,
+        (got.mean_mm - lncc.mean_mm).abs() <= 0.15,
         "gpu {} mm, cpu {} mm",
         got.mean_mm,
-        want.mean_mm
+        lncc.mean_mm
     );
 }
 
@@ -279,12 +274,12 @@ fn ninety_degrees_leaves_the_field_all_but_unfolded() {
     );
 }
 
+/// At the paper's size only: lavapipe takes a minute and a half more for the small size, which
+/// the CPU test covers, and the whole-pipeline test below holds the GPU path to the CPU's there.
 #[test]
 fn paper_experiment_one_on_the_gpu() {
     let Some(gpu) = common::gpu() else { return };
-    for size in [PhantomSize::Quarter, PhantomSize::Small] {
-        ten_degrees_without_initialisation(gpu, size, "gpu");
-    }
+    ten_degrees_without_initialisation(gpu, PhantomSize::Quarter, "gpu");
 }
 
 /// The whole pipeline on the GPU path (lavapipe in CI) against the CPU backend, on the small

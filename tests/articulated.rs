@@ -206,8 +206,8 @@ fn check<B: Backend>(
     summary
 }
 
-fn run_all<B: Backend>(backend: &B, name: &str) {
-    for degrees in ANGLES {
+fn run_at<B: Backend>(backend: &B, name: &str, angles: &[f64]) {
+    for &degrees in angles {
         let init = initialise_volumes(
             backend,
             &straight().image,
@@ -227,13 +227,15 @@ fn run_all<B: Backend>(backend: &B, name: &str) {
 
 #[test]
 fn recovers_every_bone_from_0_to_90_degrees_on_the_cpu() {
-    run_all(&CpuBackend, "cpu");
+    run_at(&CpuBackend, "cpu", &ANGLES);
 }
 
+/// On lavapipe at the two angles where the blend folds beside the patella and behind the knee
+/// and the fold repair runs (40 s an angle there; the CPU test covers the others).
 #[test]
-fn recovers_every_bone_from_0_to_90_degrees_on_the_gpu() {
+fn recovers_every_bone_at_60_and_90_degrees_on_the_gpu() {
     let Some(gpu) = common::gpu() else { return };
-    run_all(gpu, "gpu");
+    run_at(gpu, "gpu", &[60.0, 90.0]);
 }
 
 #[test]

@@ -153,19 +153,19 @@ fn recovered_on<B: Backend>(backend: &B, size: PhantomSize, angles: &[f64], name
     }
 }
 
-/// 0° to 120° in 15° steps.
+/// 0° to 120° in 30° steps (15 s an angle here at this size).
 #[test]
 fn knee_kinematics_recovered_on_the_phantom_on_the_cpu() {
-    let angles: Vec<f64> = (0..=8).map(|k| 15.0 * k as f64).collect();
+    let angles: Vec<f64> = (0..=4).map(|k| 30.0 * k as f64).collect();
     recovered_on(&posereg::cpu::CpuBackend, PhantomSize::Half, &angles, "cpu");
 }
 
-/// Two angles on lavapipe (a minute): the GPU path's bone motions agree with the CPU's to
-/// 0.01° on this phantom.
+/// The deepest flexion on lavapipe (a minute): the GPU path's bone motions agree with the
+/// CPU's to 0.01° on this phantom, and tests/articulated.rs runs it at 60° and 90°.
 #[test]
 fn knee_kinematics_recovered_on_the_phantom_on_the_gpu() {
     let Some(gpu) = common::gpu() else { return };
-    recovered_on(gpu, PhantomSize::Half, &[45.0, 120.0], "gpu");
+    recovered_on(gpu, PhantomSize::Half, &[120.0], "gpu");
 }
 
 /// `distal_frame` is `grood_suntay`'s inverse: random proximal frames and joint poses, both
