@@ -18,7 +18,7 @@ use posereg::backend::{box_sums, BoneImages, CostImages};
 use posereg::cpu::CpuBackend;
 use posereg::device::Opened;
 use posereg::gpu::GpuBackend;
-use posereg::similarity::LnccCost;
+use posereg::images::similarity::LnccCost;
 use posereg::volume::{Affine, Grid, Image};
 use posereg::Backend;
 
@@ -248,7 +248,7 @@ fn nonrigid_rows<B: Backend>(c: &mut Criterion, name: &str, b: &B, g: &Grid, lab
     let warp_params = RbfGradParams::new(g, ldims, step);
     let splat_params = SplatParams::new(ldims, step, g.dims);
     let spacing = g.spacing().map(|h| h * step as f64);
-    let energy = posereg::regularise::energy_params(ldims, spacing, 3.0, 0.0, 1e-6);
+    let energy = posereg::nonrigid::regularise::energy_params(ldims, spacing, 3.0, 0.0, 1e-6);
     let warp = b.rbf_lattice(&shape, &geometry, &spline).unwrap();
     let (per_voxel, rows) = b.warp_cost(&warp_params, &warp, &images).unwrap();
     let splat = b.lattice_splat(&splat_params, &per_voxel).unwrap();
@@ -309,7 +309,7 @@ fn gain_rows(
     backends: &[(&'static str, Opened)],
     (source, target): (&posereg::Volume, &posereg::Volume),
 ) {
-    let (coarse, _) = posereg::pyramid::next_level_grid(g).unwrap();
+    let (coarse, _) = posereg::images::pyramid::next_level_grid(g).unwrap();
     let fine = GainParams::new(g, g, 0.0, 2.0);
     group(c, "gain_terms", g.len() as u64, label, backends, |b| {
         posereg::on_backend!(b, b => resident(b, &[&source.data, &target.data], |b, [s, t]| {
@@ -376,7 +376,7 @@ fn kernels(c: &mut Criterion) {
                 }))
             },
         );
-        let (coarse, factors) = posereg::pyramid::next_level_grid(&g).unwrap();
+        let (coarse, factors) = posereg::images::pyramid::next_level_grid(&g).unwrap();
         let down = PyramidParams::new(&g, coarse.dims, factors);
         group(c, "pyramid", g.len() as u64, &label, &backends, |b| {
             posereg::on_backend!(b, b => resident(b, &[&source.data], |b, [s]| {
@@ -429,7 +429,7 @@ fn kernels(c: &mut Criterion) {
         });
         // Articulated initialisation: a whole-volume bone region, a small motion.
         let mask: posereg::Volume = Image::filled(g.clone(), 1.0);
-        let motion = posereg::rigid::small_motion(
+        let motion = posereg::init::rigid::small_motion(
             &nalgebra::Vector6::new(0.02, -0.01, 0.03, 1.0, -0.5, 0.2),
             &nalgebra::Vector3::zeros(),
         );
@@ -442,7 +442,7 @@ fn kernels(c: &mut Criterion) {
         });
         let candidates: Vec<posereg::Affine> = (0..32)
             .map(|k| {
-                posereg::rigid::small_motion(
+                posereg::init::rigid::small_motion(
                     &nalgebra::Vector6::new(0.0, 0.0, 0.01 * k as f64, 0.0, 0.0, 0.0),
                     &nalgebra::Vector3::zeros(),
                 )
@@ -484,7 +484,7 @@ fn kernels(c: &mut Criterion) {
             },
         );
         // Weights on the skinning grid (~2.5 mm), as the pipeline keeps them.
-        let (weight_grid, _) = posereg::skinning::skinning_grid(&g);
+        let (weight_grid, _) = posereg::init::skinning::skinning_grid(&g);
         let weights = resident(
             &CpuBackend,
             &[&synthetic_distances(weight_grid.len())],
@@ -500,7 +500,7 @@ fn kernels(c: &mut Criterion) {
         let blend = posereg::abi::BoneBlend {
             motions: (0..bones)
                 .map(|k| {
-                    posereg::rigid::small_motion(
+                    posereg::init::rigid::small_motion(
                         &nalgebra::Vector6::new(0.1 * k as f64, 0.0, 0.0, 0.0, 0.0, 0.0),
                         &nalgebra::Vector3::new(0.0, 0.0, 10.0),
                     )

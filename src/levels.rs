@@ -7,6 +7,9 @@ use serde::{de, Deserialize, Deserializer, Serialize, Serializer};
 use std::fmt;
 use std::str::FromStr;
 
+/// Most pyramid levels a setting may ask for (the initialisation's and the non-rigid stage's).
+pub const MAX_LEVELS: usize = 8;
+
 /// One value per pyramid level, coarse to fine (or one value for all levels).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PerLevel<T>(Vec<T>);

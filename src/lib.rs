@@ -14,6 +14,20 @@
 //! [`cpu::CpuBackend`]) that computes the same function in the same f32 order. Host code is
 //! generic over [`backend::Backend`]. Parameter structs shared with the shaders are in [`abi`].
 //!
+//! ## Layout, bottom up
+//! A module imports only from the layers below its own and from its own group (tests/layers.rs
+//! checks this):
+//! - the kernel vocabulary: [`abi`], [`backend`], [`volume`], [`error`], [`labels`], [`levels`],
+//!   [`check`], [`progress`], [`sample`], [`shaders`];
+//! - the two backends, [`cpu`] and [`gpu`], and [`device`], which chooses between them;
+//! - operations the stages share: [`images`] (pyramids, regions, fold repair, the inverse field,
+//!   similarity measures) and [`joints`] (the kinematic chain, frames, joint kinematics);
+//! - files on disk: [`io`];
+//! - the stages: [`init`] (per-bone rigid, skinning, volume skeletal deformation) and
+//!   [`nonrigid`] (the adaptive RBF stage), and the analytic [`phantom`];
+//! - whole registrations: [`pipeline`]; what they are reported by: [`report`];
+//! - the command line (the binary's `cli` module).
+//!
 //! ## Coordinates
 //! Inside the library everything is world millimetres in NIfTI RAS+ (+x Right, +y Anterior,
 //! +z Superior), placed by the sform when sform_code > 0, else the qform, else pixdim (the rule
@@ -24,52 +38,26 @@
 #![warn(missing_docs)]
 
 pub mod abi;
-pub mod adaptive;
-pub mod anatomy;
-pub mod articulated;
 pub mod backend;
-pub mod chain;
 pub mod check;
-pub mod cloud;
-pub mod confidence;
 pub mod cpu;
 pub mod device;
 pub mod error;
-pub mod evaluate;
-pub mod fold_repair;
-pub mod gain;
 pub mod gpu;
-pub mod inputs;
-pub mod inverse;
+pub mod images;
+pub mod init;
 pub mod io;
-pub mod joint;
-pub mod kinematics;
+pub mod joints;
 pub mod labels;
 pub mod levels;
-pub mod metric;
-pub mod optim;
+pub mod nonrigid;
 pub mod phantom;
-pub mod picture;
-pub mod points;
+pub mod pipeline;
 pub mod progress;
-pub mod pyramid;
-pub mod quicklook;
-pub mod rbf;
-pub mod reach;
-pub mod regions;
-pub mod register;
-pub mod regularise;
 pub mod report;
-pub mod repose;
-pub mod result_checks;
-pub mod rigid;
 pub mod sample;
-pub mod series;
 pub mod shaders;
-pub mod similarity;
-pub mod skinning;
 pub mod volume;
-pub mod vsd;
 
 pub use backend::Backend;
 pub use error::{Error, Result};

@@ -8,13 +8,15 @@ mod common;
 use posereg::progress::Silent;
 
 use nalgebra::Vector3;
-use posereg::evaluate::{field_error, FieldError};
+use posereg::images::metric::correlation;
+use posereg::images::similarity::Similarity;
 use posereg::labels as label;
 use posereg::levels::PerLevel;
-use posereg::metric::correlation;
 use posereg::phantom::{generate, Phantom, PhantomSize, PhantomSpec};
-use posereg::register::{register, register_observed, Inputs, RegisterOptions, Registration};
-use posereg::similarity::Similarity;
+use posereg::pipeline::register::{
+    register, register_observed, Inputs, RegisterOptions, Registration,
+};
+use posereg::report::evaluate::{field_error, FieldError};
 use posereg::{Backend, Field};
 
 fn pair(size: PhantomSize, flexion: f64) -> (Phantom, Phantom) {
@@ -32,7 +34,8 @@ fn pair(size: PhantomSize, flexion: f64) -> (Phantom, Phantom) {
 
 /// Body voxels whose true source point lies inside the source's field of view.
 fn evaluation_mask(source: &Phantom, target: &Phantom) -> Vec<bool> {
-    let seen = posereg::evaluate::seen_by_both(&target.truth_field, &source.image.grid, 0.0);
+    let seen =
+        posereg::report::evaluate::seen_by_both(&target.truth_field, &source.image.grid, 0.0);
     seen.iter()
         .zip(&target.labels.data)
         .map(|(s, l)| *s && *l != label::OUTSIDE)

@@ -6,12 +6,12 @@ use posereg::progress::Silent;
 
 use common::{host_determinant, resample_volume};
 use posereg::abi::Interpolation;
-use posereg::articulated::{
+use posereg::cpu::CpuBackend;
+use posereg::images::metric::{correlation, dice};
+use posereg::init::articulated::{
     initialise_volumes, rigid_field, InitOptions, InitialVolumes, Initialisation, Start,
 };
-use posereg::cpu::CpuBackend;
 use posereg::labels as label;
-use posereg::metric::{correlation, dice};
 use posereg::phantom::{generate, Phantom, PhantomSize, PhantomSpec};
 use posereg::{Backend, Image};
 use std::sync::OnceLock;
@@ -167,7 +167,7 @@ fn check<B: Backend>(
     }
     // The initial field does not fold in the soft tissue. The blend itself does beyond about
     // 30° (beside the patella, behind the knee); the repair smooths most of it away and pushes
-    // what is pinned by a bone until det J > 0.05 (src/fold_repair.rs).
+    // what is pinned by a bone until det J > 0.05 (src/images/fold_repair.rs).
     let det = host_determinant(backend, &images.field).unwrap();
     let soft: Vec<f32> = det
         .iter()

@@ -390,7 +390,7 @@ fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
     );
     assert_eq!(back.grid, source.grid);
     let body = |n: usize| source.data[n] > 0.0;
-    let r = posereg::metric::correlation(&back.data, &source.data, body);
+    let r = posereg::images::metric::correlation(&back.data, &source.data, body);
     assert!(
         r > 0.9,
         "target brought back correlates {r} with the source"
@@ -521,7 +521,7 @@ fn apply_apply_points_and_eval_use_a_registration_folder() {
         String::from_utf8_lossy(&out.stderr)
     );
     let moved = posereg::io::nifti::load_labels(&moved).unwrap();
-    let d = posereg::metric::dice(&moved.data, &bent.labels.data, 3u16);
+    let d = posereg::images::metric::dice(&moved.data, &bent.labels.data, 3u16);
     assert!(d > 0.9, "tibia Dice {d}");
 
     // apply-points: the patella's centre on the straight scan lands on the bent patella's

@@ -25,7 +25,7 @@ use posereg::io::nifti::{
 };
 use posereg::io::points::parse_points;
 use posereg::io::transform::{BoneTransform, BoneTransforms};
-use posereg::register::RegisterOptions;
+use posereg::pipeline::register::RegisterOptions;
 use posereg::volume::Affine;
 use rand::Rng;
 use std::panic::{catch_unwind, AssertUnwindSafe};

@@ -5,13 +5,13 @@
 
 mod common;
 
-use posereg::articulated::{initialise_volumes, InitOptions, Initialisation};
-use posereg::confidence::Decision;
 use posereg::cpu::CpuBackend;
+use posereg::init::articulated::{initialise_volumes, InitOptions, Initialisation};
 use posereg::io::field::load_field;
 use posereg::io::nifti::{load_labels, load_volume};
 use posereg::io::transform::BoneTransforms;
-use posereg::joint::degrees_between;
+use posereg::joints::confidence::Decision;
+use posereg::joints::joint::degrees_between;
 use posereg::labels as label;
 use posereg::progress::Silent;
 use posereg::Backend;

@@ -6,9 +6,11 @@
 mod common;
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
-use posereg::anatomy::{Frame, Side};
-use posereg::articulated::{initialise_volumes, InitOptions};
-use posereg::kinematics::{distal_frame, grood_suntay, knee_kinematics, JointMotion, JointPose};
+use posereg::init::articulated::{initialise_volumes, InitOptions};
+use posereg::joints::anatomy::{Frame, Side};
+use posereg::joints::kinematics::{
+    distal_frame, grood_suntay, knee_kinematics, JointMotion, JointPose,
+};
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
 use posereg::progress::Silent;
 use posereg::volume::Affine;
@@ -77,7 +79,7 @@ fn motions_of(truth: &posereg::io::transform::BoneTransforms) -> Vec<(u16, Affin
 
 /// The tibiofemoral and patellofemoral motions of `motions` from the source phantom's labels.
 fn knee_joints(labels: &posereg::Labels, motions: &[(u16, Affine)]) -> Vec<JointMotion> {
-    let chain = posereg::chain::knee();
+    let chain = posereg::joints::chain::knee();
     let (k, warnings) = knee_kinematics(labels, &chain, motions, None).unwrap();
     let k = k.unwrap_or_else(|| panic!("no kinematics: {warnings:?}"));
     assert_eq!(k.side_from, "the fibula lies lateral to the tibia");
@@ -215,7 +217,8 @@ fn pose_sets_the_joint_change_asked_for() {
     };
     let blend = posereg::abi::Blending::Linear;
     let posed =
-        posereg::repose::pose(&cpu, &source.image, &source.labels, change, None, blend).unwrap();
+        posereg::init::repose::pose(&cpu, &source.image, &source.labels, change, None, blend)
+            .unwrap();
     let truth = motions_of(&posed.truth);
     let got = knee_joints(&source.labels, &truth).swap_remove(0);
     for (q, want) in got.quantities.iter().zip(change.values()) {

@@ -1,7 +1,9 @@
-//! The layering ARCHITECTURE.md describes, checked on the source: only the CPU backend, the
-//! backend chooser (device.rs) and sample.rs's users below it reach into `src/cpu`, and no two
-//! modules import each other, directly or round a cycle. Test modules (`#[cfg(test)]`) are
-//! left out: a unit test may use the CPU backend to run what it tests.
+//! The layering ARCHITECTURE.md describes, checked on the source: modules import only from
+//! layers below theirs or from their own group, only the CPU backend and the backend chooser
+//! (device.rs) reach into `src/cpu`, and no two modules import each other, directly or round
+//! a cycle. A module is a file under src/ (`init::rigid` for src/init/rigid.rs) or, outside
+//! the stage groups, a top-level directory (`gpu` for src/gpu/run.rs). Test modules
+//! (`#[cfg(test)]`) are left out: a unit test may use the CPU backend to run what it tests.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -10,12 +12,64 @@ use std::path::Path;
 /// backend for the command line.
 const MAY_USE_CPU: &[&str] = &["cpu", "device"];
 
-/// The top-level module of a file under src/ ("gpu" for src/gpu/run.rs), None for the crate
-/// roots.
+/// The layers, bottom up: the kernel vocabulary (ABI structs, the Backend trait, shared types
+/// and settings), the two backends, operations the stages share, files on disk, the stages,
+/// whole registrations, reporting, the command line. A module imports from lower layers and
+/// from its own group only (the vocabulary's modules from each other).
+const LAYERS: &[&[&str]] = &[
+    &[
+        "abi", "backend", "check", "error", "labels", "levels", "progress", "sample", "shaders",
+        "volume",
+    ],
+    &["cpu", "gpu"],
+    &["device", "images", "joints"],
+    &["io"],
+    &["init", "nonrigid", "phantom"],
+    &["pipeline"],
+    &["report"],
+    &["cli"],
+];
+
+/// Directories under src/ whose files are modules of their own (the stage groups); the other
+/// directories are one module each.
+const GROUPS: &[&str] = &["images", "joints", "init", "nonrigid", "pipeline", "report"];
+
+/// The module of a file under src/ ("init::rigid" for src/init/rigid.rs, "report" for
+/// src/report/mod.rs, "gpu" for src/gpu/run.rs), None for the crate roots.
 fn module_of(relative: &Path) -> Option<String> {
-    let first = relative.components().next()?.as_os_str().to_string_lossy();
-    let name = first.trim_end_matches(".rs").to_string();
-    (name != "lib" && name != "main").then_some(name)
+    let parts: Vec<String> = relative
+        .components()
+        .map(|c| {
+            c.as_os_str()
+                .to_string_lossy()
+                .trim_end_matches(".rs")
+                .to_string()
+        })
+        .collect();
+    let top = parts[0].clone();
+    if top == "lib" || top == "main" {
+        return None;
+    }
+    match parts.get(1) {
+        Some(inner) if GROUPS.contains(&top.as_str()) && inner != "mod" => {
+            Some(format!("{top}::{inner}"))
+        }
+        _ => Some(top),
+    }
+}
+
+/// The group of a module ("init" for "init::rigid").
+fn group_of(module: &str) -> &str {
+    module.split("::").next().unwrap()
+}
+
+/// The layer a module's group sits in.
+fn layer_of(module: &str) -> usize {
+    let group = group_of(module);
+    LAYERS
+        .iter()
+        .position(|layer| layer.contains(&group))
+        .unwrap_or_else(|| panic!("module {module} is in no layer: add it to LAYERS"))
 }
 
 /// The file's code without its `#[cfg(test)]` module (which, by convention here, ends a file).
@@ -27,33 +81,94 @@ fn code_of(path: &Path) -> String {
     }
 }
 
-/// The top-level modules a file's code names as `crate::x`, including inside `use crate::{..}`.
+/// The modules a path names, from what follows `crate::` ("init::rigid" for
+/// `init::rigid::Rigid`, "io" for `io::nifti`), nested groups (`init::{rigid, vsd}`) included.
+fn modules_named(path: &str, out: &mut BTreeSet<String>) {
+    let head: String = path
+        .chars()
+        .take_while(|c| c.is_alphanumeric() || *c == '_')
+        .collect();
+    if head.is_empty() {
+        return;
+    }
+    let rest = path[head.len()..].trim_start();
+    let Some(rest) = rest
+        .strip_prefix("::")
+        .filter(|_| GROUPS.contains(&head.as_str()))
+    else {
+        out.insert(head);
+        return;
+    };
+    let rest = rest.trim_start();
+    let inner: Vec<&str> = match rest.strip_prefix('{') {
+        Some(group) => split_top_level(&group[..closing_brace(group)]),
+        None => vec![rest],
+    };
+    for item in inner {
+        let name: String = item
+            .trim()
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        match name.as_str() {
+            "" | "self" => out.insert(head.clone()),
+            // An item of the group's own mod.rs (report::Report) rather than a module.
+            _ if name.starts_with(char::is_uppercase) => out.insert(head.clone()),
+            _ => out.insert(format!("{head}::{name}")),
+        };
+    }
+}
+
+/// Where the brace group that `text` opens inside closes (the index of its `}`).
+fn closing_brace(text: &str) -> usize {
+    let mut depth = 1;
+    for (at, c) in text.char_indices() {
+        match c {
+            '{' => depth += 1,
+            '}' if depth == 1 => return at,
+            '}' => depth -= 1,
+            _ => {}
+        }
+    }
+    text.len()
+}
+
+/// `text` split at the commas outside braces.
+fn split_top_level(text: &str) -> Vec<&str> {
+    let (mut items, mut depth, mut start) = (Vec::new(), 0, 0);
+    for (at, c) in text.char_indices() {
+        match c {
+            '{' => depth += 1,
+            '}' => depth -= 1,
+            ',' if depth == 0 => {
+                items.push(&text[start..at]);
+                start = at + 1;
+            }
+            _ => {}
+        }
+    }
+    items.push(&text[start..]);
+    items
+}
+
+/// The modules a file's code names as `crate::…`, including inside `use crate::{..}`.
 fn imports(code: &str) -> BTreeSet<String> {
     let mut out = BTreeSet::new();
     for (at, _) in code.match_indices("crate::") {
         let rest = &code[at + "crate::".len()..];
-        if let Some(group) = rest.strip_prefix('{') {
-            let inner = &group[..group.find('}').unwrap_or(group.len())];
-            for item in inner.split(',') {
-                let head = item.trim().split("::").next().unwrap_or("").trim();
-                if !head.is_empty() {
-                    out.insert(head.to_string());
+        match rest.strip_prefix('{') {
+            Some(group) => {
+                for item in split_top_level(&group[..closing_brace(group)]) {
+                    modules_named(item.trim(), &mut out);
                 }
             }
-        } else {
-            let head: String = rest
-                .chars()
-                .take_while(|c| c.is_alphanumeric() || *c == '_')
-                .collect();
-            if !head.is_empty() {
-                out.insert(head);
-            }
+            None => modules_named(rest, &mut out),
         }
     }
     out
 }
 
-/// Module → the other top-level modules it imports.
+/// Module → the other modules it imports.
 fn graph() -> BTreeMap<String, BTreeSet<String>> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
     let mut graph: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
@@ -81,6 +196,25 @@ fn graph() -> BTreeMap<String, BTreeSet<String>> {
         deps.retain(|d| modules.contains(d));
     }
     graph
+}
+
+#[test]
+fn modules_import_only_from_lower_layers_or_their_own_group() {
+    let mut offences = Vec::new();
+    for (module, deps) in graph() {
+        for dep in deps {
+            let upward = layer_of(&dep) >= layer_of(&module);
+            // The vocabulary's modules build on each other (abi on volume, volume on error).
+            let within = group_of(&dep) == group_of(&module) || layer_of(&module) == 0;
+            if upward && !within {
+                offences.push(format!("{module} → {dep}"));
+            }
+        }
+    }
+    assert!(
+        offences.is_empty(),
+        "imports from the same layer or above (tests/layers.rs LAYERS): {offences:?}"
+    );
 }
 
 #[test]
@@ -134,8 +268,11 @@ fn no_module_imports_itself_round_a_cycle() {
 
 #[test]
 fn the_checks_see_imports_and_cycles() {
-    // The parser finds plain, grouped and nested imports, and ignores test modules.
-    let code = "use crate::abi::X;\nuse crate::{gpu::Y, volume};\nfn f() { crate::io::g(); }\n\
+    // The parser finds plain, grouped and nested imports, a stage group's modules and its
+    // mod.rs items, and ignores test modules.
+    let code = "use crate::abi::X;\nuse crate::{gpu::Y, volume, init::{rigid, vsd::Z}};\n\
+                fn f() { crate::io::g(); crate::nonrigid::adaptive::h(); }\n\
+                use crate::report::Report;\n\
                 #[cfg(test)]\nmod tests { use crate::cpu::CpuBackend; }";
     let dir = std::env::temp_dir().join(format!("posereg-layers-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -143,6 +280,27 @@ fn the_checks_see_imports_and_cycles() {
     std::fs::write(&file, code).unwrap();
     let found = imports(&code_of(&file));
     std::fs::remove_dir_all(&dir).unwrap();
-    let want: BTreeSet<String> = ["abi", "gpu", "volume", "io"].map(String::from).into();
+    let want: BTreeSet<String> = [
+        "abi",
+        "gpu",
+        "volume",
+        "init::rigid",
+        "init::vsd",
+        "io",
+        "nonrigid::adaptive",
+        "report",
+    ]
+    .map(String::from)
+    .into();
     assert_eq!(found, want);
+    let module = |path: &str| module_of(Path::new(path));
+    assert_eq!(module("init/rigid.rs").as_deref(), Some("init::rigid"));
+    assert_eq!(module("report/mod.rs").as_deref(), Some("report"));
+    assert_eq!(
+        module("report/quicklook/draw.rs").as_deref(),
+        Some("report::quicklook")
+    );
+    assert_eq!(module("gpu/run.rs").as_deref(), Some("gpu"));
+    assert_eq!(module("lib.rs"), None);
+    assert!(layer_of("cli") > layer_of("init::rigid") && layer_of("init") > layer_of("abi"));
 }

@@ -238,7 +238,7 @@ fn rigid_case() -> (Volume, Volume, Volume, posereg::Affine) {
             .collect(),
     )
     .unwrap();
-    let motion = posereg::rigid::small_motion(
+    let motion = posereg::init::rigid::small_motion(
         &nalgebra::Vector6::new(0.05, -0.03, 0.02, 1.5, -0.7, 0.4),
         &nalgebra::Vector3::new(-10.0, 20.0, 15.0),
     );
@@ -288,7 +288,7 @@ fn rigid_kernels_parity() {
     let (source, mask, target, motion) = rigid_case();
     let candidates: Vec<posereg::Affine> = (0..7)
         .map(|k| {
-            posereg::rigid::small_motion(
+            posereg::init::rigid::small_motion(
                 &nalgebra::Vector6::new(0.0, 0.0, 0.02 * k as f64, k as f64, 0.0, 0.0),
                 &nalgebra::Vector3::zeros(),
             ) * motion
@@ -379,11 +379,11 @@ fn skinning_kernels_parity() {
     close("skin_weights", &got, &cpu, 1e-6, 1e-5);
     let motions = [
         posereg::Affine::identity(),
-        posereg::rigid::small_motion(
+        posereg::init::rigid::small_motion(
             &nalgebra::Vector6::new(0.4, 0.1, 0.0, 2.0, 0.0, 1.0),
             &nalgebra::Vector3::new(0.0, 5.0, 5.0),
         ),
-        posereg::rigid::small_motion(
+        posereg::init::rigid::small_motion(
             &nalgebra::Vector6::new(0.2, 0.0, 0.1, 0.0, 1.0, 0.0),
             &nalgebra::Vector3::zeros(),
         ),
@@ -469,7 +469,7 @@ fn warp_and_gain<B: Backend>(
     let (product, energy) = b
         .gain_terms(&GainParams::new(grid, grid, 0.0, 2.0), &warped, &f)
         .unwrap();
-    let (coarse, factors) = posereg::pyramid::next_level_grid(grid).unwrap();
+    let (coarse, factors) = posereg::images::pyramid::next_level_grid(grid).unwrap();
     let down = posereg::abi::PyramidParams::new(grid, coarse.dims, factors);
     let (product, energy) = (
         b.pyramid_level(&down, &product).unwrap(),
@@ -546,7 +546,7 @@ fn spline_over(grid: &Grid, points: usize) -> Vec<f64> {
         .iter()
         .map(|c| Vector3::new((0.1 * c.x).sin(), (0.07 * c.y).cos(), 0.02 * c.z))
         .collect();
-    let coef = posereg::rbf::RbfSystem::new(centres.clone(), 0.0)
+    let coef = posereg::nonrigid::rbf::RbfSystem::new(centres.clone(), 0.0)
         .unwrap()
         .coefficients(&values)
         .unwrap();
@@ -587,7 +587,8 @@ fn evaluate<B: Backend>(
         .lattice_splat(&SplatParams::new(ldims, step, grid.dims), &gradient)
         .unwrap();
     let spacing = grid.spacing().map(|h| h * step as f64);
-    let energy_params = posereg::regularise::energy_params(ldims, spacing, 3.0, 0.5, 1e-3);
+    let energy_params =
+        posereg::nonrigid::regularise::energy_params(ldims, spacing, 3.0, 0.5, 1e-3);
     let (node_gradient, energy) = b.lattice_energy(&energy_params, &warp, &splat).unwrap();
     let partials = b
         .rbf_adjoint(&shape, &geometry, &spline, &node_gradient)
@@ -976,7 +977,7 @@ fn distances_and_moments<B: Backend>(b: &B, grid: &Grid, index: &[f32]) -> (Vec<
         data: b.upload("index", index.to_vec()).unwrap(),
         grid: grid.clone(),
     };
-    let maps = posereg::regions::distance_maps(b, &index, 2).unwrap();
+    let maps = posereg::images::regions::distance_maps(b, &index, 2).unwrap();
     let far = b.moments(&MomentsParams::new(grid, 3.0), &maps).unwrap();
     let mut out = b.download(&[&maps]).unwrap();
     (out.pop().unwrap(), b.download_one(&far).unwrap())

@@ -4,8 +4,8 @@
 use posereg::abi::Interpolation;
 use posereg::backend::resample_volume;
 use posereg::cpu::CpuBackend;
-use posereg::fold_repair::host_determinant;
-use posereg::metric::{correlation, dice};
+use posereg::images::fold_repair::host_determinant;
+use posereg::images::metric::{correlation, dice};
 use posereg::phantom::anatomy::{label, BONES};
 use posereg::phantom::{generate, Phantom, PhantomSize, PhantomSpec};
 use posereg::volume::Image;
@@ -54,7 +54,7 @@ fn paper_60() -> &'static Phantom {
 /// Bent voxels whose straight-pose point lies inside the straight image (see
 /// evaluate::seen_by_both).
 fn seen_in_both(straight: &Phantom, bent: &Phantom, margin: f64) -> Vec<bool> {
-    posereg::evaluate::seen_by_both(&bent.truth_field, &straight.image.grid, margin)
+    posereg::report::evaluate::seen_by_both(&bent.truth_field, &straight.image.grid, margin)
 }
 
 /// Voxels at least `margin` voxels from every face.
@@ -132,7 +132,7 @@ fn bone_labels_follow_the_truth_with_dice_at_least_098() {
                 .collect()
         };
         let bone = bent.truth.bones.iter().find(|b| b.label == code).unwrap();
-        let rigid = posereg::articulated::rigid_field(&bone.affine(), grid).unwrap();
+        let rigid = posereg::init::articulated::rigid_field(&bone.affine(), grid).unwrap();
         let (by_truth, by_motion) = (mapped_through(&bent.truth_field), mapped_through(&rigid));
         let missed = |mapped: &[bool]| {
             truth

@@ -207,7 +207,7 @@ fn ssd_of_a_known_pair() {
 
 #[test]
 fn cell_grids_finer_than_the_volume_are_refused() {
-    use posereg::metric::check_cells;
+    use posereg::images::metric::check_cells;
     assert!(check_cells([4, 4, 4], [5, 1, 1]).is_err());
     assert!(check_cells([4, 4, 4], [0, 1, 1]).is_err());
     assert!(check_cells([4, 4, 4], [4, 1, 2]).is_ok());
@@ -289,7 +289,7 @@ fn pyramid_keeps_constants_and_linear_ramps() {
     // The binomial kernel sums to one (constants stay) and is symmetric about the coarse voxel
     // centre (a ramp is sampled at the coarse centres), away from the clamped faces.
     let grid = Grid::new([20, 18, 16], Affine::identity()).unwrap();
-    let (coarse, factors) = posereg::pyramid::next_level_grid(&grid).unwrap();
+    let (coarse, factors) = posereg::images::pyramid::next_level_grid(&grid).unwrap();
     assert_eq!(factors, [2, 2, 2]);
     let constant = Image::filled(grid.clone(), 7.5f32);
     let down = one_level_down(&CpuBackend, &constant);
@@ -318,7 +318,7 @@ fn rigid_gradient_matches_finite_differences() {
     let source = smooth_volume(&grid, 21);
     let target = smooth_volume(&grid, 22);
     let mask: posereg::Volume = Image::filled(grid.clone(), 1.0);
-    let base = posereg::rigid::small_motion(
+    let base = posereg::init::rigid::small_motion(
         &nalgebra::Vector6::new(0.03, 0.02, -0.04, 0.8, -0.5, 0.3),
         &nalgebra::Vector3::zeros(),
     );
@@ -335,16 +335,17 @@ fn rigid_gradient_matches_finite_differences() {
     let centre = nalgebra::Vector3::new(-15.0, 12.0, 10.0);
     let up = |v: &posereg::Volume| DeviceImage::upload(&CpuBackend, "test", v.clone()).unwrap();
     let (source, inner, target) = (up(&source), up(&inner), up(&target));
-    let level = posereg::rigid::BoneLevel {
+    let level = posereg::init::rigid::BoneLevel {
         source: &source,
         mask: &inner,
         target: &target,
     };
-    let system =
-        |m: &posereg::Affine| posereg::rigid::normal_equations(&CpuBackend, &level, m, &centre);
+    let system = |m: &posereg::Affine| {
+        posereg::init::rigid::normal_equations(&CpuBackend, &level, m, &centre)
+    };
     let eq = system(&base).unwrap();
     let cost = |delta: nalgebra::Vector6<f64>| {
-        let at = system(&(posereg::rigid::small_motion(&delta, &centre) * base)).unwrap();
+        let at = system(&(posereg::init::rigid::small_motion(&delta, &centre) * base)).unwrap();
         (at.ssd, at.count)
     };
     let n0 = cost(nalgebra::Vector6::zeros()).1;
@@ -380,7 +381,7 @@ fn skin_blend_inverts_a_common_rigid_motion_exactly() {
             "partition of unity"
         );
     }
-    let m = posereg::rigid::small_motion(
+    let m = posereg::init::rigid::small_motion(
         &nalgebra::Vector6::new(0.3, -0.2, 0.5, 4.0, -2.0, 1.0),
         &nalgebra::Vector3::new(1.0, 2.0, 3.0),
     );
@@ -498,7 +499,7 @@ fn distance_maps_match_brute_force_with_anisotropic_spacing() {
             .unwrap(),
         grid: grid.clone(),
     };
-    let maps = posereg::regions::distance_maps(&CpuBackend, &index, 2).unwrap();
+    let maps = posereg::images::regions::distance_maps(&CpuBackend, &index, 2).unwrap();
     for (r, map) in maps.chunks(grid.len()).enumerate() {
         let members: Vec<usize> = (0..grid.len())
             .filter(|&n| region(n) == (r + 1) as f32)
@@ -528,7 +529,7 @@ fn moments_count_and_centre_a_region() {
         data: CpuBackend.upload("values", values.clone()).unwrap(),
         grid: grid.clone(),
     };
-    let got = posereg::regions::moments(&CpuBackend, &image, 0.5).unwrap();
+    let got = posereg::images::regions::moments(&CpuBackend, &image, 0.5).unwrap();
     let inside: Vec<usize> = (0..grid.len()).filter(|&n| values[n] >= 0.5).collect();
     let centroid = inside
         .iter()
@@ -610,7 +611,7 @@ fn rbf_cost_gradient_matches_finite_differences() {
         lattice_geometry, spline_buffer, RbfGradParams, RbfLatticeParams, SplatParams,
     };
     use posereg::backend::CostImages;
-    use posereg::rbf::RbfSystem;
+    use posereg::nonrigid::rbf::RbfSystem;
     let b = CpuBackend;
     let grid = Grid::new([24, 20, 18], Affine::identity()).unwrap();
     let moving = Arc::new(smooth_volume(&grid, 41).data);
@@ -638,8 +639,13 @@ fn rbf_cost_gradient_matches_finite_differences() {
     let geometry = Arc::new(lattice_geometry(&grid));
     let voxels = grid.len() as f64;
     let spacing = [step as f64; 3];
-    let energy =
-        posereg::regularise::energy_params(ldims, spacing, 40.0, 200.0, (1.0 / voxels) as f32);
+    let energy = posereg::nonrigid::regularise::energy_params(
+        ldims,
+        spacing,
+        40.0,
+        200.0,
+        (1.0 / voxels) as f32,
+    );
     let evaluate = |values: &[Vector3<f64>]| {
         let coef = system.coefficients(values).unwrap();
         let spline = Arc::new(spline_buffer(&coef.affine, &positions, &coef.lambda));
@@ -698,7 +704,7 @@ fn lncc_cost_gradient_matches_finite_differences() {
     // voxel included, not the common approximation from the voxel's own window only.
     use posereg::abi::{RbfGradParams, SplatParams};
     use posereg::backend::CostImages;
-    use posereg::similarity::LnccCost;
+    use posereg::images::similarity::LnccCost;
     let b = CpuBackend;
     let grid = Grid::new([20, 18, 16], Affine::identity()).unwrap();
     let moving = Arc::new(smooth_volume(&grid, 43).data);
@@ -762,8 +768,8 @@ fn lattice_interpolation_error_of_a_cubic_rbf_warp_is_small() {
     // The warp is evaluated every 5 mm and interpolated: measure the error against evaluating
     // it at every voxel, for a warp of a few mm over a 1.25 mm grid.
     use nalgebra::Vector3;
-    use posereg::adaptive::{Adaptive, ControlPoint};
-    use posereg::rbf::RbfSystem;
+    use posereg::nonrigid::adaptive::{Adaptive, ControlPoint};
+    use posereg::nonrigid::rbf::RbfSystem;
     let mut a = Affine::identity();
     for k in 0..3 {
         a[(k, k)] = 1.25;
@@ -832,7 +838,7 @@ fn lattice_energy(
     membrane: bool,
 ) -> (f64, Vec<f32>) {
     let (m, b) = if membrane { (1.0, 0.0) } else { (0.0, 1.0) };
-    let params = posereg::regularise::energy_params(dims, spacing, m, b, 0.0);
+    let params = posereg::nonrigid::regularise::energy_params(dims, spacing, m, b, 0.0);
     let zero = vec![0.0f32; values.len()];
     let (gradient, terms) = CpuBackend
         .lattice_energy(&params, &Arc::new(values.to_vec()), &Arc::new(zero))
@@ -961,7 +967,7 @@ fn rbf_lattice_is_the_host_evaluation_rounded_once() {
         .iter()
         .map(|c| Vector3::new((0.1 * c.x).sin(), 0.3, -(0.05 * c.z).cos()))
         .collect();
-    let coef = posereg::rbf::RbfSystem::new(centres.clone(), 0.0)
+    let coef = posereg::nonrigid::rbf::RbfSystem::new(centres.clone(), 0.0)
         .unwrap()
         .coefficients(&values)
         .unwrap();

@@ -1,16 +1,16 @@
-//! Poses reached through their neighbours (posereg::series): at large flexion the chained
+//! Poses reached through their neighbours (posereg::pipeline::series): at large flexion the chained
 //! registration lands closer to the truth than registering the straight scan straight there.
 //! The phantom's soft tissue follows its own flexion flow, not posereg's blend, but its bones
 //! turn about one axis, which the rigid search's candidates assume; the independent knee pairs
 //! in BENCHMARKS.md are the check without that.
 
-use posereg::articulated::Start;
 use posereg::cpu::CpuBackend;
-use posereg::evaluate::field_error;
+use posereg::init::articulated::Start;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
+use posereg::pipeline::register::{register, Inputs, RegisterOptions, Registration};
+use posereg::pipeline::series::{chain_step, Reached};
 use posereg::progress::Silent;
-use posereg::register::{register, Inputs, RegisterOptions, Registration};
-use posereg::series::{chain_step, Reached};
+use posereg::report::evaluate::field_error;
 
 fn phantom(flexion_degrees: f64, seed: u64) -> posereg::phantom::Phantom {
     let spec = PhantomSpec {
@@ -74,6 +74,6 @@ fn chaining_through_a_middle_pose_beats_registering_straight_to_120_degrees() {
     };
     let got = tibia(&chained.transforms(&options));
     let want = tibia(&last.truth);
-    let degrees = posereg::joint::degrees_between(&got, &want);
+    let degrees = posereg::joints::joint::degrees_between(&got, &want);
     assert!(degrees < 1.5, "tibia {degrees}° from the truth");
 }

@@ -4,11 +4,11 @@
 
 use numpy::{IntoPyArray, PyReadonlyArray1};
 use posereg::device::{open_backend, DeviceChoice, DeviceWanted};
-use posereg::inputs::{check_pair, check_settings, PairPaths};
 use posereg::io::config::parse_options;
 use posereg::io::field::flip_ras_lps;
+use posereg::pipeline::inputs::{check_pair, check_settings, PairPaths};
+use posereg::pipeline::register::{register, Inputs, RegisterOptions};
 use posereg::progress::{Progress, Silent};
-use posereg::register::{register, Inputs, RegisterOptions};
 use posereg::report::{report, Run};
 use posereg::{Affine, Field, Grid, Image};
 use pyo3::exceptions::PyValueError;
@@ -120,7 +120,7 @@ fn register_flat<'py>(
 
 /// The registration, its kinematics and its report, without the GIL.
 fn run(
-    pair: &posereg::inputs::Pair,
+    pair: &posereg::pipeline::inputs::Pair,
     options: &RegisterOptions,
     wanted: &DeviceWanted,
     progress: bool,

@@ -3,13 +3,13 @@
 //! GPU/CPU ratio, and peak memory.
 
 use clap::{Args, ValueEnum};
-use posereg::adaptive::Evaluations;
 use posereg::backend::Backend;
 use posereg::cpu::CpuBackend;
 use posereg::gpu::GpuBackend;
+use posereg::nonrigid::adaptive::Evaluations;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
+use posereg::pipeline::register::{register, Inputs, RegisterOptions, StageTimes, StageTraffic};
 use posereg::progress::Silent;
-use posereg::register::{register, Inputs, RegisterOptions, StageTimes, StageTraffic};
 
 /// Which backends to time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

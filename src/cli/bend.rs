@@ -7,10 +7,10 @@ use posereg::abi::Blending;
 use posereg::abi::Interpolation;
 use posereg::backend::resample_volume;
 use posereg::device::{open_backend, DeviceWanted};
+use posereg::init::repose::{bend, Posed};
 use posereg::io::field::save_field;
 use posereg::io::nifti::{load_labels, load_volume, save_labels, save_volume, DataType};
-use posereg::joint::JointAxis;
-use posereg::repose::{bend, Posed};
+use posereg::joints::joint::JointAxis;
 use posereg::Error;
 use std::path::PathBuf;
 
@@ -126,6 +126,6 @@ pub fn write_posed(
     )?;
     save_field(&out("truth_field.nii.gz"), &posed.field)?;
     posed.truth.save(&out("truth.json"))?;
-    posereg::picture::save_planes_png(&out("picture.png"), &target, Some(knee))?;
+    posereg::report::picture::save_planes_png(&out("picture.png"), &target, Some(knee))?;
     Ok(())
 }

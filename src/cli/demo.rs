@@ -6,16 +6,16 @@ use super::init::kinematics;
 use super::outputs::write_registration;
 use super::progress::Reporter;
 use clap::Args;
-use posereg::articulated::bone_name;
 use posereg::device::{open_backend, DeviceWanted};
-use posereg::evaluate::field_error;
+use posereg::init::articulated::bone_name;
 use posereg::io::config::load_options;
 use posereg::io::field::save_field;
 use posereg::io::nifti::{save_labels, save_volume, DataType};
-use posereg::joint::rotation_degrees;
+use posereg::joints::joint::rotation_degrees;
 use posereg::labels as label;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
-use posereg::register::{register_observed, Inputs, RegisterOptions};
+use posereg::pipeline::register::{register_observed, Inputs, RegisterOptions};
+use posereg::report::evaluate::field_error;
 use posereg::report::Run;
 use std::path::PathBuf;
 
@@ -91,7 +91,7 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         options: &options,
         inputs: serde_json::json!({
             "phantom": format!("{:?}, straight and bent {}°", args.size, args.flexion),
-            "start": posereg::articulated::Start::describe(None),
+            "start": posereg::init::articulated::Start::describe(None),
         }),
         warnings: &[],
         seconds,
@@ -131,7 +131,8 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     }
     // Inside the body and seen by both scans: where the true source point lies in the source's
     // field of view (the bent shank brings in anatomy the straight scan never saw).
-    let seen = posereg::evaluate::seen_by_both(&target.truth_field, &source.image.grid, 0.0);
+    let seen =
+        posereg::report::evaluate::seen_by_both(&target.truth_field, &source.image.grid, 0.0);
     let body = |n: usize| target.labels.data[n] != label::OUTSIDE && seen[n];
     let zero = posereg::Image::filled(target.image.grid.clone(), [0.0f32; 3]);
     let before = field_error(&zero, &target.truth_field, body)?;

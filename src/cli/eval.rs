@@ -2,10 +2,10 @@
 //! figures for an estimated field against a true one.
 
 use clap::Args;
-use posereg::evaluate::field_error;
+use posereg::images::metric::correlation;
 use posereg::io::field::load_field;
 use posereg::io::nifti::{load_labels, load_volume};
-use posereg::metric::correlation;
+use posereg::report::evaluate::field_error;
 use posereg::Error;
 use std::path::PathBuf;
 

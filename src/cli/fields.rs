@@ -2,10 +2,10 @@
 //! found beside its transform.json, and the check that a reference image is on a field's grid.
 
 use posereg::abi::Interpolation;
-use posereg::evaluate::seen_by_both;
 use posereg::io::field::load_field;
 use posereg::io::nifti::{load_labels, load_volume, read_header};
 use posereg::io::transform::BoneTransforms;
+use posereg::report::evaluate::seen_by_both;
 use posereg::{Error, Field, Image, Volume};
 use std::path::{Path, PathBuf};
 

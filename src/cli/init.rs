@@ -5,22 +5,22 @@ use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
 use posereg::abi::Interpolation;
-use posereg::anatomy::Side;
-use posereg::articulated::{initialise_volumes, rigid_field, InitOptions, Start};
 use posereg::backend::resample_volume;
-use posereg::chain::{self, Link};
 use posereg::device::{open_backend, DeviceWanted};
-use posereg::inputs::{check_bones, load_pair, Pair, PairPaths};
+use posereg::images::metric::correlation;
+use posereg::init::articulated::{initialise_volumes, rigid_field, InitOptions, Start};
 use posereg::io::config::load_options;
 use posereg::io::field::save_field;
 use posereg::io::itk_transform::save_bone_tfms;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::transform::BoneTransforms;
 use posereg::io::{prepare_output_folder, OutputFolder};
-use posereg::joint::rotation_degrees;
-use posereg::kinematics::KneeKinematics;
-use posereg::metric::correlation;
-use posereg::register::{unregistered, RegisterOptions};
+use posereg::joints::anatomy::Side;
+use posereg::joints::chain::{self, Link};
+use posereg::joints::joint::rotation_degrees;
+use posereg::joints::kinematics::KneeKinematics;
+use posereg::pipeline::inputs::{check_bones, load_pair, Pair, PairPaths};
+use posereg::pipeline::register::{unregistered, RegisterOptions};
 use posereg::Error;
 use std::path::{Path, PathBuf};
 
@@ -122,13 +122,13 @@ impl PairArgs {
     }
 }
 
-/// The knee's kinematics for the initialisation's bone motions (see posereg::kinematics),
+/// The knee's kinematics for the initialisation's bone motions (see posereg::joints::kinematics),
 /// each joint with its bones' confidence, or None with the reason warned.
 pub fn kinematics(
     side: Option<Side>,
     labels: &posereg::Labels,
     chain: &[Link],
-    init: &posereg::articulated::Initialisation,
+    init: &posereg::init::articulated::Initialisation,
     reporter: &Reporter,
 ) -> anyhow::Result<Option<KneeKinematics>> {
     let (kinematics, warnings) = init.kinematics(labels, chain, side)?;
@@ -234,7 +234,7 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         "skinning".into(),
         serde_json::json!({
             "method": "shepard inverse-distance",
-            "power": posereg::skinning::SHEPARD_POWER,
+            "power": posereg::init::skinning::SHEPARD_POWER,
             "reach": init.reach,
             "grid_dims": init.weight_grid.dims,
         }),
@@ -333,7 +333,7 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
 }
 
 /// How far small segments reach and, when several limits were tried, each one's fit.
-fn reach_line(reach: &posereg::reach::ReachChoice) -> String {
+fn reach_line(reach: &posereg::init::reach::ReachChoice) -> String {
     let tried: Vec<String> = reach
         .tried
         .iter()

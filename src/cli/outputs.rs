@@ -4,14 +4,14 @@
 
 use super::init::write_kinematics;
 use super::progress::Reporter;
-use posereg::anatomy::Frame;
 use posereg::device::Opened;
 use posereg::io::field::save_field;
 use posereg::io::itk_transform::save_bone_tfms;
 use posereg::io::nifti::{save_volume, DataType};
-use posereg::quicklook::Figure;
+use posereg::joints::anatomy::Frame;
+use posereg::report::quicklook::Figure;
+use posereg::report::result_checks::{Check, Correlations};
 use posereg::report::{report, Run};
-use posereg::result_checks::{Check, Correlations};
 use posereg::Error;
 use std::path::Path;
 
@@ -46,10 +46,11 @@ pub fn write_registration(
             .grid
             .voxel_to_world(target.grid.dims.map(|d| (d as f64 - 1.0) / 2.0)),
     };
-    let bones: Vec<(u16, String)> = posereg::chain::present(&options.init.chain, run.labels)
-        .into_iter()
-        .map(|code| (code, options.init.name_of(code)))
-        .collect();
+    let bones: Vec<(u16, String)> =
+        posereg::joints::chain::present(&options.init.chain, run.labels)
+            .into_iter()
+            .map(|code| (code, options.init.name_of(code)))
+            .collect();
     let frames: Vec<Frame> = run
         .kinematics
         .iter()
@@ -69,7 +70,7 @@ pub fn write_registration(
         frames: &frames,
         correlations,
     };
-    posereg::quicklook::save(&out("quicklook.png"), &figure)?;
+    posereg::report::quicklook::save(&out("quicklook.png"), &figure)?;
     let text = serde_json::to_string_pretty(&judged.json)? + "\n";
     posereg::io::write_atomically(&out("report.json"), |tmp| {
         std::fs::write(tmp, text).map_err(|e| Error::io(tmp, e))

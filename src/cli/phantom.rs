@@ -54,7 +54,7 @@ pub fn run(args: &PhantomArgs) -> anyhow::Result<()> {
             .axis_point
             .as_dvec3()
             .to_array();
-        posereg::picture::save_planes_png(&out("picture.png"), &phantom.image, Some(knee))?;
+        posereg::report::picture::save_planes_png(&out("picture.png"), &phantom.image, Some(knee))?;
     }
     println!("phantom written to {}", args.output.display());
     Ok(())

@@ -9,8 +9,8 @@ use super::fields::registration_field;
 use super::progress::Reporter;
 use clap::{Args, ValueEnum};
 use nalgebra::Vector3;
+use posereg::images::points::{source_to_target, target_to_source};
 use posereg::io::points::load_points;
-use posereg::points::{source_to_target, target_to_source};
 use posereg::Error;
 use std::path::{Path, PathBuf};
 

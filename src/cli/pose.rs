@@ -7,11 +7,11 @@ use super::bend::write_posed;
 use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
-use posereg::anatomy::Side;
 use posereg::device::{open_backend, DeviceWanted};
+use posereg::init::repose::pose;
 use posereg::io::nifti::{load_labels, load_volume};
-use posereg::kinematics::JointPose;
-use posereg::repose::pose;
+use posereg::joints::anatomy::Side;
+use posereg::joints::kinematics::JointPose;
 use posereg::Error;
 use std::path::PathBuf;
 
@@ -75,7 +75,10 @@ pub fn run(args: &PoseArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     let posed = posereg::on_backend!(opened, backend => pose(
         backend, &source, &labels, change, args.side, args.blending,
     ))?;
-    let axis = posereg::joint::flexion_axis(&labels, posereg::joint::KneeBones::default())?;
+    let axis = posereg::joints::joint::flexion_axis(
+        &labels,
+        posereg::joints::joint::KneeBones::default(),
+    )?;
     let knee = [axis.point.x, axis.point.y, axis.point.z];
     write_posed(&opened, &args.output, (&source, &labels), &posed, knee)?;
     reporter.result(&format!("posed; written to {}", args.output.display()));

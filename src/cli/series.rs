@@ -1,7 +1,7 @@
 //! `posereg series --source S --source-labels L --targets T1 T2 ... -o DIR`: one labelled scan
 //! and the same knee in several poses, in pose order. Each pose is registered as `register`
 //! would, into DIR/pose_01, DIR/pose_02, …; from the second on, it is reached through the pose
-//! before it (posereg::series: the bones registered from the source with the previous pose's
+//! before it (posereg::pipeline::series: the bones registered from the source with the previous pose's
 //! motions tried first, their step from the previous pose blended there and composed with
 //! its field), or with `--unchained` registered from the source with the previous
 //! pose's bone motions tried first. DIR/series.csv tabulates every pose's kinematics.
@@ -10,11 +10,11 @@ use super::init::PairArgs;
 use super::progress::Reporter;
 use super::register::{register_pair, RegisterArgs, Registered, StartOf};
 use clap::Args;
-use posereg::anatomy::Side;
 use posereg::device::DeviceWanted;
-use posereg::kinematics::KneeKinematics;
-use posereg::quicklook::chart::{save_chart, Chart, Curve, Plot};
-use posereg::series::{chain_step, Reached};
+use posereg::joints::anatomy::Side;
+use posereg::joints::kinematics::KneeKinematics;
+use posereg::pipeline::series::{chain_step, Reached};
+use posereg::report::quicklook::chart::{save_chart, Chart, Curve, Plot};
 use posereg::Error;
 use std::path::PathBuf;
 

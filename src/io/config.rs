@@ -43,7 +43,7 @@ pub fn options_toml<T: Settings>(options: &T) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::register::RegisterOptions;
+    use crate::pipeline::register::RegisterOptions;
 
     #[test]
     fn defaults_written_as_toml_read_back_unchanged() {

@@ -1,8 +1,8 @@
 //! kinematics.json and kinematics.csv: the knee's joint motion in Grood & Suntay's joint
-//! coordinate system (crate::kinematics), as `init` and `register` write it.
+//! coordinate system (crate::joints::kinematics), as `init` and `register` write it.
 
 use crate::error::{Error, Result};
-use crate::kinematics::KneeKinematics;
+use crate::joints::kinematics::KneeKinematics;
 use std::path::Path;
 
 /// The version of kinematics.json's layout.

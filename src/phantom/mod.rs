@@ -13,7 +13,7 @@ pub mod shapes;
 
 use crate::backend::Backend;
 use crate::error::{Error, Result};
-use crate::fold_repair::{host_determinant, unfold};
+use crate::images::fold_repair::{host_determinant, unfold};
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
 use acquisition::{add_rician_noise, BiasField};

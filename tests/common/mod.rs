@@ -119,7 +119,7 @@ pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
 pub fn one_level_down<B: posereg::Backend>(backend: &B, volume: &Volume) -> Volume {
     let image =
         posereg::backend::DeviceImage::upload(backend, "test volume", volume.clone()).unwrap();
-    let mut levels = posereg::pyramid::build(backend, image, 2).unwrap();
+    let mut levels = posereg::images::pyramid::build(backend, image, 2).unwrap();
     assert_eq!(levels.len(), 2, "the grid can be halved");
     levels.pop().unwrap().download(backend).unwrap()
 }
@@ -129,7 +129,7 @@ pub fn cell_ssd<B: posereg::Backend>(
     backend: &B,
     (a, b, covered): (&Volume, &Volume, &[f32]),
     cells: [usize; 3],
-) -> posereg::metric::CellSsd {
+) -> posereg::images::metric::CellSsd {
     let up = |v: &[f32]| backend.upload("test volume", v.to_vec()).unwrap();
     let (a_data, b_data, c_data) = (up(&a.data), up(&b.data), up(covered));
     let images = posereg::backend::CostImages {
@@ -142,13 +142,13 @@ pub fn cell_ssd<B: posereg::Backend>(
         .ssd_cells(&posereg::abi::SsdParams::new(dims, cells), &images)
         .unwrap();
     let partial = backend.download_one(&partial).unwrap();
-    posereg::metric::fold_ssd_partials(dims, cells, &partial)
+    posereg::images::metric::fold_ssd_partials(dims, cells, &partial)
 }
 
 #[allow(unused_imports)]
 pub use posereg::backend::resample_volume;
 #[allow(unused_imports)]
-pub use posereg::fold_repair::host_determinant;
+pub use posereg::images::fold_repair::host_determinant;
 
 /// Skinning weights (bones per voxel) from host distances (one volume per bone, reach 1),
 /// brought back.
@@ -198,7 +198,7 @@ pub fn initial_error_by_reach(
     truth_field: &Field,
     body: &[bool],
 ) -> (Vec<(f64, f64)>, (f64, f64)) {
-    use posereg::articulated::{initialise_volumes, InitOptions, Start};
+    use posereg::init::articulated::{initialise_volumes, InitOptions, Start};
     let run = |reach: Vec<f64>| {
         let options = InitOptions {
             reach,
@@ -209,7 +209,7 @@ pub fn initial_error_by_reach(
         let silent = &posereg::progress::Silent;
         let (init, images) =
             initialise_volumes(backend, source, labels, target, &options, start, silent).unwrap();
-        let error = posereg::evaluate::field_error(&images.field, truth_field, |n| body[n]);
+        let error = posereg::report::evaluate::field_error(&images.field, truth_field, |n| body[n]);
         (init.reach.limit, error.unwrap().mean_mm)
     };
     let candidates = InitOptions::default().reach;

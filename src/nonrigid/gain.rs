@@ -14,7 +14,7 @@
 use crate::abi::{GainParams, SumParams};
 use crate::backend::{total, Backend, DeviceImage};
 use crate::error::Result;
-use crate::pyramid;
+use crate::images::pyramid;
 
 /// Gains are kept within this factor of 1: a wider ratio is anatomy, not bias.
 const MOST_GAIN: f32 = 2.0;

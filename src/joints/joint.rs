@@ -2,9 +2,9 @@
 //! the femoral condyles, medio-lateral, oriented so that a positive rotation swings the shank
 //! posteriorly — the direction a knee bends.
 
-use crate::chain::{self, Link};
-use crate::cloud::{centroid, end_slab, principal_direction, world_points};
 use crate::error::{Error, Result};
+use crate::joints::chain::{self, Link};
+use crate::joints::cloud::{centroid, end_slab, principal_direction, world_points};
 use crate::labels as label;
 use crate::volume::Labels;
 use nalgebra::Vector3;

@@ -2,30 +2,30 @@
 //! weights, and the inverted volume skeletal deformation, giving the initial field u0.
 
 use crate::abi::{Blending, Interpolation, ResampleParams, ThresholdParams};
-use crate::adaptive::MAX_LEVELS;
-use crate::anatomy::Side;
 use crate::backend::{Backend, DeviceImage};
-use crate::chain::{self, Link};
 use crate::check::within;
-use crate::confidence::{judge, Confidence, Decision, Evidence, FollowRules};
 use crate::error::{Error, Result};
-use crate::fold_repair::{FoldRepair, SourceLabels};
-use crate::io::transform::{BoneTransform, BoneTransforms};
-use crate::joint::{
-    degrees_between, flexion_axis, rotation_about, rotation_degrees, JointAxis, KneeBones,
-};
-use crate::kinematics::{knee_kinematics, KneeKinematics};
-use crate::labels as label;
-use crate::progress::Progress;
-use crate::pyramid;
-use crate::reach::{self, ReachChoice};
-use crate::regions;
-use crate::rigid::{
+use crate::images::fold_repair::{FoldRepair, SourceLabels};
+use crate::images::pyramid;
+use crate::images::regions;
+use crate::init::reach::{self, ReachChoice};
+use crate::init::rigid::{
     refine, score_candidates, score_covered, BoneLevel, LevelReport, RefineOptions,
 };
-use crate::skinning;
+use crate::init::skinning;
+use crate::init::vsd::{initial_field, InitialField};
+use crate::io::transform::{BoneTransform, BoneTransforms};
+use crate::joints::anatomy::Side;
+use crate::joints::chain::{self, Link};
+use crate::joints::confidence::{judge, Confidence, Decision, Evidence, FollowRules};
+use crate::joints::joint::{
+    degrees_between, flexion_axis, rotation_about, rotation_degrees, JointAxis, KneeBones,
+};
+use crate::joints::kinematics::{knee_kinematics, KneeKinematics};
+use crate::labels as label;
+use crate::levels::MAX_LEVELS;
+use crate::progress::Progress;
 use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
-use crate::vsd::{initial_field, InitialField};
 use nalgebra::{Rotation3, Unit, Vector3};
 
 /// Most reach limits `init.reach` may list: each costs a coarse blend.
@@ -46,9 +46,9 @@ pub struct InitOptions {
     /// Bone labels to register (default: every bone of the chain present).
     pub bones: Vec<u16>,
     /// The bones' tree: each bone's parent, rotation search and plausible range
-    /// (crate::chain; the knee's by default).
+    /// (crate::joints::chain; the knee's by default).
     pub chain: Vec<Link>,
-    /// When a bone with weak evidence follows its parent (crate::confidence).
+    /// When a bone with weak evidence follows its parent (crate::joints::confidence).
     pub follow: FollowRules,
     /// Pyramid levels.
     pub levels: usize,
@@ -86,7 +86,7 @@ pub struct InitOptions {
     /// Limits of how far a small segment's tissue reaches (skinning::reach_scale: 1 as far
     /// as its distance, 2 twice as far as a bone of the largest segment's size would): each
     /// is tried on a coarse grid and the one whose initialised image correlates best with the
-    /// target is kept (crate::reach); one value fixes it. The right limit differs between the
+    /// target is kept (crate::init::reach); one value fixes it. The right limit differs between the
     /// project's phantom (2) and the real knee bent by the independent generator (1).
     pub reach: Vec<f64>,
 }
@@ -192,7 +192,7 @@ pub struct Initialisation {
     pub weight_grid: Grid,
     /// Folds of the blend removed from the initial field.
     pub repair: FoldRepair,
-    /// How far small segments reach, and why (crate::reach).
+    /// How far small segments reach, and why (crate::init::reach).
     pub reach: ReachChoice,
     /// Per-bone reports.
     pub reports: Vec<BoneReport>,

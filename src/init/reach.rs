@@ -1,7 +1,7 @@
 //! How far a small moving segment's soft tissue reaches (skinning::reach_scale), chosen per
 //! pair: each candidate limit's initial field is made on a coarse grid, the source is seen
 //! through it, and the limit whose image correlates best with the target locally (LNCC,
-//! crate::similarity) is kept.
+//! crate::images::similarity) is kept.
 //!
 //! Why by the images: the right reach depends on the anatomy and the scan (on the project's
 //! phantom the anterior thigh stays with the femur while the patella turns, on the real knee
@@ -13,8 +13,8 @@
 use crate::abi::{Interpolation, ResampleParams};
 use crate::backend::{Backend, DeviceImage};
 use crate::error::Result;
-use crate::pyramid;
-use crate::similarity::local_correlation;
+use crate::images::pyramid;
+use crate::images::similarity::local_correlation;
 use crate::volume::Grid;
 
 /// Spacing (mm) the candidates are compared at: the tissue at stake spans centimetres, and a

@@ -3,7 +3,7 @@
 //! Bones form a tree. The root is registered from the identity; every other bone's rotation
 //! search and refinement start from its parent's motion, its plausible motion is bounded
 //! relative to that parent, and a bone whose own evidence is weak may follow its parent
-//! (crate::confidence). The knee's table is the default; a table in the settings
+//! (crate::joints::confidence). The knee's table is the default; a table in the settings
 //! (`[[init.chain]]` entries) replaces it, and `--label-map` renames its codes. The rotation
 //! search turns about the knee's flexion axis, found from the bones named femur and tibia
 //! (joint.rs): other joints need an axis finder of their own.

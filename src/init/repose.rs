@@ -6,19 +6,19 @@
 //! not the initialisation undoing its own model).
 
 use crate::abi::Blending;
-use crate::anatomy::{knee_frames, Frame, Side};
-use crate::articulated::bone_name;
 use crate::backend::{Backend, DeviceImage};
-use crate::chain;
 use crate::error::{Error, Result};
-use crate::fold_repair::SourceLabels;
+use crate::images::fold_repair::SourceLabels;
+use crate::init::articulated::bone_name;
+use crate::init::skinning;
+use crate::init::vsd::initial_field;
 use crate::io::transform::{BoneTransform, BoneTransforms};
-use crate::joint::{flexion_axis, rotation_about, JointAxis, KneeBones};
-use crate::kinematics::{distal_frame, grood_suntay, JointPose};
+use crate::joints::anatomy::{knee_frames, Frame, Side};
+use crate::joints::chain;
+use crate::joints::joint::{flexion_axis, rotation_about, JointAxis, KneeBones};
+use crate::joints::kinematics::{distal_frame, grood_suntay, JointPose};
 use crate::labels as label;
-use crate::skinning;
 use crate::volume::{Affine, Field, Labels, Volume};
-use crate::vsd::initial_field;
 
 /// A synthetic pose of a labelled straight volume.
 pub struct Posed {
@@ -133,7 +133,7 @@ fn frame_to_frame(from: &Frame, to: &Frame) -> Affine {
 /// (flexion, varus, internal rotation in degrees; lateral shift, anterior drawer, compression
 /// in mm, as kinematics.csv reports them) from the straight pose: the femur stays, tibia and
 /// fibula move together, the patella flexes by 0.7 of the flexion about the femur's medio-
-/// lateral axis. Frames as crate::anatomy measures them on `labels`.
+/// lateral axis. Frames as crate::joints::anatomy measures them on `labels`.
 pub fn pose<B: Backend>(
     backend: &B,
     source: &Volume,

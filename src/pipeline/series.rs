@@ -11,12 +11,12 @@
 //! refines it as it refines any initial field, so each pose's outputs are the source's.
 
 use crate::abi::{ComposeParams, Interpolation};
-use crate::articulated::{blend_motions, bone_motions, Chained, InitOptions};
 use crate::backend::{resample_volume, Backend, DeviceImage};
 use crate::error::{Error, Result};
+use crate::init::articulated::{blend_motions, bone_motions, Chained, InitOptions};
+use crate::init::reach::Judge;
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::progress::Progress;
-use crate::reach::Judge;
 use crate::volume::{Field, Image, Labels, Volume};
 
 /// The pose before the one to reach, as its registration left it.

@@ -16,11 +16,11 @@ pub mod chart;
 mod draw;
 mod panels;
 
-use crate::adaptive::ControlPoint;
-use crate::anatomy::Frame;
 use crate::error::{Error, Result};
-use crate::picture::{pixel_size, window, world_bounds, PLANES};
-use crate::result_checks::Correlations;
+use crate::joints::anatomy::Frame;
+use crate::nonrigid::adaptive::ControlPoint;
+use crate::report::picture::{pixel_size, window, world_bounds, PLANES};
+use crate::report::result_checks::Correlations;
 use crate::volume::{Field, Grid, Labels, Volume};
 use draw::Canvas;
 use panels::{PlaneImages, Sampling};

@@ -5,13 +5,13 @@
 //! settings against the inputs (the bones they name exist and are in the chain, the target holds
 //! the pyramid levels asked for).
 
-use crate::articulated::InitOptions;
-use crate::chain::{self, Link};
 use crate::error::{Error, Result};
+use crate::images::pyramid::next_level_grid;
+use crate::init::articulated::InitOptions;
 use crate::io::memory;
 use crate::io::nifti::{labels_from_raw, read_header, read_raw, spatial_grid, volume_from_raw};
-use crate::pyramid::next_level_grid;
-use crate::register::RegisterOptions;
+use crate::joints::chain::{self, Link};
+use crate::pipeline::register::RegisterOptions;
 use crate::volume::{Grid, Labels, Volume};
 use std::path::Path;
 
@@ -274,7 +274,7 @@ pub fn check_bones(init: &InitOptions, labels: &Labels, paths: PairPaths) -> Res
     }
     if let Some(bone) = chosen
         .iter()
-        .find(|&&b| crate::chain::link(&init.chain, b).is_none())
+        .find(|&&b| crate::joints::chain::link(&init.chain, b).is_none())
     {
         return Err(Error::InvalidInput(format!(
             "bone label {bone} (from --bones or {}) has no entry in init.chain; add one with \
@@ -286,7 +286,7 @@ pub fn check_bones(init: &InitOptions, labels: &Labels, paths: PairPaths) -> Res
 }
 
 /// The target must give the pyramid levels asked for (an axis is halved only while it keeps
-/// enough voxels, crate::pyramid).
+/// enough voxels, crate::images::pyramid).
 pub fn check_levels(target: &Grid, levels: usize, path: &Path) -> Result<()> {
     let mut available = 1;
     let mut grid = target.clone();

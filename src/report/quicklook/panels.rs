@@ -2,8 +2,8 @@
 //! and which bone the field carries each pixel to.
 
 use super::Figure;
-use crate::picture::{Panel, PlanePoints};
-use crate::points::{components, displacement_at};
+use crate::images::points::{components, displacement_at};
+use crate::report::picture::{Panel, PlanePoints};
 use crate::sample::{inside_source, nearest};
 use crate::volume::Field;
 use nalgebra::{Vector3, Vector4};

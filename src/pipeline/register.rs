@@ -2,15 +2,17 @@
 //! adaptive cubic-RBF stage, the composed field, a fold check, and the source resampled once.
 
 use crate::abi::{BoneLookupParams, ComposeParams, Interpolation, ResampleParams};
-use crate::adaptive::{self, Adaptive, AdaptiveOptions, Moving};
-use crate::articulated::{
-    initialise, InitOptions, InitialImages, Initialisation, PairImages, Start,
-};
 use crate::backend::{resample_onto, Backend, DeviceImage, Traffic};
 use crate::error::{Error, Result};
-use crate::fold_repair::{determinant, unfold_registration, FoldRepair, Folds, SourceLabels};
-use crate::inverse::{invert, round_trip, RoundTrip};
+use crate::images::fold_repair::{
+    determinant, unfold_registration, FoldRepair, Folds, SourceLabels,
+};
+use crate::images::inverse::{invert, round_trip, RoundTrip};
+use crate::init::articulated::{
+    initialise, InitOptions, InitialImages, Initialisation, PairImages, Start,
+};
 use crate::io::transform::BoneTransforms;
+use crate::nonrigid::adaptive::{self, Adaptive, AdaptiveOptions, Moving};
 use crate::progress::Progress;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
 use nalgebra::Vector3;

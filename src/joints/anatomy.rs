@@ -18,9 +18,11 @@
 //! not be the largest. The side (left or right knee) is read from the fibula, which
 //! lies lateral to the tibia, or given.
 
-use crate::cloud::{centroid, end_slab, principal_direction, principal_directions, world_points};
 use crate::error::{Error, Result};
-use crate::joint::KneeBones;
+use crate::joints::cloud::{
+    centroid, end_slab, principal_direction, principal_directions, world_points,
+};
+use crate::joints::joint::KneeBones;
 use crate::volume::{Affine, Labels};
 use nalgebra::{Matrix3, Vector3};
 

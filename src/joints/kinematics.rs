@@ -1,5 +1,5 @@
 //! Joint kinematics in Grood & Suntay's joint coordinate system (J Biomech Eng 1983): for a
-//! proximal bone's frame P and a distal bone's frame D (crate::anatomy: X to the subject's
+//! proximal bone's frame P and a distal bone's frame D (crate::joints::anatomy: X to the subject's
 //! right, Y anterior, Z proximal), the axes e1 = X_P (fixed in the proximal bone), e3 = Z_D
 //! (fixed in the distal bone) and the floating axis e2 = e3 × e1 / |e3 × e1|; then
 //!
@@ -20,11 +20,11 @@
 //! (positive: its superior pole lateral) and its tilt (reported as lateral tilt, positive when
 //! its lateral border goes posterior: the negated rotation about e3).
 
-use crate::anatomy::{knee_frames, Frame, Side};
-use crate::chain::Link;
-use crate::confidence::Confidence;
 use crate::error::Result;
-use crate::joint::KneeBones;
+use crate::joints::anatomy::{knee_frames, Frame, Side};
+use crate::joints::chain::Link;
+use crate::joints::confidence::Confidence;
+use crate::joints::joint::KneeBones;
 use crate::volume::{Affine, Labels};
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 use std::collections::BTreeMap;

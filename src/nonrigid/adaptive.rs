@@ -1,8 +1,8 @@
 //! Adaptive non-rigid registration (paper §3): cubic-RBF control points are added only in the
 //! cells that still fit poorly, from 2×2×2 cells up to 16×16×16, over a pyramid coarse to fine,
 //! and their displacements optimised by L-BFGS on the sum of squared differences, or per level
-//! on local correlation (crate::similarity), plus, after the articulated initialisation, the
-//! membrane energy of the added warp (crate::regularise).
+//! on local correlation (crate::images::similarity), plus, after the articulated initialisation, the
+//! membrane energy of the added warp (crate::nonrigid::regularise).
 //!
 //! Cost: the warp is evaluated on a coarse lattice (about every 5 mm) — nodes × control points,
 //! not voxels × control points — and interpolated per voxel; the gradient comes back through the
@@ -23,15 +23,15 @@ use crate::abi::{
 use crate::backend::{total, Backend, CostImages, DeviceImage, Traffic};
 use crate::check::finite_non_negative;
 use crate::error::{Error, Result};
-use crate::gain::gain;
-use crate::levels::PerLevel;
-use crate::metric::{check_cells, fold_ssd_partials, CellSsd};
-use crate::optim::lbfgs;
+use crate::images::metric::{check_cells, fold_ssd_partials, CellSsd};
+use crate::images::pyramid;
+use crate::images::similarity::{LnccCost, Similarity};
+use crate::levels::{PerLevel, MAX_LEVELS};
+use crate::nonrigid::gain::gain;
+use crate::nonrigid::optim::lbfgs;
+use crate::nonrigid::rbf::{RbfCoefficients, RbfSystem};
+use crate::nonrigid::regularise::energy_params;
 use crate::progress::Progress;
-use crate::pyramid;
-use crate::rbf::{RbfCoefficients, RbfSystem};
-use crate::regularise::energy_params;
-use crate::similarity::{LnccCost, Similarity};
 use crate::volume::Grid;
 use nalgebra::Vector3;
 
@@ -65,18 +65,18 @@ pub struct AdaptiveOptions {
     pub lattice_mm: f64,
     /// Smoothing μ added to the RBF system's diagonal (0 interpolates).
     pub smoothing: f64,
-    /// Weight of the warp's membrane energy (crate::regularise) in the cost, relative to the
+    /// Weight of the warp's membrane energy (crate::nonrigid::regularise) in the cost, relative to the
     /// target's intensity variance at each level: a strain of ε everywhere costs as much as a
     /// residual of √membrane·ε standard deviations at every voxel.
     pub membrane: PerLevel<f64>,
-    /// Weight of the warp's bending energy (crate::regularise, mm⁻²) in the cost, relative to
+    /// Weight of the warp's bending energy (crate::nonrigid::regularise, mm⁻²) in the cost, relative to
     /// the target's intensity variance at each level, in mm²: a curvature κ (mm⁻¹ per mm)
     /// everywhere costs as much as a residual of √bending·κ standard deviations at every voxel.
     /// Unlike the membrane it is applied with or without the initialisation: it leaves a limb
     /// turning as a whole free.
     pub bending: PerLevel<f64>,
     /// Scale (mm) of the smooth intensity gain matched between the moving and the target
-    /// image before optimising (crate::gain); 0 leaves intensities as they are.
+    /// image before optimising (crate::nonrigid::gain); 0 leaves intensities as they are.
     pub gain_scale_mm: f64,
     /// The cost's image term per pyramid level, coarse to fine: SSD after the gain, or LNCC
     /// (where the cells that fit poorly are still found by their SSD). SSD by default: LNCC at
@@ -118,7 +118,7 @@ impl AdaptiveOptions {
         if !(1..=MAX_LEVELS).contains(&self.levels) {
             return bad(&format!("levels must be 1 to {MAX_LEVELS}"));
         }
-        // Every cell of the first refinement gets a point (crate::adaptive): 16³ there made
+        // Every cell of the first refinement gets a point (crate::nonrigid::adaptive): 16³ there made
         // thousands, and the dense RBF system stalled.
         let rising = self.cell_levels.windows(2).all(|w| w[0] < w[1]);
         if !rising
@@ -190,8 +190,6 @@ impl AdaptiveOptions {
     }
 }
 
-/// Most pyramid levels a setting may ask for.
-pub const MAX_LEVELS: usize = 8;
 /// Most cells per axis at the first refinement, where every cell gets a point.
 const MAX_FIRST_CELLS: usize = 4;
 /// Most cells per axis at a refinement (64³ cells).
@@ -580,7 +578,7 @@ pub fn register<B: Backend>(
         let target_variance = variance(backend, &level.fixed)?;
         let weights = energy_weights(target_variance, index, moving.prealigned, options);
         // Once the moving image is aligned, its smooth brightness difference to the target is
-        // bias, not anatomy (crate::gain): match it at each level, measured through the warp
+        // bias, not anatomy (crate::nonrigid::gain): match it at each level, measured through the warp
         // found so far. Aligned means from the start after the articulated initialisation;
         // without it, from the second level on (matched on the unaligned image at the coarsest
         // level, the gain absorbed anatomy: 10° paper phantom, 1.42 → 1.62 mm).
@@ -758,7 +756,7 @@ impl<B: Backend> LevelRun<'_, B> {
         points: &mut [ControlPoint],
         evaluator: &Evaluator<B>,
         evaluations: &std::cell::Cell<Evaluations>,
-    ) -> Result<crate::optim::Minimised> {
+    ) -> Result<crate::nonrigid::optim::Minimised> {
         let options = self.options;
         let centres: Vec<Vector3<f64>> = points.iter().map(|p| Vector3::from(p.position)).collect();
         let system = RbfSystem::new(centres.clone(), options.smoothing)?;

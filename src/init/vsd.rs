@@ -12,9 +12,9 @@
 use crate::abi::{check_bone_count, Blending, BoneBlend, SkinBlendParams};
 use crate::backend::{Backend, DeviceImage};
 use crate::error::Result;
-use crate::fold_repair::{repair_folds, FoldRepair, SourceLabels};
-use crate::regions;
-use crate::skinning::SkinningWeights;
+use crate::images::fold_repair::{repair_folds, FoldRepair, SourceLabels};
+use crate::images::regions;
+use crate::init::skinning::SkinningWeights;
 use crate::volume::{Affine, Grid};
 
 /// Newton-like inversion steps per voxel.

@@ -13,7 +13,7 @@ use imageproc::drawing::{
 use imageproc::rect::Rect;
 
 /// DejaVu Sans (assets/fonts, its licence beside it).
-static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+static FONT: &[u8] = include_bytes!("../../../assets/fonts/DejaVuSans.ttf");
 
 /// Around the cells.
 const BACKGROUND: Rgb<u8> = Rgb([20, 20, 26]);
@@ -234,7 +234,7 @@ impl Canvas {
     /// point, red where it takes its intensities from, a line between.
     fn control_points(&mut self, row: &PlaneImages, figure: &Figure, corner: (usize, usize)) {
         let normal = row.plane.normal();
-        let pixel = crate::picture::pixel_size(figure.target);
+        let pixel = crate::report::picture::pixel_size(figure.target);
         let near = figure
             .points
             .iter()

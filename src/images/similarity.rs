@@ -18,7 +18,7 @@ use std::str::FromStr;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Similarity {
-    /// Sum of squared differences after the smooth intensity gain (crate::gain).
+    /// Sum of squared differences after the non-rigid stage's smooth intensity gain.
     Ssd,
     /// Local normalised cross-correlation: K Σ (1 − ρ²) over windows, K the target's variance.
     Lncc,

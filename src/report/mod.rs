@@ -1,12 +1,19 @@
-//! report.json: what a registration did and how well, built here so that every writer (the
-//! command line, the Python package) writes the same. docs/outputs.md describes each key.
+//! Reporting a registration. This module builds report.json: what a registration did and how
+//! well, built here so that every writer (the command line, the Python package) writes the
+//! same; docs/outputs.md describes each key. Its parts: the checks a result is held to, the
+//! quicklook picture, orthogonal-plane pictures, and the paper's figures against known truth.
+
+pub mod evaluate;
+pub mod picture;
+pub mod quicklook;
+pub mod result_checks;
 
 use crate::backend::Backend;
 use crate::error::Result;
-use crate::kinematics::KneeKinematics;
-use crate::metric::correlation;
-use crate::register::{unregistered, RegisterOptions, Registration};
-use crate::result_checks::{result_checks, Check, Correlations};
+use crate::images::metric::correlation;
+use crate::joints::kinematics::KneeKinematics;
+use crate::pipeline::register::{unregistered, RegisterOptions, Registration};
+use crate::report::result_checks::{result_checks, Check, Correlations};
 use crate::volume::{Labels, Volume};
 
 /// The version of report.json's layout: raised when a key changes meaning or goes away.

@@ -14,7 +14,7 @@
 use crate::abi::{Interpolation, ResampleParams, SkinWeightsParams};
 use crate::backend::{Backend, DeviceImage};
 use crate::error::{Error, Result};
-use crate::regions;
+use crate::images::regions;
 use crate::volume::{Affine, Grid};
 use nalgebra::Vector3;
 
@@ -58,7 +58,7 @@ pub const MAX_REACH: f64 = 2.0;
 /// whatever its size (the real knee bent by the independent generator) the scaling costs
 /// accuracy instead: limit 3 → 2 → none, 2 mm 45° 2.04 → 1.97 → 1.05 mm. Which holds depends
 /// on the joint and the scan, so the initialisation tries several limits and keeps the one
-/// whose initialised image correlates best with the target (crate::reach). A small
+/// whose initialised image correlates best with the target (crate::init::reach). A small
 /// bone moving with a large one (the fibula with the tibia) reaches as far as the large one:
 /// scaled as a bone of its own, it left the tissue around it to the femur (the knee at 90°:
 /// 37 mm off there in the initial field, 8 mm as the segment).
@@ -98,7 +98,8 @@ pub fn segments(motions: &[Affine], centroids: &[Vector3<f64>]) -> Vec<usize> {
         .map(|i| {
             (0..n)
                 .map(|j| {
-                    crate::joint::degrees_between(&motions[i], &motions[j]) < SEGMENT_DEGREES
+                    crate::joints::joint::degrees_between(&motions[i], &motions[j])
+                        < SEGMENT_DEGREES
                         && apart(i, j, &centroids[i]).max(apart(i, j, &centroids[j])) < SEGMENT_MM
                 })
                 .collect()

@@ -5,11 +5,11 @@
 //! stderr; `--strict` turns a failed check into a non-zero exit (the outputs are still
 //! written, atomically, for inspection).
 
-use crate::articulated::Initialisation;
-use crate::chain;
-use crate::confidence::Decision;
-use crate::joint::degrees_between;
-use crate::register::{RegisterOptions, Registration};
+use crate::init::articulated::Initialisation;
+use crate::joints::chain;
+use crate::joints::confidence::Decision;
+use crate::joints::joint::degrees_between;
+use crate::pipeline::register::{RegisterOptions, Registration};
 
 /// One check's outcome.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -110,7 +110,7 @@ fn bones_within_search(init: &Initialisation, options: &RegisterOptions) -> Chec
 }
 
 /// No bone's registration raised a doubt: none implausible and followed its parent instead,
-/// weakly determined or barely seen (crate::confidence). Which bones followed their parent is
+/// weakly determined or barely seen (crate::joints::confidence). Which bones followed their parent is
 /// said either way.
 fn bones_confident(init: &Initialisation) -> Check {
     let warnings: Vec<&str> = init

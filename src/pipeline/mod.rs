@@ -1,0 +1,6 @@
+//! Whole registrations: inputs loaded and checked, one pair registered (initialisation,
+//! non-rigid stage, composition, fold check, resampling), pose series through their neighbours.
+
+pub mod inputs;
+pub mod register;
+pub mod series;
