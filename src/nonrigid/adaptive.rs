@@ -561,15 +561,7 @@ pub fn register<B: Backend>(
     crate::backend::check_grids(&moving.coverage.grid, &target.grid)?;
     options.check()?;
     let levels = levels(backend, moving, target, options.levels)?;
-    let mut points: Vec<ControlPoint> = pins
-        .iter()
-        .map(|p| ControlPoint {
-            position: (*p).into(),
-            displacement: [0.0; 3],
-            pinned: true,
-            cells: 0,
-        })
-        .collect();
+    let mut points = pinned_points(pins);
     let mut stages = Vec::new();
     let evaluations = std::cell::Cell::new(Evaluations::default());
     progress.begin("adaptive RBF", levels.len() * options.cell_levels.len());
@@ -578,23 +570,13 @@ pub fn register<B: Backend>(
         let target_variance = variance(backend, &level.fixed)?;
         let weights = energy_weights(target_variance, index, moving.prealigned, options);
         // Once the moving image is aligned, its smooth brightness difference to the target is
-        // bias, not anatomy (crate::nonrigid::gain): match it at each level, measured through the warp
+        // bias, not anatomy (the gain module): match it at each level, measured through the warp
         // found so far. Aligned means from the start after the articulated initialisation;
         // without it, from the second level on (matched on the unaligned image at the coarsest
         // level, the gain absorbed anatomy: 10° paper phantom, 1.42 → 1.62 mm).
         let aligned = moving.prealigned || index + 1 < levels.len();
         let gained = match options.gain_scale_mm > 0.0 && aligned {
-            true => {
-                let moving = &level.moving.data;
-                let warped = warp_moving(backend, &points, options.smoothing, &lattice, moving)?;
-                Some(gain(
-                    backend,
-                    &warped.image,
-                    &level.fixed,
-                    moving,
-                    options.gain_scale_mm,
-                )?)
-            }
+            true => Some(matched_gain(backend, level, &lattice, &points, options)?),
             false => None,
         };
         let run = LevelRun {
@@ -605,49 +587,9 @@ pub fn register<B: Backend>(
             moving: gained.as_ref().unwrap_or(&level.moving.data),
             options,
         };
-        let similarity = options.similarity.at_level(index);
-        let lncc = (similarity == Similarity::Lncc).then(|| {
-            LnccCost::new(
-                &level.fixed.grid,
-                options.lncc_radius,
-                target_variance as f32,
-            )
-        });
-        let evaluator = Evaluator::new(
-            backend,
-            &lattice,
-            level.images(run.moving),
-            lncc,
-            &level.fixed.grid,
-            weights,
-        );
+        let evaluator = run.evaluator(target_variance, weights);
         for &wanted in &options.cell_levels {
-            let cells = run.cells(wanted);
-            let refinement = format!(
-                "level {index}, {}x{}x{} cells",
-                cells[0], cells[1], cells[2]
-            );
-            let added = run.add_points(&mut points, wanted, cells)?;
-            if added == 0 {
-                progress.step(&format!("{refinement}: no new points"));
-                continue;
-            }
-            let result = run.optimise(&mut points, &evaluator, &evaluations)?;
-            progress.step(&format!(
-                "{refinement}: +{added} points ({} in all), cost {:.4} -> {:.4}",
-                points.len(),
-                result.start_cost,
-                result.cost
-            ));
-            stages.push(StageReport {
-                level: index,
-                cells,
-                added,
-                similarity,
-                cost_before: result.start_cost,
-                cost_after: result.cost,
-                iterations: result.iterations,
-            });
+            stages.extend(run.refine(wanted, &mut points, &evaluator, &evaluations, progress)?);
         }
     }
     let (coefficients, _) = solve(&points, options.smoothing)?;
@@ -658,6 +600,38 @@ pub fn register<B: Backend>(
         stages,
         evaluations: evaluations.get(),
     })
+}
+
+/// The control points the stage starts from: one at each pin, held at zero displacement.
+fn pinned_points(pins: &[Vector3<f64>]) -> Vec<ControlPoint> {
+    pins.iter()
+        .map(|p| ControlPoint {
+            position: (*p).into(),
+            displacement: [0.0; 3],
+            pinned: true,
+            cells: 0,
+        })
+        .collect()
+}
+
+/// The moving image at `level` with its smooth gain to the target matched, measured through
+/// the warp of `points` so far.
+fn matched_gain<B: Backend>(
+    backend: &B,
+    level: &Level<B>,
+    lattice: &Lattice<B>,
+    points: &[ControlPoint],
+    options: &AdaptiveOptions,
+) -> Result<B::Buffer<f32>> {
+    let moving = &level.moving.data;
+    let warped = warp_moving(backend, points, options.smoothing, lattice, moving)?;
+    gain(
+        backend,
+        &warped.image,
+        &level.fixed,
+        moving,
+        options.gain_scale_mm,
+    )
 }
 
 /// The membrane's and the bending energy's weights at pyramid level `index`, scaled by the
@@ -690,7 +664,59 @@ struct LevelRun<'a, B: Backend> {
     options: &'a AdaptiveOptions,
 }
 
-impl<B: Backend> LevelRun<'_, B> {
+impl<'a, B: Backend> LevelRun<'a, B> {
+    /// The level's cost as the optimiser sees it: its image term (SSD, or local correlation
+    /// scaled by the target's variance `target_variance`) and the energies weighted by
+    /// `weights`.
+    fn evaluator(&self, target_variance: f64, weights: [f64; 2]) -> Evaluator<'a, B> {
+        let grid = &self.level.fixed.grid;
+        let lncc = (self.similarity() == Similarity::Lncc)
+            .then(|| LnccCost::new(grid, self.options.lncc_radius, target_variance as f32));
+        let images = self.level.images(self.moving);
+        Evaluator::new(self.backend, self.lattice, images, lncc, grid, weights)
+    }
+
+    /// The image term at this level.
+    fn similarity(&self) -> Similarity {
+        self.options.similarity.at_level(self.index)
+    }
+
+    /// One refinement: points added where `wanted` cells per axis fit poorly, then every point
+    /// optimised; what it did, or None when no point was added.
+    fn refine(
+        &self,
+        wanted: usize,
+        points: &mut Vec<ControlPoint>,
+        evaluator: &Evaluator<B>,
+        evaluations: &std::cell::Cell<Evaluations>,
+        progress: &dyn Progress,
+    ) -> Result<Option<StageReport>> {
+        let cells = self.cells(wanted);
+        let [x, y, z] = cells;
+        let refinement = format!("level {}, {x}x{y}x{z} cells", self.index);
+        let added = self.add_points(points, wanted, cells)?;
+        if added == 0 {
+            progress.step(&format!("{refinement}: no new points"));
+            return Ok(None);
+        }
+        let result = self.optimise(points, evaluator, evaluations)?;
+        progress.step(&format!(
+            "{refinement}: +{added} points ({} in all), cost {:.4} -> {:.4}",
+            points.len(),
+            result.start_cost,
+            result.cost
+        ));
+        Ok(Some(StageReport {
+            level: self.index,
+            cells,
+            added,
+            similarity: self.similarity(),
+            cost_before: result.start_cost,
+            cost_after: result.cost,
+            iterations: result.iterations,
+        }))
+    }
+
     /// `wanted` cells per axis, fewer where an axis has too few voxels.
     fn cells(&self, wanted: usize) -> [usize; 3] {
         let dims = self.level.fixed.grid.dims;

@@ -298,20 +298,7 @@ pub fn register_observed<B: Backend>(
     };
     let initialisation = clock.elapsed().as_secs_f64();
     let after_init = backend.traffic();
-    let coverage = ResampleParams::new(&pair.source.grid, &target.grid, 0.0, Interpolation::Linear);
-    let mask: Vec<f32> = match target_mask {
-        Some(mask) => {
-            crate::backend::check_grids(&mask.grid, &target.grid)?;
-            mask.data.iter().map(|&m| (m > 0) as u8 as f32).collect()
-        }
-        None => vec![1.0; target.grid.len()],
-    };
-    let mask_share = mask.iter().filter(|&&m| m > 0.0).count().max(1) as f64 / mask.len() as f64;
-    let mask = backend.upload("target mask", mask)?;
-    let coverage = DeviceImage {
-        data: backend.coverage(&coverage, &images.field.data, &mask)?,
-        grid: target.grid.clone(),
-    };
+    let (coverage, mask_share) = coverage(backend, &pair, &images, target_mask)?;
     let adaptive = adaptive::register(
         backend,
         &Moving {
@@ -376,6 +363,32 @@ pub fn register_observed<B: Backend>(
         timings,
         traffic,
     })
+}
+
+/// Where the initialised source covers the target, within the target mask (all of the target
+/// without one), where the backend computes; and the mask's share of the target grid.
+fn coverage<B: Backend>(
+    backend: &B,
+    pair: &PairImages<B>,
+    images: &InitialImages<B>,
+    target_mask: Option<&Labels>,
+) -> Result<(DeviceImage<B>, f64)> {
+    let grid = &pair.target.grid;
+    let mask: Vec<f32> = match target_mask {
+        Some(mask) => {
+            crate::backend::check_grids(&mask.grid, grid)?;
+            mask.data.iter().map(|&m| (m > 0) as u8 as f32).collect()
+        }
+        None => vec![1.0; grid.len()],
+    };
+    let mask_share = mask.iter().filter(|&&m| m > 0.0).count().max(1) as f64 / mask.len() as f64;
+    let mask = backend.upload("target mask", mask)?;
+    let params = ResampleParams::new(&pair.source.grid, grid, 0.0, Interpolation::Linear);
+    let coverage = DeviceImage {
+        data: backend.coverage(&params, &images.field.data, &mask)?,
+        grid: grid.clone(),
+    };
+    Ok((coverage, mask_share))
 }
 
 /// The outputs of a registration, on the host.
