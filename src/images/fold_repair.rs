@@ -10,8 +10,9 @@ use crate::abi::{BoneLookupParams, DilateParams, JacobianParams, ThresholdParams
 use crate::backend::{Backend, DeviceImage};
 use crate::error::Result;
 use crate::sample::bone_at;
-use crate::volume::{Field, Image, Labels};
+use crate::volume::{Field, Grid, Image, Labels};
 use glam::Vec3;
+use std::collections::BTreeSet;
 
 /// Jacobian determinant below which a voxel counts as folded (or about to fold) for repair.
 pub const FOLD_THRESHOLD: f32 = 0.05;
@@ -234,40 +235,15 @@ pub fn unfold(
     rigid: &[bool],
     in_bone: &(dyn Fn(usize, [f32; 3]) -> bool + Sync),
 ) -> usize {
-    let [nx, ny, nz] = field.grid.dims;
-    let inv = field.grid.world_to_voxel_affine();
-    // Row a: d(index a)/d(world mm).
-    let index_per_mm: [Vec3; 3] = std::array::from_fn(|a| {
-        Vec3::new(inv[(a, 0)] as f32, inv[(a, 1)] as f32, inv[(a, 2)] as f32)
-    });
-    let dims = [nx, ny, nz];
-    let stride = [1, nx, nx * ny];
-    // The neighbours the Jacobian kernel differences along axis a at voxel n, and the factor
-    // on their difference: central inside, one-sided on the faces.
-    let neighbours = |n: usize, a: usize| {
-        let c = n / stride[a] % dims[a];
-        let lo = if c > 0 { n - stride[a] } else { n };
-        let hi = if c + 1 < dims[a] { n + stride[a] } else { n };
-        let factor = if c > 0 && c + 1 < dims[a] { 0.5 } else { 1.0 };
-        (lo, hi, factor)
-    };
+    let stencil = Stencil::new(&field.grid);
     let largest_step = field.grid.finest_spacing() as f32 / 4.0;
     // Tissue voxels that no fraction of the last step could move without entering a bone: the
     // next step leaves them and lifts the folds beside them by their other neighbours.
-    let mut blocked = std::collections::BTreeSet::new();
-    let u = |field: &Field, n: usize| Vec3::from_array(field.data[n]);
-    // det J at voxel n from its stencil's differences, and ∂det/∂(column a of D).
-    let determinant = |field: &Field, n: usize| {
-        let d = [0, 1, 2].map(|a| {
-            let (lo, hi, factor) = neighbours(n, a);
-            (u(field, hi) - u(field, lo)) * factor
-        });
-        determinant_and_gradient(d, index_per_mm)
-    };
+    let mut blocked = BTreeSet::new();
     // The determinants are kept up to date locally: moving voxel q changes det J only at q
     // and its six neighbours (whose differences it enters).
     // Folded voxels that map into a bone count too: they stay, their neighbours move.
-    let mut bad: std::collections::BTreeSet<usize> = (0..det.len())
+    let mut bad: BTreeSet<usize> = (0..det.len())
         .filter(|&n| det[n] <= FOLD_THRESHOLD)
         .collect();
     let mut steps = 0;
@@ -278,14 +254,14 @@ pub fn unfold(
         let refused_before = std::mem::take(&mut blocked);
         let folded: Vec<usize> = bad.iter().copied().collect();
         for n in folded {
-            let (now, g) = determinant(field, n);
+            let (now, g) = stencil.determinant(field, n);
             if now > FOLD_THRESHOLD {
                 continue;
             }
             // ∂det/∂u at each neighbour in the stencil that may move.
             let movable: Vec<(usize, Vec3)> = (0..3)
                 .flat_map(|a| {
-                    let (lo, hi, factor) = neighbours(n, a);
+                    let (lo, hi, factor) = stencil.neighbours(n, a);
                     [(hi, g[a] * factor), (lo, -g[a] * factor)]
                 })
                 .filter(|&(q, _)| {
@@ -299,25 +275,15 @@ pub fn unfold(
             let s = (UNFOLD_TARGET - now) / norm;
             for (q, gq) in movable {
                 let shift = (gq * s).clamp_length_max(largest_step);
-                // Beside a bone the full step can carry the source point into it: take the
-                // longest of 1, 1/2, 1/4, 1/8 of it that does not.
-                let from = u(field, q);
-                let Some(moved) = [1.0, 0.5, 0.25, 0.125]
-                    .into_iter()
-                    .map(|f| (from + shift * f).to_array())
-                    .find(|&moved| !in_bone(q, moved) || in_bone(q, field.data[q]))
-                else {
-                    blocked.insert(q);
-                    continue;
-                };
-                field.data[q] = moved;
-                let mut touched = vec![q];
-                for a in 0..3 {
-                    let (lo, hi, _) = neighbours(q, a);
-                    touched.extend([lo, hi]);
+                match outside_bones(field, q, shift, in_bone) {
+                    Some(moved) => field.data[q] = moved,
+                    None => {
+                        blocked.insert(q);
+                        continue;
+                    }
                 }
-                for v in touched {
-                    det[v] = determinant(field, v).0;
+                for v in stencil.touched_by(q) {
+                    det[v] = stencil.determinant(field, v).0;
                     if det[v] <= FOLD_THRESHOLD {
                         bad.insert(v);
                     } else {
@@ -329,6 +295,83 @@ pub fn unfold(
         steps += 1;
     }
     steps
+}
+
+/// Voxel q's displacement moved by `shift`, or, beside a bone where the full step would carry
+/// its source point into it, by the longest of 1/2, 1/4, 1/8 of it that does not; None when
+/// none of them stays out (a voxel already inside a bone may move).
+fn outside_bones(
+    field: &Field,
+    q: usize,
+    shift: Vec3,
+    in_bone: &(dyn Fn(usize, [f32; 3]) -> bool + Sync),
+) -> Option<[f32; 3]> {
+    let from = Vec3::from_array(field.data[q]);
+    [1.0, 0.5, 0.25, 0.125]
+        .into_iter()
+        .map(|f| (from + shift * f).to_array())
+        .find(|&moved| !in_bone(q, moved) || in_bone(q, field.data[q]))
+}
+
+/// The Jacobian kernel's finite-difference stencil on a grid, on the host: which neighbours it
+/// differences at a voxel, and det J there with its gradient.
+struct Stencil {
+    dims: [usize; 3],
+    stride: [usize; 3],
+    /// Row a: d(index a)/d(world mm).
+    index_per_mm: [Vec3; 3],
+}
+
+impl Stencil {
+    fn new(grid: &Grid) -> Self {
+        let [nx, ny, _] = grid.dims;
+        let inv = grid.world_to_voxel_affine();
+        Stencil {
+            dims: grid.dims,
+            stride: [1, nx, nx * ny],
+            index_per_mm: std::array::from_fn(|a| {
+                Vec3::new(inv[(a, 0)] as f32, inv[(a, 1)] as f32, inv[(a, 2)] as f32)
+            }),
+        }
+    }
+
+    /// The neighbours differenced along axis a at voxel n, and the factor on their difference:
+    /// central inside, one-sided on the faces.
+    fn neighbours(&self, n: usize, a: usize) -> (usize, usize, f32) {
+        let c = n / self.stride[a] % self.dims[a];
+        let lo = if c > 0 { n - self.stride[a] } else { n };
+        let hi = if c + 1 < self.dims[a] {
+            n + self.stride[a]
+        } else {
+            n
+        };
+        let factor = if c > 0 && c + 1 < self.dims[a] {
+            0.5
+        } else {
+            1.0
+        };
+        (lo, hi, factor)
+    }
+
+    /// det J of `field` at voxel n from its stencil's differences, and ∂det/∂(column a of D).
+    fn determinant(&self, field: &Field, n: usize) -> (f32, [Vec3; 3]) {
+        let u = |n: usize| Vec3::from_array(field.data[n]);
+        let d = [0, 1, 2].map(|a| {
+            let (lo, hi, factor) = self.neighbours(n, a);
+            (u(hi) - u(lo)) * factor
+        });
+        determinant_and_gradient(d, self.index_per_mm)
+    }
+
+    /// The voxels whose det J a change at q changes: q and its stencil neighbours.
+    fn touched_by(&self, q: usize) -> Vec<usize> {
+        let mut touched = vec![q];
+        for a in 0..3 {
+            let (lo, hi, _) = self.neighbours(q, a);
+            touched.extend([lo, hi]);
+        }
+        touched
+    }
 }
 
 /// det(I + D G) and its gradient with respect to each column of D, where column a of D is the
