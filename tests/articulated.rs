@@ -240,9 +240,10 @@ fn recovers_every_bone_at_60_and_90_degrees_on_the_gpu() {
 
 #[test]
 fn at_the_papers_resolution_bones_overlap_the_target_labels() {
-    // 136×256×256 at 1.25 mm, 60° and 90°, noise and bias on: Dice against the target's own
-    // label map (at 2.5 mm the patella, 8 voxels thick, falls to 0.94-0.95 however well it is
-    // placed: its truth-moved Dice above is ≥ 0.97).
+    // 136×256×256 at 1.25 mm, 90° (the sweep above covers 60° at 2.5 mm; this size costs a
+    // minute an angle), noise and bias on: Dice against the target's own label map (at 2.5 mm
+    // the patella, 8 voxels thick, falls to 0.94-0.95 however well it is placed: its
+    // truth-moved Dice above is ≥ 0.97).
     let paper = |degrees: f64, seed: u64| {
         generate(
             &posereg::cpu::CpuBackend,
@@ -256,20 +257,19 @@ fn at_the_papers_resolution_bones_overlap_the_target_labels() {
         .unwrap()
     };
     let s = paper(0.0, 100);
-    for degrees in [60.0, 90.0] {
-        let b = paper(degrees, 7 + degrees as u64);
-        let init = initialise_volumes(
-            &CpuBackend,
-            &s.image,
-            &s.labels,
-            &b.image,
-            &InitOptions::default(),
-            None,
-            &Silent,
-        )
-        .unwrap();
-        eprintln!("{}", check(&CpuBackend, "cpu paper", &s, &b, &init, true));
-    }
+    let degrees = 90.0;
+    let b = paper(degrees, 7 + degrees as u64);
+    let init = initialise_volumes(
+        &CpuBackend,
+        &s.image,
+        &s.labels,
+        &b.image,
+        &InitOptions::default(),
+        None,
+        &Silent,
+    )
+    .unwrap();
+    eprintln!("{}", check(&CpuBackend, "cpu paper", &s, &b, &init, true));
 }
 
 #[test]
