@@ -91,15 +91,16 @@ fn register_and_score<B: Backend>(
 /// The small phantom registered on the CPU with the defaults at 30° or 60°, once per test
 /// binary: the 60° test, the inverse's and the whole-pipeline agreement read the same runs.
 fn cpu_with_defaults(flexion: f64) -> &'static Scored {
+    const FLEXIONS: [f64; 2] = [30.0, 60.0];
     static RUNS: OnceLock<[Scored; 2]> = OnceLock::new();
     let runs = RUNS.get_or_init(|| {
-        [30.0, 60.0].map(|flexion| {
+        FLEXIONS.map(|flexion| {
             let options = RegisterOptions::default();
             let cpu = &posereg::cpu::CpuBackend;
             register_and_score(cpu, PhantomSize::Small, flexion, &options, "cpu")
         })
     });
-    &runs[[30.0, 60.0].iter().position(|&f| f == flexion).unwrap()]
+    &runs[FLEXIONS.iter().position(|&f| f == flexion).unwrap()]
 }
 
 /// What [`register_and_score`] measured.
