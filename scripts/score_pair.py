@@ -7,7 +7,10 @@ FIELD is a displacement field in the ITK convention (posereg's field.nii.gz, ela
 deformationField.nii, ANTs' warp, SimpleITK's): on the target grid, LPS mm, target point ->
 source point. Prints the mean field error over the body, the bones and the soft tissue (the
 pair's masks), and the folded share of the body (det J <= 0, central differences in world
-space); with --bones, each bone's rotation error (degrees) and its translation error at the
+space) with bone contacts apart: voxels whose difference stencil maps into two different
+bones of the source labels, where a field that keeps bones rigid jumps from one bone's motion
+to the other's as they slide on each other (the pair's own true field has det J <= 0 there
+too: the determinant measures the slide, not a fold); with --bones, each bone's rotation error (degrees) and its translation error at the
 bone's centroid (mm) against truth.json (RAS, source -> target, posereg's transform format).
 --row prints one row of scripts/compare_elastix.sh's independent-pairs table instead.
 """
@@ -32,6 +35,25 @@ def jacobian_determinant(field):
     spacing = np.array(field.GetSpacing())
     grads = np.stack([np.gradient(u, axis=2 - a) / spacing[a] for a in range(3)], -1)
     return np.linalg.det(np.einsum("...ij,jk->...ik", grads, direction.T) + np.eye(3))
+
+
+def bone_contacts(field, pair):
+    """True where the voxel and its six face neighbours map, through `field`, into two
+    different bones of the pair's source labels (nearest voxel; faces repeat the edge)."""
+    labels = sitk.ReadImage(os.path.join(pair, "source_labels.nii.gz"))
+    transform = sitk.DisplacementFieldTransform(sitk.Image(field))
+    mapped = sitk.GetArrayFromImage(sitk.Resample(labels, field, transform, sitk.sitkNearestNeighbor, 0))
+    padded = np.pad(mapped, 1, mode="edge")
+    core = tuple(slice(1, -1) for _ in range(3))
+    stencil = [padded[core]]
+    for axis in range(3):
+        for step in (-1, 1):
+            s = list(core)
+            s[axis] = slice(1 + step, padded.shape[axis] - 1 + step)
+            stencil.append(padded[tuple(s)])
+    stencil = np.stack(stencil)
+    bone = np.where(stencil > 0, stencil, np.iinfo(np.int32).max).min(0)
+    return ((stencil > 0) & (stencil != bone)).any(0)
 
 
 def bone_errors(pair, transforms):
@@ -78,12 +100,14 @@ def main():
     error = np.linalg.norm(sitk.GetArrayFromImage(field) - sitk.GetArrayFromImage(truth), axis=-1)
     body, bone, soft = mask("target_labels.nii.gz"), mask("mask_bone.nii.gz"), mask("mask_soft.nii.gz")
     det = jacobian_determinant(field)
+    contact = bone_contacts(field, a.pair)
     result = {
         "mean_mm": float(error[body].mean()),
         "bone_mm": float(error[bone].mean()),
         "soft_mm": float(error[soft].mean()),
-        "folded_share": float((det[body] <= 0).mean()),
-        "min_jacobian": float(det[body].min()),
+        "folded_share": float((det[body & ~contact] <= 0).sum() / body.sum()),
+        "min_jacobian": float(det[body & ~contact].min()),
+        "bone_contact_share": float((det[body & contact] <= 0).sum() / body.sum()),
     }
     if a.bones:
         result["bones"] = bone_errors(a.pair, a.bones)
@@ -94,7 +118,8 @@ def main():
         print(table_row(result, *a.row))
         return
     print(f"field error: body {result['mean_mm']:.2f} mm, bone {result['bone_mm']:.2f}, soft tissue "
-          f"{result['soft_mm']:.2f}; folded {100 * result['folded_share']:.3f}% (min det J {result['min_jacobian']:.3f})")
+          f"{result['soft_mm']:.2f}; folded {100 * result['folded_share']:.4f}% (min det J "
+          f"{result['min_jacobian']:.3f}), {100 * result['bone_contact_share']:.4f}% more at bone contacts")
     for name, e in result.get("bones", {}).items():
         print(f"  {name:<8} {e['degrees']:.2f}° {e['mm']:.2f} mm")
 

@@ -1,20 +1,55 @@
 // fold_stats.wgsl: a Jacobian determinant's fold statistics per chunk of consecutive voxels,
-// each chunk in index order so the results are the same bits on the CPU twin: the minimum,
-// the voxels with det <= 0 (folded), with det <= threshold, and with det <= threshold that
-// are not held. The host combines the chunks (min of minima, sums of counts, exact in f32
-// for a chunk's 1024 voxels).
+// each chunk in index order so the results are the same bits on the CPU twin. Bone contacts
+// apart (below): the minimum, the voxels with det <= 0 (folded), with det <= threshold, and
+// with det <= threshold that are not held; then the contacts with det <= 0. The host combines
+// the chunks (min of minima, sums of counts, exact in f32 for a chunk's 1024 voxels).
+//
+// A bone contact is a voxel whose Jacobian stencil (the voxel and its six face neighbours)
+// holds two different bones (held values are bone numbers). There the field jumps from one
+// bone's rigid motion to the other's — bones slide on each other at a joint — and a
+// finite-difference determinant across the jump measures the slide, not a fold: the
+// independent generator's true field at 90 degrees has det <= 0 on such voxels too.
 //
 // Bindings (group 0):
 //   0 uniform  ThresholdParams (threshold.wgsl)
 //   1 storage  det: array<f32>    1 float per voxel
 //   2 storage  held: array<f32>   1 float per voxel (> 0: held)
-//   3 storage  stats: array<f32>  4 floats per chunk (read_write)
+//   3 storage  stats: array<f32>  5 floats per chunk (read_write)
 // Dispatch: workgroups (ceil(chunks / 64), 1, 1).
 
 @group(0) @binding(0) var<uniform> params: ThresholdParams;
 @group(0) @binding(1) var<storage, read> det: array<f32>;
 @group(0) @binding(2) var<storage, read> held: array<f32>;
 @group(0) @binding(3) var<storage, read_write> stats: array<f32>;
+
+// The voxel one step from (i, j, k) along `axis` (0..2) in direction `step` (-1 or 1), the
+// voxel itself at the volume's faces.
+fn face_neighbour(c: vec3<u32>, axis: u32, step: i32) -> u32 {
+    let d = params.dims.xyz;
+    var p = c;
+    if (step < 0 && p[axis] > 0u) {
+        p[axis] = p[axis] - 1u;
+    }
+    if (step > 0 && p[axis] + 1u < d[axis]) {
+        p[axis] = p[axis] + 1u;
+    }
+    return voxel_index(p.x, p.y, p.z, d);
+}
+
+fn is_contact(v: u32) -> bool {
+    let d = params.dims.xyz;
+    let c = vec3<u32>(v % d.x, (v / d.x) % d.y, v / (d.x * d.y));
+    var bone = held[v];
+    var contact = false;
+    for (var s = 0u; s < 6u; s = s + 1u) {
+        let other = held[face_neighbour(c, s / 2u, 2 * i32(s % 2u) - 1)];
+        contact = contact || (is_held(bone) && is_held(other) && other != bone);
+        if (!is_held(bone)) {
+            bone = other;
+        }
+    }
+    return contact;
+}
 
 @compute @workgroup_size(64, 1, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -28,15 +63,21 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var folded = 0.0;
     var low = 0.0;
     var low_free = 0.0;
+    var contacts = 0.0;
     for (var v = c * n.y; v < min((c + 1u) * n.y, n.x); v = v + 1u) {
         let d = det[v];
+        if (is_contact(v)) {
+            contacts = contacts + select(0.0, 1.0, d <= 0.0);
+            continue;
+        }
         lowest = min(lowest, d);
         folded = folded + select(0.0, 1.0, d <= 0.0);
         low = low + select(0.0, 1.0, d <= threshold);
         low_free = low_free + select(0.0, 1.0, d <= threshold && !is_held(held[v]));
     }
-    stats[4u * c] = lowest;
-    stats[4u * c + 1u] = folded;
-    stats[4u * c + 2u] = low;
-    stats[4u * c + 3u] = low_free;
+    stats[5u * c] = lowest;
+    stats[5u * c + 1u] = folded;
+    stats[5u * c + 2u] = low;
+    stats[5u * c + 3u] = low_free;
+    stats[5u * c + 4u] = contacts;
 }

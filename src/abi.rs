@@ -503,6 +503,9 @@ impl MomentsParams {
 
 /// Voxels per chunk of the fold statistics and the moments.
 pub const STATS_CHUNK: usize = 1024;
+/// Floats of fold statistics per chunk (shaders/fold_stats.wgsl): minimum, folded, at most the
+/// threshold, of those not held, folded bone contacts.
+pub const FOLD_STATS_WIDTH: usize = 5;
 
 /// Keep in sync with `ThresholdParams` in shaders/threshold.wgsl.
 #[repr(C)]
@@ -531,7 +534,7 @@ impl ThresholdParams {
         self.chunks[0] as usize
     }
 
-    /// Chunks fold_stats writes 4 floats for.
+    /// Chunks fold_stats writes [`FOLD_STATS_WIDTH`] floats for.
     pub fn chunks(&self) -> usize {
         self.chunks[2] as usize
     }

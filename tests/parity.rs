@@ -14,7 +14,7 @@ use posereg::abi::{
     pack_candidates, Blending, BoneBlend, BoneLookupParams, ComposeParams, DilateParams,
     Interpolation, InvertParams, JacobianParams, LabelParams, LnccParams, LocalMomentsParams,
     MomentsParams, RbfGradParams, ResampleParams, RigidParams, ScoreParams, ThresholdParams,
-    RIGID_SUMS, SCORE_SUMS,
+    FOLD_STATS_WIDTH, RIGID_SUMS, SCORE_SUMS,
 };
 use posereg::backend::{box_sums, BoneImages};
 use posereg::cpu::CpuBackend;
@@ -907,11 +907,14 @@ fn fold_kernels_parity() {
     // A smooth field with large gradients: its determinant goes below zero in places.
     let field = smooth_field(&grid, 91, 9.0);
     let labels = label_runs(&grid);
+    // Runs of voxels held in bone 1 or bone 2: where a stencil holds both, a bone contact.
     let held: Vec<f32> = (0..grid.len())
-        .map(|n| ((n / 5) % 4 == 0) as u8 as f32)
+        .map(|n| ((n / 5) % 4 == 0) as u8 as f32 * (1 + (n / 60) % 2) as f32)
         .collect();
     let cpu = fold_outputs(&CpuBackend, &grid, &field, &labels, &held);
     let got = fold_outputs(gpu, &grid, &field, &labels, &held);
+    let contacts: f32 = cpu[1].chunks(FOLD_STATS_WIDTH).map(|c| c[4]).sum();
+    assert!(contacts > 0.0, "the fixture has folded bone contacts");
     let det = &cpu[0];
     let folded = det.iter().filter(|&&d| d <= 0.05).count();
     assert!(

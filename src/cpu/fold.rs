@@ -2,7 +2,7 @@
 //! shaders/fold_smooth.wgsl.
 
 use super::common::{dims3, voxel_index};
-use crate::abi::{BoneLookupParams, DilateParams, ThresholdParams};
+use crate::abi::{BoneLookupParams, DilateParams, ThresholdParams, FOLD_STATS_WIDTH};
 use crate::sample::bone_at;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -11,25 +11,68 @@ fn is_held(value: f32) -> bool {
     value > 0.0
 }
 
-/// Fills `stats` (4 floats per chunk) with each chunk's minimum and counts.
+/// Fills `stats` ([`FOLD_STATS_WIDTH`] floats per chunk) with each chunk's minimum and counts,
+/// bone contacts apart.
 pub fn fold_stats(params: &ThresholdParams, det: &[f32], held: &[f32], stats: &mut [f32]) {
     let [voxels, per_chunk, _, _] = params.chunks.map(|n| n as usize);
     let threshold = params.threshold[0];
-    stats.par_chunks_mut(4).enumerate().for_each(|(c, out)| {
-        let (mut lowest, mut folded, mut low, mut low_free) = (3.4e38f32, 0.0f32, 0.0f32, 0.0f32);
-        for v in c * per_chunk..((c + 1) * per_chunk).min(voxels) {
-            let d = det[v];
-            lowest = lowest.min(d);
-            folded += if d <= 0.0 { 1.0 } else { 0.0 };
-            low += if d <= threshold { 1.0 } else { 0.0 };
-            low_free += if d <= threshold && !is_held(held[v]) {
-                1.0
-            } else {
-                0.0
-            };
+    let dims = dims3(params.dims);
+    let count = |yes: bool| if yes { 1.0 } else { 0.0 };
+    stats
+        .par_chunks_mut(FOLD_STATS_WIDTH)
+        .enumerate()
+        .for_each(|(c, out)| {
+            let (mut lowest, mut folded, mut low, mut low_free) =
+                (3.4e38f32, 0.0f32, 0.0f32, 0.0f32);
+            let mut contacts = 0.0f32;
+            for v in c * per_chunk..((c + 1) * per_chunk).min(voxels) {
+                let d = det[v];
+                if is_contact(held, dims, v as u32) {
+                    contacts += count(d <= 0.0);
+                    continue;
+                }
+                lowest = lowest.min(d);
+                folded += count(d <= 0.0);
+                low += count(d <= threshold);
+                low_free += count(d <= threshold && !is_held(held[v]));
+            }
+            out.copy_from_slice(&[lowest, folded, low, low_free, contacts]);
+        });
+}
+
+/// The voxel one step from `c` along `axis` in direction `step` (−1 or 1), the voxel itself at
+/// the volume's faces.
+fn face_neighbour(c: [u32; 3], axis: usize, step: i32, dims: [u32; 3]) -> u32 {
+    let mut p = c;
+    if step < 0 && p[axis] > 0 {
+        p[axis] -= 1;
+    }
+    if step > 0 && p[axis] + 1 < dims[axis] {
+        p[axis] += 1;
+    }
+    voxel_index(p[0], p[1], p[2], dims)
+}
+
+/// Whether voxel v's Jacobian stencil (v and its six face neighbours) holds two different
+/// bones (`held` values are bone numbers): a bone contact, where the field jumps from one
+/// bone's motion to the other's and a finite-difference determinant measures the slide.
+fn is_contact(held: &[f32], dims: [u32; 3], v: u32) -> bool {
+    let c = [
+        v % dims[0],
+        (v / dims[0]) % dims[1],
+        v / (dims[0] * dims[1]),
+    ];
+    let mut bone = held[v as usize];
+    let mut contact = false;
+    for s in 0..6u32 {
+        let n = face_neighbour(c, (s / 2) as usize, 2 * (s % 2) as i32 - 1, dims);
+        let other = held[n as usize];
+        contact = contact || (is_held(bone) && is_held(other) && other != bone);
+        if !is_held(bone) {
+            bone = other;
         }
-        out.copy_from_slice(&[lowest, folded, low, low_free]);
-    });
+    }
+    contact
 }
 
 /// Fills `mark` (1 float per voxel) with 1 on the voxels not held whose value is at most the
@@ -130,4 +173,24 @@ pub fn fold_smooth(
                 }
             }
         });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::{Affine, Grid};
+
+    /// A row of voxels x = 0..7 with det ≤ 0 at x = 2 and 5: x = 2 lies between bone 1 (x = 1)
+    /// and bone 2 (x = 3), a contact; x = 5 has only bone 2 beside it and folds. The
+    /// statistics count one fold (the minimum is its determinant) and one contact.
+    #[test]
+    fn a_stencil_holding_two_bones_is_a_contact_not_a_fold() {
+        let grid = Grid::new([8, 1, 1], Affine::identity()).unwrap();
+        let det = [1.0, 1.0, -0.5, 1.0, 1.0, -0.25, 1.0, 1.0];
+        let held = [0.0, 1.0, 0.0, 2.0, 2.0, 0.0, 0.0, 0.0];
+        let params = ThresholdParams::new(&grid, 0.05);
+        let mut stats = vec![0.0; FOLD_STATS_WIDTH * params.chunks()];
+        fold_stats(&params, &det, &held, &mut stats);
+        assert_eq!(stats, [-0.25, 1.0, 1.0, 1.0, 1.0]);
+    }
 }

@@ -35,7 +35,7 @@ use crate::abi::{
     InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
     MomentsParams, PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams,
     RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
-    SumParams, ThresholdParams,
+    SumParams, ThresholdParams, FOLD_STATS_WIDTH,
 };
 use crate::backend::{Backend, BoneImages, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -155,7 +155,7 @@ impl Backend for CpuBackend {
         det: &Arc<Vec<f32>>,
         held: &Arc<Vec<f32>>,
     ) -> Result<Arc<Vec<f32>>> {
-        filled(4 * params.chunks(), |out| {
+        filled(FOLD_STATS_WIDTH * params.chunks(), |out| {
             fold::fold_stats(params, det, held, out)
         })
     }

@@ -4,7 +4,7 @@
 use super::kernel::{cover, groups, Binding};
 use super::resident::GpuBuffer;
 use super::GpuBackend;
-use crate::abi::{BoneLookupParams, DilateParams, ThresholdParams};
+use crate::abi::{BoneLookupParams, DilateParams, ThresholdParams, FOLD_STATS_WIDTH};
 use crate::error::Result;
 
 use Binding::{Read, ReadWrite, Uniform};
@@ -15,14 +15,14 @@ pub const FOLD_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
 pub const SMOOTH_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, ReadWrite];
 
 impl GpuBackend {
-    /// 4 floats of fold statistics per chunk.
+    /// FOLD_STATS_WIDTH floats of fold statistics per chunk.
     pub fn record_fold_stats(
         &self,
         params: &ThresholdParams,
         det: &GpuBuffer<f32>,
         held: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
-        let stats = self.output_buffer("fold statistics", 4 * params.chunks())?;
+        let stats = self.output_buffer("fold statistics", FOLD_STATS_WIDTH * params.chunks())?;
         self.record(
             &self.kernels.fold_stats,
             params,

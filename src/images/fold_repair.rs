@@ -6,7 +6,9 @@
 //! bone; a sequential sweep on the host, run only when folds are left). The push alone also
 //! serves a registration's total field ([`unfold_registration`]) and the phantom's truth field.
 
-use crate::abi::{BoneLookupParams, DilateParams, JacobianParams, ThresholdParams};
+use crate::abi::{
+    BoneLookupParams, DilateParams, JacobianParams, ThresholdParams, FOLD_STATS_WIDTH,
+};
 use crate::backend::{Backend, DeviceImage};
 use crate::error::Result;
 use crate::sample::bone_at;
@@ -39,21 +41,27 @@ pub struct FoldRepair {
     pub unfold_steps: usize,
 }
 
-/// A Jacobian determinant's fold statistics.
+/// A Jacobian determinant's fold statistics. Bone contacts — voxels whose stencil holds two
+/// different bones, where the field jumps from one bone's rigid motion to the other's as the
+/// bones slide on each other — are counted apart: a determinant across that jump measures the
+/// slide, not a fold, and no field with rigid bones can change it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Folds {
-    /// The smallest determinant.
+    /// The smallest determinant, bone contacts aside.
     pub min: f32,
-    /// Voxels with det ≤ 0: where the map folds.
+    /// Voxels with det ≤ 0, bone contacts aside: where the map folds.
     pub folded: usize,
-    /// Voxels with det ≤ [`FOLD_THRESHOLD`].
+    /// Voxels with det ≤ [`FOLD_THRESHOLD`], bone contacts aside.
     pub low: usize,
     /// Of those, the voxels not held.
     pub low_free: usize,
+    /// Bone contacts with det ≤ 0.
+    pub contacts: usize,
 }
 
 /// det J of `field` where the backend computes, and its fold statistics with the voxels where
-/// `held` > 0 held; only the statistics per chunk of voxels come back.
+/// `held` > 0 held (its values bone numbers, which place the bone contacts); only the
+/// statistics per chunk of voxels come back.
 pub fn determinant<B: Backend>(
     backend: &B,
     field: &DeviceImage<B>,
@@ -67,12 +75,14 @@ pub fn determinant<B: Backend>(
         folded: 0,
         low: 0,
         low_free: 0,
+        contacts: 0,
     };
-    for chunk in stats.chunks_exact(4) {
+    for chunk in stats.chunks_exact(FOLD_STATS_WIDTH) {
         folds.min = folds.min.min(chunk[0]);
         folds.folded += chunk[1] as usize;
         folds.low += chunk[2] as usize;
         folds.low_free += chunk[3] as usize;
+        folds.contacts += chunk[4] as usize;
     }
     Ok((det, folds))
 }
@@ -143,16 +153,29 @@ pub fn repair_folds<B: Backend>(
     Ok((field, report))
 }
 
+/// The bone (its number, 0 for none) in which `labels` hold each voxel's source point
+/// through `field`: which voxels of a registration's total field move with a bone.
+pub fn bones_at_source<B: Backend>(
+    backend: &B,
+    field: &DeviceImage<B>,
+    labels: &SourceLabels<B>,
+    bones: &[u16],
+) -> Result<B::Buffer<f32>> {
+    let lookup = BoneLookupParams::new(&labels.host.grid, &field.grid, bones, f32::MAX)?;
+    let anywhere = backend.zeros("no residual", field.grid.len())?;
+    backend.bone_at_source(&lookup, &field.data, &anywhere, &labels.device.data)
+}
+
 /// Unfolds a registration's total field, whose Jacobian determinant is `det` with fold
-/// statistics `folds`: [`unfold`] with the voxels whose source point lies in one of the
-/// `bones` of `labels` held, and no tissue pushed into a bone. The adaptive warp is smooth and
-/// does not fold (its step control sees to that), but composed with an initial field that is
-/// sharply compressed behind a bent knee it can carry a few voxels past each other there.
+/// statistics `folds`: [`unfold`] with the voxels `held` in a bone ([`bones_at_source`]) held,
+/// and no tissue pushed into a bone. The adaptive warp is smooth and does not fold (its step
+/// control sees to that), but composed with an initial field that is sharply compressed behind
+/// a bent knee it can carry a few voxels past each other there.
 pub fn unfold_registration<B: Backend>(
     backend: &B,
     field: DeviceImage<B>,
-    det: &B::Buffer<f32>,
-    folds: &Folds,
+    (det, folds): (&B::Buffer<f32>, &Folds),
+    held: &B::Buffer<f32>,
     labels: &SourceLabels<B>,
     bones: &[u16],
 ) -> Result<(DeviceImage<B>, FoldRepair)> {
@@ -166,10 +189,7 @@ pub fn unfold_registration<B: Backend>(
         // 46% of the voxels, and unfolding took 150 s): left as it is for the checks to report.
         return Ok((field, report));
     }
-    let lookup = BoneLookupParams::new(&labels.host.grid, &field.grid, bones, f32::MAX)?;
-    let anywhere = backend.zeros("no residual", field.grid.len())?;
-    let held = backend.bone_at_source(&lookup, &field.data, &anywhere, &labels.device.data)?;
-    let (field, left, steps) = unfold_on_host(backend, field, det, &held, labels, bones)?;
+    let (field, left, steps) = unfold_on_host(backend, field, det, held, labels, bones)?;
     report.folded_after = left;
     report.unfold_steps = steps;
     Ok((field, report))
@@ -193,7 +213,6 @@ fn unfold_on_host<B: Backend>(
     );
     let values = host.pop().unwrap_or_default();
     let mut unfolded = Image::from_data(field.grid.clone(), bytemuck::cast_vec(values))?;
-    let rigid: Vec<bool> = held_host.iter().map(|&h| h > 0.0).collect();
     let lookup = BoneLookupParams::new(&labels.host.grid, &field.grid, bones, f32::MAX)?;
     let codes: Vec<f32> = labels.host.data.iter().map(|&l| l as f32).collect();
     let dims = field.grid.dims;
@@ -206,7 +225,7 @@ fn unfold_on_host<B: Backend>(
         .map(|c| c as f32);
         bone_at(&lookup, &codes, p, u) > 0
     };
-    let steps = unfold(&mut unfolded, det_host, &rigid, &in_bone);
+    let steps = unfold(&mut unfolded, det_host, &held_host, &in_bone);
     let field = DeviceImage::upload_field(backend, "unfolded field", unfolded)?;
     let (_, folds) = determinant(backend, &field, held)?;
     Ok((field, folds.low, steps))
@@ -225,17 +244,20 @@ const UNFOLD_TARGET: f32 = 0.3;
 /// lift it (linearised) to [`UNFOLD_TARGET`] — the folding correction NiftyReg applies to spline
 /// grids, on a dense field. Smoothing cannot undo a fold pinned by a bone (beside a bone whose
 /// voxels stay rigid the average pulls the tissue's source point into the bone); this can.
-/// Voxels marked `rigid` never move, and no step carries a voxel's source point into a bone:
-/// `in_bone(n, u)` says whether voxel n displaced by u lands in one. `det` is the field's
-/// Jacobian determinant (the jacobian kernel's). Returns the steps taken; the caller counts
-/// what is left with the kernel.
+/// Voxels `held` in a bone (> 0, the bone's number) never move, and no step carries a voxel's
+/// source point into a bone: `in_bone(n, u)` says whether voxel n displaced by u lands in one.
+/// Bone contacts (a stencil holding two bones) are left: nothing that keeps bones rigid lifts
+/// them (see [`Folds`]). `det` is the field's Jacobian determinant (the jacobian kernel's).
+/// Returns the steps taken; the caller counts what is left with the kernel.
 pub fn unfold(
     field: &mut Field,
     mut det: Vec<f32>,
-    rigid: &[bool],
+    held: &[f32],
     in_bone: &(dyn Fn(usize, [f32; 3]) -> bool + Sync),
 ) -> usize {
     let stencil = Stencil::new(&field.grid);
+    let rigid = |q: usize| held[q] > 0.0;
+    let to_lift = |v: usize, det: f32| det <= FOLD_THRESHOLD && !stencil.is_contact(held, v);
     let largest_step = field.grid.finest_spacing() as f32 / 4.0;
     // Tissue voxels that no fraction of the last step could move without entering a bone: the
     // next step leaves them and lifts the folds beside them by their other neighbours.
@@ -243,9 +265,7 @@ pub fn unfold(
     // The determinants are kept up to date locally: moving voxel q changes det J only at q
     // and its six neighbours (whose differences it enters).
     // Folded voxels that map into a bone count too: they stay, their neighbours move.
-    let mut bad: BTreeSet<usize> = (0..det.len())
-        .filter(|&n| det[n] <= FOLD_THRESHOLD)
-        .collect();
+    let mut bad: BTreeSet<usize> = (0..det.len()).filter(|&n| to_lift(n, det[n])).collect();
     let mut steps = 0;
     while !bad.is_empty() && steps < UNFOLD_STEPS {
         // One sweep over the folded voxels in index order, each push applied at once so the
@@ -265,7 +285,7 @@ pub fn unfold(
                     [(hi, g[a] * factor), (lo, -g[a] * factor)]
                 })
                 .filter(|&(q, _)| {
-                    q != n && !rigid[q] && !refused_before.contains(&q) && !blocked.contains(&q)
+                    q != n && !rigid(q) && !refused_before.contains(&q) && !blocked.contains(&q)
                 })
                 .collect();
             let norm: f32 = movable.iter().map(|(_, gq)| gq.length_squared()).sum();
@@ -284,7 +304,7 @@ pub fn unfold(
                 }
                 for v in stencil.touched_by(q) {
                     det[v] = stencil.determinant(field, v).0;
-                    if det[v] <= FOLD_THRESHOLD {
+                    if to_lift(v, det[v]) {
                         bad.insert(v);
                     } else {
                         bad.remove(&v);
@@ -361,6 +381,18 @@ impl Stencil {
             (u(hi) - u(lo)) * factor
         });
         determinant_and_gradient(d, self.index_per_mm)
+    }
+
+    /// Whether voxel n's stencil holds two different bones (`held`: bone numbers, 0 for
+    /// tissue): the host twin of shaders/fold_stats.wgsl's bone contact.
+    fn is_contact(&self, held: &[f32], n: usize) -> bool {
+        let mut bones = self
+            .touched_by(n)
+            .into_iter()
+            .map(|v| held[v])
+            .filter(|&h| h > 0.0);
+        let first = bones.next();
+        bones.any(|h| Some(h) != first)
     }
 
     /// The voxels whose det J a change at q changes: q and its stencil neighbours (on a face,
@@ -462,13 +494,15 @@ mod tests {
             let p = [m % n, (m / n) % n, m / (n * n)].map(|c| c as f32);
             bone_at(&lookup, &codes, p, u) > 0
         };
-        let rigid: Vec<bool> = (0..grid.len()).map(|m| in_bone(m, field.data[m])).collect();
+        let held: Vec<f32> = (0..grid.len())
+            .map(|m| in_bone(m, field.data[m]) as u8 as f32)
+            .collect();
         let pinned: Vec<[f32; 3]> = (0..grid.len())
-            .filter(|&m| rigid[m])
+            .filter(|&m| held[m] > 0.0)
             .map(|m| field.data[m])
             .collect();
         assert!(!pinned.is_empty());
-        let steps = unfold(&mut field, before, &rigid, &in_bone);
+        let steps = unfold(&mut field, before, &held, &in_bone);
         let after = host_determinant(&CpuBackend, &field).unwrap();
         let least = after.iter().cloned().fold(f32::INFINITY, f32::min);
         assert!(
@@ -476,7 +510,7 @@ mod tests {
             "least det {least} after {steps} steps"
         );
         let still: Vec<[f32; 3]> = (0..grid.len())
-            .filter(|&m| rigid[m])
+            .filter(|&m| held[m] > 0.0)
             .map(|m| field.data[m])
             .collect();
         assert_eq!(pinned, still, "bone voxels moved");

@@ -198,8 +198,14 @@ pub fn generate<B: Backend>(backend: &B, spec: &PhantomSpec) -> Result<Phantom> 
 /// image is sampled through has det J > 0.05 at every voxel. The truth stays exact: it is that
 /// field. Voxels the push leaves alone keep their points bit for bit.
 fn unfolded<B: Backend>(backend: &B, grid: &Grid, straight: Vec<Vec3>) -> Result<Vec<Vec3>> {
-    let in_bone = |p: Vec3| BONES.iter().any(|(code, _)| anatomy::bone(*code, p) <= 0.0);
-    let rigid: Vec<bool> = straight.par_iter().map(|&q| in_bone(q)).collect();
+    let bone_number = |p: Vec3| {
+        let inside = BONES
+            .iter()
+            .position(|(code, _)| anatomy::bone(*code, p) <= 0.0);
+        inside.map_or(0.0, |b| (b + 1) as f32)
+    };
+    let in_bone = |p: Vec3| bone_number(p) > 0.0;
+    let held: Vec<f32> = straight.par_iter().map(|&q| bone_number(q)).collect();
     let displacement = |n: usize, q: Vec3| (q - world_of(grid, n)).to_array();
     let sampled = straight
         .iter()
@@ -208,7 +214,7 @@ fn unfolded<B: Backend>(backend: &B, grid: &Grid, straight: Vec<Vec3>) -> Result
         .collect();
     let mut field = Image::from_data(grid.clone(), sampled)?;
     let det = host_determinant(backend, &field)?;
-    unfold(&mut field, det, &rigid, &|n, u| {
+    unfold(&mut field, det, &held, &|n, u| {
         in_bone(world_of(grid, n) + Vec3::from_array(u))
     });
     Ok(straight

@@ -5,7 +5,7 @@ use crate::abi::{BoneLookupParams, ComposeParams, Interpolation, ResampleParams}
 use crate::backend::{resample_onto, Backend, DeviceImage, Traffic};
 use crate::error::{Error, Result};
 use crate::images::fold_repair::{
-    determinant, unfold_registration, FoldRepair, Folds, SourceLabels,
+    bones_at_source, determinant, unfold_registration, FoldRepair, Folds, SourceLabels,
 };
 use crate::images::inverse::{invert, round_trip, RoundTrip};
 use crate::init::articulated::{
@@ -83,10 +83,13 @@ pub struct Registration {
     pub inverse: Field,
     /// How closely the inverse undoes the field.
     pub round_trip: RoundTrip,
-    /// Smallest Jacobian determinant of the field over the target.
+    /// Smallest Jacobian determinant of the field over the target, bone contacts aside.
     pub min_jacobian: f32,
-    /// Share of target voxels with determinant ≤ 0.
+    /// Share of target voxels with determinant ≤ 0, bone contacts aside: where the map folds.
     pub folded_share: f64,
+    /// Share of target voxels with determinant ≤ 0 at a bone contact (a voxel whose stencil
+    /// holds two bones sliding on each other: the determinant measures the slide, not a fold).
+    pub contact_share: f64,
     /// Factor the RBF warp was scaled by to keep the field from folding (1 when untouched).
     pub warp_scale: f64,
     /// The unfolding of the total field where the warp, composed with the initial field, folds
@@ -358,6 +361,7 @@ pub fn register_observed<B: Backend>(
         ),
         min_jacobian: finished.folds.min,
         folded_share: finished.folds.folded as f64 / voxels,
+        contact_share: finished.folds.contacts as f64 / voxels,
         warp_scale: finished.scale,
         unfolding: finished.unfolding,
         timings,
@@ -440,12 +444,14 @@ fn finish<B: Backend>(
         )?,
         grid: grid.clone(),
     };
-    let (mut det, mut folds) = determinant(backend, &field, &nothing_held)?;
+    let held = bones_at_source(backend, &field, labels, bones)?;
+    let (mut det, mut folds) = determinant(backend, &field, &held)?;
     // Only a field that folds is unfolded: the others keep their bits.
     let mut unfolding = FoldRepair::default();
     if folds.folded > 0 {
-        (field, unfolding) = unfold_registration(backend, field, &det, &folds, labels, bones)?;
-        (det, folds) = determinant(backend, &field, &nothing_held)?;
+        let unfolded = unfold_registration(backend, field, (&det, &folds), &held, labels, bones)?;
+        (field, unfolding) = unfolded;
+        (det, folds) = determinant(backend, &field, &held)?;
     }
     let resample = ResampleParams::new(&pair.source.grid, grid, 0.0, Interpolation::Linear);
     let warped = backend.resample(&resample, &pair.source.data, &field.data)?;

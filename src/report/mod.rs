@@ -104,7 +104,12 @@ fn content(
             "after": correlations.after,
             "over": "the target's voxels above 0 (its body), source resampled without and with the field",
         },
-        "jacobian": { "min": result.min_jacobian, "folded_share": result.folded_share, "unfolding": result.unfolding },
+        "jacobian": {
+            "min": result.min_jacobian,
+            "folded_share": result.folded_share,
+            "bone_contact_share": result.contact_share,
+            "unfolding": result.unfolding,
+        },
         "inverse_round_trip": result.round_trip,
         "device_traffic": { "stages": result.traffic, "evaluations": result.adaptive.evaluations },
         "checks": checks,

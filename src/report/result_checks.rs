@@ -42,9 +42,11 @@ pub fn result_checks(
             name: "field_does_not_fold",
             passed: result.folded_share == 0.0,
             detail: format!(
-                "{:.4}% of the target's voxels have Jacobian determinant <= 0 (minimum {:.3})",
+                "{:.4}% of the target's voxels have Jacobian determinant <= 0 (minimum {:.3}); \
+                 {:.4}% more at bone contacts, where two bones slide on each other",
                 100.0 * result.folded_share,
-                result.min_jacobian
+                result.min_jacobian,
+                100.0 * result.contact_share
             ),
         },
         Check {
