@@ -1,7 +1,8 @@
 // fold_stats.wgsl: a Jacobian determinant's fold statistics per chunk of consecutive voxels,
-// each chunk in index order so the results are the same bits on the CPU twin. Bone contacts
-// apart (below): the minimum, the voxels with det <= 0 (folded), with det <= threshold, and
-// with det <= threshold that are not held; then the contacts with det <= 0. The host combines
+// each chunk in index order so the results are the same bits on the CPU twin. Voxels at or
+// below the threshold at a bone contact (below) apart: the minimum, the voxels with det <= 0
+// (folded), with det <= threshold, and with det <= threshold that are not held; then the
+// contacts with det <= 0. The host combines
 // the chunks (min of minima, sums of counts, exact in f32 for a chunk's 1024 voxels).
 //
 // A bone contact is a voxel whose Jacobian stencil (the voxel and its six face neighbours)
@@ -66,7 +67,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var contacts = 0.0;
     for (var v = c * n.y; v < min((c + 1u) * n.y, n.x); v = v + 1u) {
         let d = det[v];
-        if (is_contact(v)) {
+        // Only a voxel at or below the threshold is looked at for a contact (the test reads
+        // seven voxels; most voxels are far above it).
+        if (d <= threshold && is_contact(v)) {
             contacts = contacts + select(0.0, 1.0, d <= 0.0);
             continue;
         }

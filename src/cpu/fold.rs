@@ -12,7 +12,7 @@ fn is_held(value: f32) -> bool {
 }
 
 /// Fills `stats` ([`FOLD_STATS_WIDTH`] floats per chunk) with each chunk's minimum and counts,
-/// bone contacts apart.
+/// the voxels at or below the threshold at a bone contact apart.
 pub fn fold_stats(params: &ThresholdParams, det: &[f32], held: &[f32], stats: &mut [f32]) {
     let [voxels, per_chunk, _, _] = params.chunks.map(|n| n as usize);
     let threshold = params.threshold[0];
@@ -27,7 +27,7 @@ pub fn fold_stats(params: &ThresholdParams, det: &[f32], held: &[f32], stats: &m
             let mut contacts = 0.0f32;
             for v in c * per_chunk..((c + 1) * per_chunk).min(voxels) {
                 let d = det[v];
-                if is_contact(held, dims, v as u32) {
+                if d <= threshold && is_contact(held, dims, v as u32) {
                     contacts += count(d <= 0.0);
                     continue;
                 }

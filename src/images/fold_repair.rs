@@ -47,7 +47,7 @@ pub struct FoldRepair {
 /// slide, not a fold, and no field with rigid bones can change it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Folds {
-    /// The smallest determinant, bone contacts aside.
+    /// The smallest determinant, bone contacts at or below [`FOLD_THRESHOLD`] aside.
     pub min: f32,
     /// Voxels with det ≤ 0, bone contacts aside: where the map folds.
     pub folded: usize,

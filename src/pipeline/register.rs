@@ -83,7 +83,7 @@ pub struct Registration {
     pub inverse: Field,
     /// How closely the inverse undoes the field.
     pub round_trip: RoundTrip,
-    /// Smallest Jacobian determinant of the field over the target, bone contacts aside.
+    /// Smallest Jacobian determinant of the field over the target, folded bone contacts aside.
     pub min_jacobian: f32,
     /// Share of target voxels with determinant ≤ 0, bone contacts aside: where the map folds.
     pub folded_share: f64,
