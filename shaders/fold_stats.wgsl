@@ -2,8 +2,8 @@
 // each chunk in index order so the results are the same bits on the CPU twin. Voxels at or
 // below the threshold at a bone contact (below) apart: the minimum, the voxels with det <= 0
 // (folded), with det <= threshold, and with det <= threshold that are not held; then the
-// contacts with det <= 0. The host combines
-// the chunks (min of minima, sums of counts, exact in f32 for a chunk's 1024 voxels).
+// contacts with det <= 0. The host combines the chunks (min of minima, sums of counts, exact
+// in f32 for a chunk's 1024 voxels).
 //
 // A bone contact is a voxel whose Jacobian stencil (the voxel and its six face neighbours)
 // holds two different bones (held values are bone numbers). There the field jumps from one
@@ -23,7 +23,7 @@
 @group(0) @binding(2) var<storage, read> held: array<f32>;
 @group(0) @binding(3) var<storage, read_write> stats: array<f32>;
 
-// The voxel one step from (i, j, k) along `axis` (0..2) in direction `step` (-1 or 1), the
+// The voxel one step from voxel c along `axis` (0..2) in direction `step` (-1 or 1), the
 // voxel itself at the volume's faces.
 fn face_neighbour(c: vec3<u32>, axis: u32, step: i32) -> u32 {
     let d = params.dims.xyz;
@@ -37,6 +37,7 @@ fn face_neighbour(c: vec3<u32>, axis: u32, step: i32) -> u32 {
     return voxel_index(p.x, p.y, p.z, d);
 }
 
+// Whether voxel v's stencil holds two different bones (the header's bone contact).
 fn is_contact(v: u32) -> bool {
     let d = params.dims.xyz;
     let c = vec3<u32>(v % d.x, (v / d.x) % d.y, v / (d.x * d.y));

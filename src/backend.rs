@@ -231,8 +231,8 @@ pub trait Backend {
 
     /// Per chunk of abi::STATS_CHUNK voxels of a Jacobian determinant `det`, the bone contacts
     /// at or below the threshold apart (voxels whose stencil holds two different bones, `held`
-    /// being bone numbers): its minimum, the voxels ≤ 0, the voxels ≤ `params`' threshold, and those of them not `held`
-    /// (> 0); then the bone contacts ≤ 0 (shaders/fold_stats.wgsl).
+    /// being bone numbers): its minimum, the voxels ≤ 0, the voxels ≤ `params`' threshold, and
+    /// those of them not `held` (> 0); then the bone contacts ≤ 0 (shaders/fold_stats.wgsl).
     fn fold_stats(
         &self,
         params: &ThresholdParams,
