@@ -7,10 +7,11 @@ FIELD is a displacement field in the ITK convention (posereg's field.nii.gz, ela
 deformationField.nii, ANTs' warp, SimpleITK's): on the target grid, LPS mm, target point ->
 source point. Prints the mean field error over the body, the bones and the soft tissue (the
 pair's masks), and the folded share of the body (det J <= 0, central differences in world
-space) with bone contacts apart: voxels whose difference stencil maps into two different
-bones of the source labels, where a field that keeps bones rigid jumps from one bone's motion
-to the other's as they slide on each other (the pair's own true field has det J <= 0 there
-too: the determinant measures the slide, not a fold); with --bones, each bone's rotation error (degrees) and its translation error at the
+space) with bone contacts apart: voxels whose difference stencil maps wholly into bones of
+the source labels, two different ones, where a field that keeps bones rigid jumps from one
+bone's motion to the other's as they slide on each other (the pair's own true field has
+det J <= 0 there too: the determinant measures the slide, not a fold); with --bones, each
+bone's rotation error (degrees) and its translation error at the
 bone's centroid (mm) against truth.json (RAS, source -> target, posereg's transform format).
 --row prints one row of scripts/compare_elastix.sh's independent-pairs table instead.
 """
@@ -38,22 +39,22 @@ def jacobian_determinant(field):
 
 
 def bone_contacts(field, pair):
-    """True where the voxel and its six face neighbours map, through `field`, into two
-    different bones of the pair's source labels (nearest voxel; faces repeat the edge)."""
+    """True where the voxel's six face neighbours (the voxel itself on a face) all map, through
+    `field`, into bones of the pair's source labels (nearest voxel), two different ones: the
+    determinant there is a function of the bones' motions alone."""
     labels = sitk.ReadImage(os.path.join(pair, "source_labels.nii.gz"))
     transform = sitk.DisplacementFieldTransform(sitk.Image(field))
     mapped = sitk.GetArrayFromImage(sitk.Resample(labels, field, transform, sitk.sitkNearestNeighbor, 0))
     padded = np.pad(mapped, 1, mode="edge")
     core = tuple(slice(1, -1) for _ in range(3))
-    stencil = [padded[core]]
+    neighbours = []
     for axis in range(3):
         for step in (-1, 1):
             s = list(core)
             s[axis] = slice(1 + step, padded.shape[axis] - 1 + step)
-            stencil.append(padded[tuple(s)])
-    stencil = np.stack(stencil)
-    bone = np.where(stencil > 0, stencil, np.iinfo(np.int32).max).min(0)
-    return ((stencil > 0) & (stencil != bone)).any(0)
+            neighbours.append(padded[tuple(s)])
+    neighbours = np.stack(neighbours)
+    return (neighbours > 0).all(0) & (neighbours != neighbours[0]).any(0)
 
 
 def bone_errors(pair, transforms):

@@ -5,11 +5,12 @@
 // contacts with det <= 0. The host combines the chunks (min of minima, sums of counts, exact
 // in f32 for a chunk's 1024 voxels).
 //
-// A bone contact is a voxel whose Jacobian stencil (the voxel and its six face neighbours)
-// holds two different bones (held values are bone numbers). There the field jumps from one
-// bone's rigid motion to the other's — bones slide on each other at a joint — and a
-// finite-difference determinant across the jump measures the slide, not a fold: the
-// independent generator's true field at 90 degrees has det <= 0 on such voxels too.
+// A bone contact is a voxel whose six stencil neighbours (the voxels its central differences
+// take; the voxel itself on a face) are all held, in two different bones (held values are bone
+// numbers). Its determinant is then a function of the bones' rigid motions alone: where bones
+// slide on each other at a joint the field jumps from one bone's motion to the other's, the
+// difference across the jump measures the slide, not a fold, and nothing that keeps bones rigid
+// can change it. The independent generator's true field at 90 degrees has det <= 0 there too.
 //
 // Bindings (group 0):
 //   0 uniform  ThresholdParams (threshold.wgsl)
@@ -37,20 +38,19 @@ fn face_neighbour(c: vec3<u32>, axis: u32, step: i32) -> u32 {
     return voxel_index(p.x, p.y, p.z, d);
 }
 
-// Whether voxel v's stencil holds two different bones (the header's bone contact).
+// Whether voxel v is a bone contact (the header's).
 fn is_contact(v: u32) -> bool {
     let d = params.dims.xyz;
     let c = vec3<u32>(v % d.x, (v / d.x) % d.y, v / (d.x * d.y));
-    var bone = held[v];
-    var contact = false;
+    let first = held[face_neighbour(c, 0u, -1)];
+    var all_held = true;
+    var two_bones = false;
     for (var s = 0u; s < 6u; s = s + 1u) {
         let other = held[face_neighbour(c, s / 2u, 2 * i32(s % 2u) - 1)];
-        contact = contact || (is_held(bone) && is_held(other) && other != bone);
-        if (!is_held(bone)) {
-            bone = other;
-        }
+        all_held = all_held && is_held(other);
+        two_bones = two_bones || other != first;
     }
-    return contact;
+    return all_held && two_bones;
 }
 
 @compute @workgroup_size(64, 1, 1)

@@ -293,25 +293,3 @@ fn the_real_knee_bent_20_degrees_independently_meets_the_bar_on_both_backends() 
         );
     }
 }
-
-/// The same knee bent 90°, on the CPU (lavapipe takes minutes at this angle): the bones still
-/// within the bar, and the field folds in the body only at bone contacts — voxels whose stencil
-/// maps into femur and tibia at once, where the bones slide on each other and the pair's own
-/// true field has det J ≤ 0 too (score_pair.py tells them apart, independently of posereg) —
-/// but for at most a voxel or two beside them (one, det J −0.75, a femur voxel whose neighbour
-/// is a one-voxel layer of tissue between femur and tibia). Counted with contacts as folds, as
-/// before contacts were told apart, 0.005% of the body.
-#[test]
-fn the_real_knee_bent_90_degrees_folds_only_where_bones_slide_on_each_other() {
-    let dir = tempfile::tempdir().unwrap();
-    let Some(pair) = real_knee_pair(dir.path(), "90", "13") else {
-        return;
-    };
-    let score = register_and_score(&pair, &dir.path().join("cpu"), "cpu");
-    assert_bones_within_bar(&score, "cpu");
-    let folded = score["folded_share"].as_f64().unwrap();
-    assert!(folded < 1e-5, "{folded} of the body folded: {score}");
-    // 0.0045% here, 0.008% in the true field.
-    let contacts = score["bone_contact_share"].as_f64().unwrap();
-    assert!(contacts < 2e-4, "{contacts} of the body at bone contacts");
-}

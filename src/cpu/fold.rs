@@ -53,26 +53,26 @@ fn face_neighbour(c: [u32; 3], axis: usize, step: i32, dims: [u32; 3]) -> u32 {
     voxel_index(p[0], p[1], p[2], dims)
 }
 
-/// Whether voxel v's Jacobian stencil (v and its six face neighbours) holds two different
-/// bones (`held` values are bone numbers): a bone contact, where the field jumps from one
-/// bone's motion to the other's and a finite-difference determinant measures the slide.
+/// Whether voxel v is a bone contact: its six stencil neighbours (the voxel itself on a face)
+/// all held, in two different bones (`held` values are bone numbers). Its determinant is then a
+/// function of the bones' motions alone, and where they slide on each other it measures the
+/// slide.
 fn is_contact(held: &[f32], dims: [u32; 3], v: u32) -> bool {
     let c = [
         v % dims[0],
         (v / dims[0]) % dims[1],
         v / (dims[0] * dims[1]),
     ];
-    let mut bone = held[v as usize];
-    let mut contact = false;
+    let first = held[face_neighbour(c, 0, -1, dims) as usize];
+    let mut all_held = true;
+    let mut two_bones = false;
     for s in 0..6u32 {
         let n = face_neighbour(c, (s / 2) as usize, 2 * (s % 2) as i32 - 1, dims);
         let other = held[n as usize];
-        contact = contact || (is_held(bone) && is_held(other) && other != bone);
-        if !is_held(bone) {
-            bone = other;
-        }
+        all_held = all_held && is_held(other);
+        two_bones = two_bones || other != first;
     }
-    contact
+    all_held && two_bones
 }
 
 /// Fills `mark` (1 float per voxel) with 1 on the voxels not held whose value is at most the
@@ -180,14 +180,15 @@ mod tests {
     use super::*;
     use crate::volume::{Affine, Grid};
 
-    /// A row of voxels x = 0..7 with det ≤ 0 at x = 2 and 5: x = 2 lies between bone 1 (x = 1)
-    /// and bone 2 (x = 3), a contact; x = 5 has only bone 2 beside it and folds. The
-    /// statistics count one fold (the minimum is its determinant) and one contact.
+    /// A row of voxels x = 0..7 with det ≤ 0 at x = 2 and 5: x = 2, in bone 1, lies between
+    /// bone 1 (x = 1) and bone 2 (x = 3), a contact (in a row the other axes' neighbours are the
+    /// voxel itself); x = 5 has tissue beside it and folds. The statistics count one fold (the
+    /// minimum is its determinant) and one contact.
     #[test]
     fn a_stencil_holding_two_bones_is_a_contact_not_a_fold() {
         let grid = Grid::new([8, 1, 1], Affine::identity()).unwrap();
         let det = [1.0, 1.0, -0.5, 1.0, 1.0, -0.25, 1.0, 1.0];
-        let held = [0.0, 1.0, 0.0, 2.0, 2.0, 0.0, 0.0, 0.0];
+        let held = [0.0, 1.0, 1.0, 2.0, 2.0, 0.0, 0.0, 0.0];
         let params = ThresholdParams::new(&grid, 0.05);
         let mut stats = vec![0.0; FOLD_STATS_WIDTH * params.chunks()];
         fold_stats(&params, &det, &held, &mut stats);

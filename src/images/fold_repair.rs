@@ -41,10 +41,11 @@ pub struct FoldRepair {
     pub unfold_steps: usize,
 }
 
-/// A Jacobian determinant's fold statistics. Bone contacts — voxels whose stencil holds two
-/// different bones, where the field jumps from one bone's rigid motion to the other's as the
-/// bones slide on each other — are counted apart: a determinant across that jump measures the
-/// slide, not a fold, and no field with rigid bones can change it.
+/// A Jacobian determinant's fold statistics. Bone contacts — voxels whose stencil neighbours
+/// all move with bones, two different ones, so that the field jumps from one bone's rigid
+/// motion to the other's as the bones slide on each other — are counted apart: a determinant
+/// across that jump measures the slide, not a fold, and no field with rigid bones can change
+/// it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Folds {
     /// The smallest determinant, bone contacts at or below [`FOLD_THRESHOLD`] aside.
@@ -246,8 +247,8 @@ const UNFOLD_TARGET: f32 = 0.3;
 /// voxels stay rigid the average pulls the tissue's source point into the bone); this can.
 /// Voxels `held` in a bone (> 0, the bone's number) never move, and no step carries a voxel's
 /// source point into a bone: `in_bone(n, u)` says whether voxel n displaced by u lands in one.
-/// Bone contacts (a stencil holding two bones) are left: nothing that keeps bones rigid lifts
-/// them (see [`Folds`]). `det` is the field's Jacobian determinant (the jacobian kernel's).
+/// Bone contacts (stencil neighbours all in bones, two different ones) are left: nothing that
+/// keeps bones rigid lifts them (see [`Folds`]). `det` is the field's Jacobian determinant (the jacobian kernel's).
 /// Returns the steps taken; the caller counts what is left with the kernel.
 pub fn unfold(
     field: &mut Field,
@@ -383,16 +384,13 @@ impl Stencil {
         determinant_and_gradient(d, self.index_per_mm)
     }
 
-    /// Whether voxel n's stencil holds two different bones (`held`: bone numbers, 0 for
-    /// tissue): the host twin of shaders/fold_stats.wgsl's bone contact.
+    /// Whether voxel n is a bone contact: its six stencil neighbours (n itself on a face) all
+    /// held, in two different bones (`held`: bone numbers, 0 for tissue) — the host twin of
+    /// shaders/fold_stats.wgsl's.
     fn is_contact(&self, held: &[f32], n: usize) -> bool {
-        let mut bones = self
-            .touched_by(n)
-            .into_iter()
-            .map(|v| held[v])
-            .filter(|&h| h > 0.0);
-        let first = bones.next();
-        bones.any(|h| Some(h) != first)
+        let neighbours = &self.touched_by(n)[1..];
+        let first = held[neighbours[0]];
+        neighbours.iter().all(|&v| held[v] > 0.0) && neighbours.iter().any(|&v| held[v] != first)
     }
 
     /// The voxels whose det J a change at q changes: q and its stencil neighbours (on a face,
