@@ -230,8 +230,8 @@ pub trait Backend {
     ) -> Result<Self::Buffer<f32>>;
 
     /// Per chunk of abi::STATS_CHUNK voxels of a Jacobian determinant `det`, the bone contacts
-    /// at or below the threshold apart (voxels whose stencil holds two different bones, `held`
-    /// being bone numbers): its minimum, the voxels ≤ 0, the voxels ≤ `params`' threshold, and
+    /// at or below the threshold apart (voxels whose six stencil neighbours are all `held`, in
+    /// two different bones; `held` values are bone numbers): its minimum, the voxels ≤ 0, the voxels ≤ `params`' threshold, and
     /// those of them not `held` (> 0); then the bone contacts ≤ 0 (shaders/fold_stats.wgsl).
     fn fold_stats(
         &self,

@@ -248,8 +248,8 @@ const UNFOLD_TARGET: f32 = 0.3;
 /// Voxels `held` in a bone (> 0, the bone's number) never move, and no step carries a voxel's
 /// source point into a bone: `in_bone(n, u)` says whether voxel n displaced by u lands in one.
 /// Bone contacts (stencil neighbours all in bones, two different ones) are left: nothing that
-/// keeps bones rigid lifts them (see [`Folds`]). `det` is the field's Jacobian determinant (the jacobian kernel's).
-/// Returns the steps taken; the caller counts what is left with the kernel.
+/// keeps bones rigid lifts them (see [`Folds`]). `det` is the field's Jacobian determinant (the
+/// jacobian kernel's). Returns the steps taken; the caller counts what is left with the kernel.
 pub fn unfold(
     field: &mut Field,
     mut det: Vec<f32>,
