@@ -10,7 +10,7 @@ the whole leg moves a little), and soft tissue moved by a polyrigid log-Euclidea
 bent pose back to the straight one: each point moves with the weighted mean of the bones'
 inverse twists, weights d⁻² exp(−d/15 mm) of its distance to each bone where that bone is at
 that moment of the flow (posereg blends forward from the straight pose with dual quaternions
-and d⁻⁴ weights, then inverts numerically), plus smooth bumps in soft tissue only. The flow does
+and d⁻⁵ weights, then inverts numerically), plus smooth bumps in soft tissue only. The flow does
 not fold. Points inside a bent bone get that bone's motion exactly, so bones are exactly rigid.
 
 Both scans are sampled from the same anti-aliased high-resolution scan onto grids of the asked

@@ -2,7 +2,7 @@
 //! experiment: the shank turned about the flexion axis) and `pose` (the knee set to given
 //! joint angles and translations in Grood & Suntay's joint coordinate system). Both move each
 //! bone rigidly and blend the motions across the soft tissue by volume skeletal deformation
-//! with their own skinning weights (d⁻², not the initialisation's d⁻⁴, so registering a pose is
+//! with their own skinning weights (d⁻², not the initialisation's d⁻⁵, so registering a pose is
 //! not the initialisation undoing its own model).
 
 use crate::abi::Blending;
@@ -33,7 +33,7 @@ pub struct Posed {
 pub const BEND_PATELLA_SHARE: f64 = 0.7;
 
 /// Shepard exponent of the synthetic poses' skinning weights: d⁻², not the initialisation's
-/// d⁻⁴, so the initialisation is not scored against its own weights (with the same weights,
+/// d⁻⁵, so the initialisation is not scored against its own weights (with the same weights,
 /// the real knee bent 10° was registered to 0.07 mm, a figure about circularity rather than
 /// accuracy), and the synthetic deformation stays the smooth one the paper's experiment
 /// describes.

@@ -1,7 +1,7 @@
 //! Skinning weights w_j(x): a partition of unity over the bones, exactly 1 inside bone j and 0
 //! inside the others, smooth across soft tissue.
 //!
-//! Method: normalised inverse-distance (Shepard) weights, w_j ∝ d_j⁻⁴, from exact Euclidean
+//! Method: normalised inverse-distance (Shepard) weights, w_j ∝ d_j⁻⁵, from exact Euclidean
 //! distance maps of each bone label (regions::distance_maps), scaled by the size of the
 //! segment the bone moves with ([`reach_scale`], [`segments`]). Chosen over harmonic weights
 //! because they need no solve (one kernel pass), are exact at the bones by construction, and
