@@ -110,8 +110,9 @@ pub struct SourceLabels<'a, B: Backend> {
 /// Removes the folds of an initial field. First it smooths the displacement locally — the
 /// voxels with det J ≤ 0.05 and two voxels around them, by 27-neighbour averaging — which
 /// undoes most folds and keeps the field smooth; then [`unfold`] lifts what is left. Both leave
-/// bone voxels untouched so bones stay rigid, and never move a soft-tissue voxel's source point
-/// into a bone (that would grow the bone in the initialised source: at 60° the patella by 10%).
+/// bone voxels untouched so bones stay rigid, and do not push a soft-tissue voxel's source point
+/// into a bone (that would grow the bone in the initialised source: at 60° the patella by 10%),
+/// short of [`unfold`]'s last resort, one voxel at a fold no push can lift.
 /// A bone voxel is one whose source point lies in one of the `bones` of `labels` *and* whose
 /// blend was inverted (`residual`, mm, below [`RIGID_RESIDUAL`] of a voxel): where the blend
 /// folds, the pull-back can stop inside a bone without solving it, and those voxels are
@@ -169,7 +170,7 @@ pub fn bones_at_source<B: Backend>(
 
 /// Unfolds a registration's total field, whose Jacobian determinant is `det` with fold
 /// statistics `folds`: [`unfold`] with the voxels `held` in a bone ([`bones_at_source`]) held,
-/// and no tissue pushed into a bone. The adaptive warp is smooth and does not fold (its step
+/// and tissue pushed into a bone only as its last resort. The adaptive warp is smooth and does not fold (its step
 /// control sees to that), but composed with an initial field that is sharply compressed behind
 /// a bent knee it can carry a few voxels past each other there.
 pub fn unfold_registration<B: Backend>(
@@ -245,8 +246,11 @@ const UNFOLD_TARGET: f32 = 0.3;
 /// lift it (linearised) to [`UNFOLD_TARGET`] — the folding correction NiftyReg applies to spline
 /// grids, on a dense field. Smoothing cannot undo a fold pinned by a bone (beside a bone whose
 /// voxels stay rigid the average pulls the tissue's source point into the bone); this can.
-/// Voxels `held` in a bone (> 0, the bone's number) never move, and no step carries a voxel's
-/// source point into a bone: `in_bone(n, u)` says whether voxel n displaced by u lands in one.
+/// Voxels `held` in a bone (> 0, the bone's number) never move, and no push carries a voxel's
+/// source point into a bone (`in_bone(n, u)` says whether voxel n displaced by u lands in one);
+/// where every push of a tissue voxel beside a folded bone voxel would, it takes the bone's
+/// motion instead ([`bone_extended`]: at a deep bend, the voxel between femur and tibia mapped
+/// to the wrong side of the femur's surface — 2 mm 90° knee: the last 3 folds of the body).
 /// Bone contacts (stencil neighbours all in bones, two different ones) are left: nothing that
 /// keeps bones rigid lifts them (see [`Folds`]). `det` is the field's Jacobian determinant (the
 /// jacobian kernel's). Returns the steps taken; the caller counts what is left with the kernel.
@@ -279,24 +283,27 @@ pub fn unfold(
             if now > FOLD_THRESHOLD {
                 continue;
             }
-            // ∂det/∂u at each neighbour in the stencil that may move.
-            let movable: Vec<(usize, Vec3)> = (0..3)
+            // ∂det/∂u at each neighbour in the stencil that may move, with the neighbour
+            // opposite it across n.
+            let movable: Vec<(usize, Vec3, usize)> = (0..3)
                 .flat_map(|a| {
                     let (lo, hi, factor) = stencil.neighbours(n, a);
-                    [(hi, g[a] * factor), (lo, -g[a] * factor)]
+                    [(hi, g[a] * factor, lo), (lo, -g[a] * factor, hi)]
                 })
-                .filter(|&(q, _)| {
+                .filter(|&(q, _, _)| {
                     q != n && !rigid(q) && !refused_before.contains(&q) && !blocked.contains(&q)
                 })
                 .collect();
-            let norm: f32 = movable.iter().map(|(_, gq)| gq.length_squared()).sum();
+            let norm: f32 = movable.iter().map(|(_, gq, _)| gq.length_squared()).sum();
             if norm <= f32::EPSILON {
                 continue;
             }
             let s = (UNFOLD_TARGET - now) / norm;
-            for (q, gq) in movable {
+            for (q, gq, opposite) in movable {
                 let shift = (gq * s).clamp_length_max(largest_step);
-                match outside_bones(field, q, shift, in_bone) {
+                let moved = outside_bones(field, q, shift, in_bone)
+                    .or_else(|| bone_extended(field, held, n, opposite));
+                match moved {
                     Some(moved) => field.data[q] = moved,
                     None => {
                         blocked.insert(q);
@@ -332,6 +339,21 @@ fn outside_bones(
         .into_iter()
         .map(|f| (from + shift * f).to_array())
         .find(|&moved| !in_bone(q, moved) || in_bone(q, field.data[q]))
+}
+
+/// The displacement that extends the rigid motion of the bone holding voxel n one voxel past
+/// it, to the neighbour across n from `opposite` (2 u(n) − u(opposite), exact for the bone's
+/// affine motion), where n and `opposite` are held in the same bone; None otherwise. A tissue
+/// voxel beside a folded bone voxel whose every push would enter that bone then moves with the
+/// bone instead: at a deep bend the tissue voxel between femur and tibia can be on the wrong
+/// side of the femur's surface, and no push that stays out of the bone lifts the fold.
+fn bone_extended(field: &Field, held: &[f32], n: usize, opposite: usize) -> Option<[f32; 3]> {
+    let bone = held[n];
+    if bone <= 0.0 || opposite == n || held[opposite] != bone {
+        return None;
+    }
+    let u = |v: usize| Vec3::from_array(field.data[v]);
+    Some((2.0 * u(n) - u(opposite)).to_array())
 }
 
 /// The Jacobian kernel's finite-difference stencil on a grid, on the host: which neighbours it
@@ -463,6 +485,41 @@ mod tests {
     /// A field that folds along x beside a "bone" whose voxels must not move: smoothing alone
     /// is not asked to help (it is the second step alone); the push lifts every voxel above the
     /// threshold and leaves the bone's displacements as they were.
+    #[test]
+    fn a_tissue_voxel_behind_a_bone_moves_with_the_bone() {
+        let n = 16;
+        let grid = Grid::new([n, n, n], Affine::identity()).unwrap();
+        // The bone: the slab 4 ≤ x ≤ 7 of the source labels, which the field leaves where it is;
+        // the tissue voxel x = 8 maps to x = 2, behind the bone: det −2 at x = 7. Every push
+        // that lifts it carries x = 8's source point into the bone.
+        let data: Vec<[f32; 3]> = (0..grid.len())
+            .map(|m| [if m % n == 8 { -6.0 } else { 0.0 }, 0.0, 0.0])
+            .collect();
+        let mut field = Image::from_data(grid.clone(), data).unwrap();
+        let labels: Vec<f32> = (0..grid.len())
+            .map(|m| if (4..=7).contains(&(m % n)) { 2.0 } else { 1.0 })
+            .collect();
+        let lookup = BoneLookupParams::new(&grid, &grid, &[2], f32::MAX).unwrap();
+        let in_bone = |m: usize, u: [f32; 3]| {
+            let p = [m % n, (m / n) % n, m / (n * n)].map(|c| c as f32);
+            bone_at(&lookup, &labels, p, u) > 0
+        };
+        let held: Vec<f32> = (0..grid.len())
+            .map(|m| 2.0 * in_bone(m, field.data[m]) as u8 as f32)
+            .collect();
+        let before = host_determinant(&CpuBackend, &field).unwrap();
+        assert!(before.iter().any(|&d| d < -1.9), "the test field must fold");
+        let steps = unfold(&mut field, before, &held, &in_bone);
+        let after = host_determinant(&CpuBackend, &field).unwrap();
+        let least = after.iter().cloned().fold(f32::INFINITY, f32::min);
+        assert!(
+            least > FOLD_THRESHOLD,
+            "least det {least} after {steps} steps"
+        );
+        let behind = 8 + n * (7 + n * 7);
+        assert_eq!(field.data[behind], [0.0; 3], "x = 8 moves as the bone does");
+    }
+
     #[test]
     fn unfolding_lifts_a_fold_pinned_by_a_bone() {
         let n = 16;
