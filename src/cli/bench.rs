@@ -1,10 +1,14 @@
-//! `posereg bench [--size half] [--flexion 30] [--runs 3] [--device cpu|gpu|both]`: the whole
+//! `posereg bench [--size half] [--flexion 30] [--runs 3] [--backends cpu|gpu|both]`: the whole
 //! registration of a phantom pair on each backend, the median per stage over several runs, the
-//! GPU/CPU ratio, and peak memory.
+//! GPU/CPU ratio, and peak memory. `--device cpu|gpu` times that backend alone, `--gpu` picks
+//! the adapter.
 
+use anyhow::bail;
 use clap::{Args, ValueEnum};
 use posereg::backend::Backend;
 use posereg::cpu::CpuBackend;
+use posereg::device::{DeviceChoice, DeviceWanted};
+use posereg::gpu::context::GpuContext;
 use posereg::gpu::GpuBackend;
 use posereg::nonrigid::adaptive::Evaluations;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
@@ -34,9 +38,29 @@ pub struct BenchArgs {
     /// Runs per backend (the median is reported).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=100))]
     pub runs: u64,
-    /// Backends to time.
+    /// Backends to time (`--device cpu` or `gpu` alone narrows it to that one).
     #[arg(long = "backends", value_enum, default_value_t = Which::Both)]
     pub which: Which,
+}
+
+/// The backends to time: `--backends`, narrowed by `--device cpu|gpu`; an error where the two
+/// ask for different ones.
+fn backends(args: &BenchArgs, device: &DeviceWanted) -> anyhow::Result<Which> {
+    Ok(match (device.kind, args.which) {
+        (DeviceChoice::Auto, which) => which,
+        (DeviceChoice::Cpu, Which::Gpu) | (DeviceChoice::Gpu, Which::Cpu) => bail!(
+            "--device {} and --backends {} ask for different backends",
+            device
+                .kind
+                .to_possible_value()
+                .map_or("?".into(), |v| v.get_name().to_string()),
+            args.which
+                .to_possible_value()
+                .map_or("?".into(), |v| v.get_name().to_string())
+        ),
+        (DeviceChoice::Cpu, _) => Which::Cpu,
+        (DeviceChoice::Gpu, _) => Which::Gpu,
+    })
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -143,7 +167,8 @@ fn print_row(describe: &str, timed: &Timed, sizes: &Sizes) {
 }
 
 /// Runs and prints the table.
-pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
+pub fn run(args: &BenchArgs, device: &DeviceWanted) -> anyhow::Result<()> {
+    let which = backends(args, device)?;
     let spec = |flexion_degrees, seed| PhantomSpec {
         size: args.size,
         flexion_degrees,
@@ -176,7 +201,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         "backend", "init s", "adaptive s", "finish s", "total s"
     );
     let mut totals = Vec::new();
-    if args.which != Which::Gpu {
+    if which != Which::Gpu {
         let t = time(&CpuBackend, args.runs, &pair)?;
         print_row(&CpuBackend.describe(), &t, &sizes);
         println!(
@@ -185,8 +210,8 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         );
         totals.push(t.seconds);
     }
-    if args.which != Which::Cpu {
-        let gpu = GpuBackend::new()?;
+    if which != Which::Cpu {
+        let gpu = GpuBackend::with_context(GpuContext::open(device.adapter.as_ref())?)?;
         let t = time(&gpu, args.runs, &pair)?;
         print_row(&gpu.describe(), &t, &sizes);
         println!(
@@ -205,4 +230,51 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(which: Which) -> BenchArgs {
+        BenchArgs {
+            size: PhantomSize::Quarter,
+            flexion: 10.0,
+            runs: 1,
+            which,
+        }
+    }
+
+    fn device(kind: DeviceChoice) -> DeviceWanted {
+        DeviceWanted {
+            kind,
+            adapter: None,
+        }
+    }
+
+    #[test]
+    fn device_narrows_the_backends_and_a_contradiction_is_refused() {
+        use DeviceChoice::{Auto, Cpu, Gpu};
+        for which in [Which::Cpu, Which::Gpu, Which::Both] {
+            assert_eq!(backends(&args(which), &device(Auto)).unwrap(), which);
+        }
+        assert_eq!(
+            backends(&args(Which::Both), &device(Cpu)).unwrap(),
+            Which::Cpu
+        );
+        assert_eq!(
+            backends(&args(Which::Both), &device(Gpu)).unwrap(),
+            Which::Gpu
+        );
+        assert_eq!(
+            backends(&args(Which::Cpu), &device(Cpu)).unwrap(),
+            Which::Cpu
+        );
+        let refused = backends(&args(Which::Gpu), &device(Cpu)).unwrap_err();
+        assert_eq!(
+            refused.to_string(),
+            "--device cpu and --backends gpu ask for different backends"
+        );
+        assert!(backends(&args(Which::Cpu), &device(Gpu)).is_err());
+    }
 }

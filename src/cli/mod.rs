@@ -93,7 +93,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Apply(args) => apply::run(&args, device, &reporter),
         Command::ApplyPoints(args) => points::run(&args, &reporter),
-        Command::Bench(args) => bench::run(&args),
+        Command::Bench(args) => bench::run(&args, device),
         Command::Bend(args) => bend::run(&args, device, &reporter),
         Command::Demo(args) => demo::run(&args, device, &reporter),
         Command::Devices => devices::run(),
