@@ -170,9 +170,9 @@ pub fn bones_at_source<B: Backend>(
 
 /// Unfolds a registration's total field, whose Jacobian determinant is `det` with fold
 /// statistics `folds`: [`unfold`] with the voxels `held` in a bone ([`bones_at_source`]) held,
-/// and tissue pushed into a bone only as its last resort. The adaptive warp is smooth and does not fold (its step
-/// control sees to that), but composed with an initial field that is sharply compressed behind
-/// a bent knee it can carry a few voxels past each other there.
+/// and tissue pushed into a bone only as its last resort. The adaptive warp is smooth and does
+/// not fold (its step control sees to that), but composed with an initial field that is sharply
+/// compressed behind a bent knee it can carry a few voxels past each other there.
 pub fn unfold_registration<B: Backend>(
     backend: &B,
     field: DeviceImage<B>,
@@ -249,7 +249,7 @@ const UNFOLD_TARGET: f32 = 0.3;
 /// Voxels `held` in a bone (> 0, the bone's number) never move, and no push carries a voxel's
 /// source point into a bone (`in_bone(n, u)` says whether voxel n displaced by u lands in one);
 /// where every push of a tissue voxel beside a folded bone voxel would, it takes the bone's
-/// motion instead ([`bone_extended`]: at a deep bend, the voxel between femur and tibia mapped
+/// motion instead (`bone_extended`: at a deep bend, the voxel between femur and tibia mapped
 /// to the wrong side of the femur's surface — 2 mm 90° knee: the last 3 folds of the body).
 /// Bone contacts (stencil neighbours all in bones, two different ones) are left: nothing that
 /// keeps bones rigid lifts them (see [`Folds`]). `det` is the field's Jacobian determinant (the
