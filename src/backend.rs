@@ -231,8 +231,9 @@ pub trait Backend {
 
     /// Per chunk of abi::STATS_CHUNK voxels of a Jacobian determinant `det`, the bone contacts
     /// at or below the threshold apart (voxels whose six stencil neighbours are all `held`, in
-    /// two different bones; `held` values are bone numbers): its minimum, the voxels ≤ 0, the voxels ≤ `params`' threshold, and
-    /// those of them not `held` (> 0); then the bone contacts ≤ 0 (shaders/fold_stats.wgsl).
+    /// two different bones; `held` values are bone numbers): its minimum, the voxels ≤ 0, the
+    /// voxels ≤ `params`' threshold, and those of them not `held` (> 0); then the bone contacts
+    /// ≤ 0 (shaders/fold_stats.wgsl).
     fn fold_stats(
         &self,
         params: &ThresholdParams,

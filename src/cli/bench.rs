@@ -50,17 +50,19 @@ fn backends(args: &BenchArgs, device: &DeviceWanted) -> anyhow::Result<Which> {
         (DeviceChoice::Auto, which) => which,
         (DeviceChoice::Cpu, Which::Gpu) | (DeviceChoice::Gpu, Which::Cpu) => bail!(
             "--device {} and --backends {} ask for different backends",
-            device
-                .kind
-                .to_possible_value()
-                .map_or("?".into(), |v| v.get_name().to_string()),
-            args.which
-                .to_possible_value()
-                .map_or("?".into(), |v| v.get_name().to_string())
+            flag_value(device.kind),
+            flag_value(args.which)
         ),
         (DeviceChoice::Cpu, _) => Which::Cpu,
         (DeviceChoice::Gpu, _) => Which::Gpu,
     })
+}
+
+/// A flag's value as it is written on the command line.
+fn flag_value(value: impl ValueEnum) -> String {
+    value
+        .to_possible_value()
+        .map_or_else(|| "?".into(), |v| v.get_name().to_string())
 }
 
 fn median(mut v: Vec<f64>) -> f64 {

@@ -482,9 +482,6 @@ mod tests {
         }
     }
 
-    /// A field that folds along x beside a "bone" whose voxels must not move: smoothing alone
-    /// is not asked to help (it is the second step alone); the push lifts every voxel above the
-    /// threshold and leaves the bone's displacements as they were.
     /// Unfolds `field` (an n³ grid, identity affine) beside the bone whose source voxels have
     /// code 2 in `codes`, asserting that it folds before and nowhere after; returns the voxels
     /// held in the bone.
@@ -530,6 +527,9 @@ mod tests {
         assert_eq!(field.data[behind], [0.0; 3], "x = 8 moves as the bone does");
     }
 
+    /// A field that folds along x beside a "bone" whose voxels must not move: smoothing alone
+    /// is not asked to help (it is the second step alone); the push lifts every voxel above the
+    /// threshold and leaves the bone's displacements as they were.
     #[test]
     fn unfolding_lifts_a_fold_pinned_by_a_bone() {
         let n = 16;
