@@ -8,11 +8,11 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use posereg::abi::{
-    pack_candidates, BoneLookupParams, ComposeParams, DilateParams, EdtParams, GainParams,
-    Interpolation, InvertParams, JacobianParams, LabelParams, LnccParams, LocalMomentsParams,
-    MomentsParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams, ScoreParams,
-    SkinBlendParams, SkinWeightsParams, SsdParams, SumParams, ThresholdParams, RIGID_SUMS,
-    SCORE_SUMS,
+    pack_candidates, BoneLookupParams, ComposeParams, DilateParams, EdtParams, FadeParams,
+    GainParams, Interpolation, InvertParams, JacobianParams, LabelParams, LnccParams,
+    LocalMomentsParams, MomentsParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams,
+    ScoreParams, SkinBlendParams, SkinWeightsParams, SsdParams, SumParams, ThresholdParams,
+    RIGID_SUMS, SCORE_SUMS,
 };
 use posereg::backend::{box_sums, BoneImages, CostImages};
 use posereg::cpu::CpuBackend;
@@ -420,6 +420,13 @@ fn kernels(c: &mut Criterion) {
         group(c, "compose", g.len() as u64, &label, &backends, |b| {
             posereg::on_backend!(b, b => resident(b, &[&uf, &uf], |b, [r, u0]| {
                 b.compose(&ComposeParams::new(&g, &g), r, u0)
+            }))
+        });
+        // Four bones' distance maps: the final field's warp held off the bones.
+        let distances: Vec<f32> = (0..4 * g.len()).map(|k| (k % 23) as f32).collect();
+        group(c, "fade_warp", g.len() as u64, &label, &backends, |b| {
+            posereg::on_backend!(b, b => resident(b, &[&uf, &distances], |b, [r, d]| {
+                b.fade_warp(&FadeParams::new(&g, 4, 8.0), r, d)
             }))
         });
         group(c, "invert_field", g.len() as u64, &label, &backends, |b| {

@@ -1181,6 +1181,31 @@ impl PartialsParams {
     }
 }
 
+/// Keep in sync with `FadeParams` in shaders/fade_warp.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct FadeParams {
+    /// nx, ny, nz of the warp's grid, and the bones (volumes of the distance stack).
+    pub dims: [u32; 4],
+    /// mm over which the warp rises from zero on a bone to its whole, unused ×3.
+    pub margin: [f32; 4],
+}
+
+impl FadeParams {
+    /// For a warp on `grid` faded over `margin_mm` (> 0) from `bones` bones.
+    pub fn new(grid: &Grid, bones: usize, margin_mm: f64) -> Self {
+        FadeParams {
+            dims: dims4(grid, bones as u32),
+            margin: [margin_mm as f32, 0.0, 0.0, 0.0],
+        }
+    }
+
+    /// Voxels of the grid.
+    pub fn voxels(&self) -> usize {
+        count(&self.dims)
+    }
+}
+
 /// Keep in sync with `ComposeParams` in shaders/compose.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]

@@ -4,7 +4,7 @@
 
 use crate::abi::Interpolation;
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
+    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
     InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
     MomentsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
     ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
@@ -387,6 +387,16 @@ pub trait Backend {
         params: &ComposeParams,
         warp: &Self::Buffer<f32>,
         initial: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// `warp` (3 floats per voxel of the grid in `params`) scaled by each voxel's distance to
+    /// the nearest bone (`distance`: one volume per bone, mm, stacked) over the margin, clamped
+    /// to 1: zero on the bones.
+    fn fade_warp(
+        &self,
+        params: &FadeParams,
+        warp: &Self::Buffer<f32>,
+        distance: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
     /// The inverse of `field` (3 floats per voxel of the field grid in `params`) on the output

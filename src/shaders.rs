@@ -267,6 +267,13 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         ],
     ),
     (
+        "fade_warp",
+        &[
+            COMMON,
+            ("fade_warp.wgsl", include_str!("../shaders/fade_warp.wgsl")),
+        ],
+    ),
+    (
         "invert_field",
         &[
             COMMON,

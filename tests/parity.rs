@@ -12,9 +12,9 @@ mod common;
 use common::*;
 use posereg::abi::{
     pack_candidates, Blending, BoneBlend, BoneLookupParams, ComposeParams, DilateParams,
-    Interpolation, InvertParams, JacobianParams, LabelParams, LnccParams, LocalMomentsParams,
-    MomentsParams, RbfGradParams, ResampleParams, RigidParams, ScoreParams, ThresholdParams,
-    FOLD_STATS_WIDTH, RIGID_SUMS, SCORE_SUMS,
+    FadeParams, Interpolation, InvertParams, JacobianParams, LabelParams, LnccParams,
+    LocalMomentsParams, MomentsParams, RbfGradParams, ResampleParams, RigidParams, ScoreParams,
+    ThresholdParams, FOLD_STATS_WIDTH, RIGID_SUMS, SCORE_SUMS,
 };
 use posereg::backend::{box_sums, BoneImages};
 use posereg::cpu::CpuBackend;
@@ -727,6 +727,31 @@ fn final_field_kernels_parity_at_odd_sizes() {
         // 1 mm per voxel here.
         close("compose", &got, &want, 1e-4, 1e-5);
     }
+    // fade_warp: two bones' distance maps, each zero on its own bone, up to 20 mm off it.
+    let bones = 2;
+    let distance: Vec<f32> = (0..bones * grid.len())
+        .map(|k| ((k * 37) % 41).saturating_sub(8) as f32 * 0.5)
+        .collect();
+    let params = FadeParams::new(&grid, bones, 6.0);
+    let faded = |b: &dyn Fn(&Field, &[f32]) -> Vec<f32>| b(&warp, &distance);
+    let want = faded(&|w, d| fade_on(&CpuBackend, &params, w, d));
+    let got = faded(&|w, d| fade_on(gpu, &params, w, d));
+    // One division and one product per value: an ulp or two.
+    close("fade_warp", &got, &want, 1e-6, 1e-6);
+}
+
+/// The fade_warp kernel on a host warp and distance stack, brought back.
+fn fade_on<B: Backend>(
+    backend: &B,
+    params: &FadeParams,
+    warp: &Field,
+    distance: &[f32],
+) -> Vec<f32> {
+    let r = field_on(backend, warp);
+    let d = backend.upload("distance", distance.to_vec()).unwrap();
+    backend
+        .download_one(&backend.fade_warp(params, &r, &d).unwrap())
+        .unwrap()
 }
 
 /// The compose kernel on host fields, brought back.

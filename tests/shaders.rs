@@ -2,7 +2,7 @@
 //! has the same size in Rust and WGSL.
 
 use posereg::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
+    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
     InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
     MomentsParams, PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams,
     RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
@@ -69,7 +69,7 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
-    let pairs: [(&str, &str, usize); 36] = [
+    let pairs: [(&str, &str, usize); 37] = [
         ("warp_image", "RbfGradParams", size_of::<RbfGradParams>()),
         ("gain_terms", "GainParams", size_of::<GainParams>()),
         ("gain_ratio", "GainParams", size_of::<GainParams>()),
@@ -89,6 +89,7 @@ fn abi_structs_match_their_wgsl_twins() {
         ("sum_chunks", "SumParams", size_of::<SumParams>()),
         ("warp_field", "RbfGradParams", size_of::<RbfGradParams>()),
         ("compose", "ComposeParams", size_of::<ComposeParams>()),
+        ("fade_warp", "FadeParams", size_of::<FadeParams>()),
         (
             "sum_partials",
             "PartialsParams",

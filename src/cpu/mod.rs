@@ -6,6 +6,7 @@ pub mod common;
 pub mod compose;
 pub mod coverage;
 pub mod edt;
+pub mod fade_warp;
 pub mod fold;
 pub mod gain;
 pub mod invert;
@@ -31,7 +32,7 @@ pub mod warp_field;
 pub mod warp_image;
 
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
+    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
     InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
     MomentsParams, PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams,
     RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
@@ -330,6 +331,17 @@ impl Backend for CpuBackend {
     ) -> Result<Arc<Vec<f32>>> {
         filled(3 * params.voxels(), |out| {
             compose::compose(params, warp, initial, out)
+        })
+    }
+
+    fn fade_warp(
+        &self,
+        params: &FadeParams,
+        warp: &Arc<Vec<f32>>,
+        distance: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(3 * params.voxels(), |out| {
+            fade_warp::fade_warp(params, warp, distance, out)
         })
     }
 

@@ -1,10 +1,10 @@
-//! Host side of shaders/warp_field.wgsl, shaders/compose.wgsl and shaders/invert_field.wgsl:
-//! the final field's kernels.
+//! Host side of shaders/warp_field.wgsl, shaders/compose.wgsl, shaders/fade_warp.wgsl and
+//! shaders/invert_field.wgsl: the final field's kernels.
 
 use super::kernel::{cover, Binding};
 use super::resident::GpuBuffer;
 use super::GpuBackend;
-use crate::abi::{ComposeParams, InvertParams, RbfGradParams};
+use crate::abi::{ComposeParams, FadeParams, InvertParams, RbfGradParams};
 use crate::error::Result;
 
 use Binding::{Read, ReadWrite, Uniform};
@@ -13,6 +13,8 @@ use Binding::{Read, ReadWrite, Uniform};
 pub const WARP_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
 /// compose bindings.
 pub const COMPOSE_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
+/// fade_warp bindings.
+pub const FADE_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
 /// invert_field bindings.
 pub const INVERT_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite, ReadWrite];
 
@@ -45,6 +47,23 @@ impl GpuBackend {
             &self.kernels.compose,
             params,
             &[warp.raw(), initial.raw(), out.raw()],
+            cover(params.dims, 4),
+        )?;
+        Ok(out)
+    }
+
+    /// The warp held off the bones (3 floats per voxel).
+    pub fn record_fade_warp(
+        &self,
+        params: &FadeParams,
+        warp: &GpuBuffer<f32>,
+        distance: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let out = self.output_buffer("faded warp", 3 * params.voxels())?;
+        self.record(
+            &self.kernels.fade_warp,
+            params,
+            &[warp.raw(), distance.raw(), out.raw()],
             cover(params.dims, 4),
         )?;
         Ok(out)

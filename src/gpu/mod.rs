@@ -22,7 +22,7 @@ pub mod rigid;
 pub mod skinning;
 
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, GainParams,
+    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
     InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
     MomentsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
     ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
@@ -41,6 +41,7 @@ pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
     ("coverage", resample::COVERAGE_BINDINGS),
     ("dilate", fold::FOLD_BINDINGS),
     ("edt", regions::EDT_BINDINGS),
+    ("fade_warp", field::FADE_BINDINGS),
     ("mark_at_most", fold::FOLD_BINDINGS),
     ("fold_smooth", fold::SMOOTH_BINDINGS),
     ("fold_stats", fold::FOLD_BINDINGS),
@@ -155,6 +156,8 @@ pub struct Kernels {
     pub warp_field: Kernel,
     /// shaders/compose.wgsl
     pub compose: Kernel,
+    /// shaders/fade_warp.wgsl
+    pub fade_warp: Kernel,
     /// shaders/invert_field.wgsl
     pub invert_field: Kernel,
 }
@@ -214,6 +217,7 @@ impl GpuBackend {
                 sum_partials_f32: compile(&ctx, "sum_partials_f32")?,
                 warp_field: compile(&ctx, "warp_field")?,
                 compose: compile(&ctx, "compose")?,
+                fade_warp: compile(&ctx, "fade_warp")?,
                 invert_field: compile(&ctx, "invert_field")?,
             },
             ctx,
@@ -460,6 +464,15 @@ impl Backend for GpuBackend {
         initial: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
         self.record_compose(params, warp, initial)
+    }
+
+    fn fade_warp(
+        &self,
+        params: &FadeParams,
+        warp: &GpuBuffer<f32>,
+        distance: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        self.record_fade_warp(params, warp, distance)
     }
 
     fn invert_field(

@@ -1,13 +1,14 @@
 //! The whole pipeline, generic over the backend: articulated initialisation (optional), the
 //! adaptive cubic-RBF stage, the composed field, a fold check, and the source resampled once.
 
-use crate::abi::{BoneLookupParams, ComposeParams, Interpolation, ResampleParams};
+use crate::abi::{BoneLookupParams, ComposeParams, FadeParams, Interpolation, ResampleParams};
 use crate::backend::{resample_onto, Backend, DeviceImage, Traffic};
 use crate::error::{Error, Result};
 use crate::images::fold_repair::{
     bones_at_source, determinant, unfold_registration, FoldRepair, Folds, SourceLabels,
 };
 use crate::images::inverse::{invert, round_trip, RoundTrip};
+use crate::images::regions;
 use crate::init::articulated::{
     initialise, InitOptions, InitialImages, Initialisation, PairImages, Start,
 };
@@ -30,6 +31,12 @@ pub struct RegisterOptions {
     pub adaptive: AdaptiveOptions,
     /// Control points held at zero added displacement on each bone's surface.
     pub pins_per_bone: usize,
+    /// The adaptive warp is zero on the bones, which move exactly by their rigid motions, and
+    /// rises linearly to its whole this far (mm) from the nearest bone; 0 leaves the warp on
+    /// the bones as well. Measured (BENCHMARKS.md, 2026-12-03): 8 mm halves the bones' field
+    /// error at 90° and folds no more than leaving the warp on; 2–4 mm (a step at the bone's
+    /// surface at 2 mm voxels) leave a fold the unfolding cannot lift.
+    pub bone_margin_mm: f64,
 }
 
 impl Default for RegisterOptions {
@@ -39,6 +46,7 @@ impl Default for RegisterOptions {
             init: InitOptions::default(),
             adaptive: AdaptiveOptions::default(),
             pins_per_bone: 8,
+            bone_margin_mm: 8.0,
         }
     }
 }
@@ -60,12 +68,21 @@ impl RegisterOptions {
                 "pins_per_bone must be 0 to {MAX_PINS_PER_BONE}"
             )));
         }
+        if !(0.0..=MAX_BONE_MARGIN_MM).contains(&self.bone_margin_mm) {
+            return Err(crate::Error::InvalidInput(format!(
+                "bone_margin_mm must be 0 to {MAX_BONE_MARGIN_MM} (mm)"
+            )));
+        }
         Ok(())
     }
 }
 
 /// Most pins a bone may get (`pins_per_bone`).
 const MAX_PINS_PER_BONE: usize = 64;
+
+/// Widest margin over which the warp may rise from the bones (`bone_margin_mm`): beyond a few
+/// centimetres it would hold most of the soft tissue still.
+const MAX_BONE_MARGIN_MM: f64 = 50.0;
 
 /// What a registration produces.
 pub struct Registration {
@@ -138,20 +155,58 @@ pub fn bone_pins<B: Backend>(
     per_bone: usize,
 ) -> Result<Vec<Vector3<f64>>> {
     let grid = &initial.field.grid;
-    let lookup = BoneLookupParams::new(&pair.labels.grid, grid, bones, f32::MAX)?;
-    let bone_of = backend.bone_at_source(
-        &lookup,
-        &initial.field.data,
-        &initial.residual.data,
-        &pair.labels.data,
-    )?;
-    let bone_of = backend.download_one(&bone_of)?;
+    let bone_of = backend.download_one(&initial_bones(backend, pair, initial, bones)?.data)?;
     let mut pins = Vec::new();
     for index in 1..=bones.len() {
         let inside: Vec<bool> = bone_of.iter().map(|&b| b == index as f32).collect();
         pins.extend(spread(&surface_points(grid, &inside), per_bone));
     }
     Ok(pins)
+}
+
+/// 1 + the position among `bones` of the bone in which the initial field puts each target
+/// voxel's source point, 0 for soft tissue: where the initialisation moves a bone rigidly.
+fn initial_bones<B: Backend>(
+    backend: &B,
+    pair: &PairImages<B>,
+    initial: &InitialImages<B>,
+    bones: &[u16],
+) -> Result<DeviceImage<B>> {
+    let grid = &initial.field.grid;
+    let lookup = BoneLookupParams::new(&pair.labels.grid, grid, bones, f32::MAX)?;
+    let data = backend.bone_at_source(
+        &lookup,
+        &initial.field.data,
+        &initial.residual.data,
+        &pair.labels.data,
+    )?;
+    Ok(DeviceImage {
+        data,
+        grid: grid.clone(),
+    })
+}
+
+/// The adaptive `warp` held off the bones: zero where the initial field moves a bone, so that
+/// the bones of the total field move exactly by their rigid motions, and rising linearly to
+/// the whole warp `margin_mm` from the nearest bone, so that the field has no step at a bone's
+/// surface. The warp's pins hold it near zero on each bone's surface already, but between
+/// them it bends the bone: by 0.3 mm on average at 90° (the knee at 2 mm), as much as the
+/// rigid stage's own error.
+fn held_off_bones<B: Backend>(
+    backend: &B,
+    pair: &PairImages<B>,
+    initial: &InitialImages<B>,
+    bones: &[u16],
+    margin_mm: f64,
+    warp: &DeviceImage<B>,
+) -> Result<DeviceImage<B>> {
+    let bone_map = initial_bones(backend, pair, initial, bones)?;
+    let distance = regions::distance_maps(backend, &bone_map, bones.len())?;
+    let params = FadeParams::new(&warp.grid, bones.len(), margin_mm);
+    Ok(DeviceImage {
+        data: backend.fade_warp(&params, &warp.data, &distance)?,
+        grid: warp.grid.clone(),
+    })
 }
 
 /// World positions of the voxels of `inside` with a 6-neighbour outside it.
@@ -324,15 +379,7 @@ pub fn register_observed<B: Backend>(
         host: labels,
         device: &pair.labels,
     };
-    let finished = finish(
-        backend,
-        &pair,
-        &labels,
-        &images.field,
-        &adaptive,
-        bones,
-        options.adaptive.lattice_mm,
-    )?;
+    let finished = finish(backend, &pair, &labels, &images, &adaptive, bones, options)?;
     progress.step(&format!("warp scale {}", finished.scale));
     progress.end();
     let timings = StageTimes {
@@ -421,21 +468,28 @@ fn finish<B: Backend>(
     backend: &B,
     pair: &PairImages<B>,
     labels: &SourceLabels<B>,
-    initial: &DeviceImage<B>,
+    images: &InitialImages<B>,
     adaptive: &Adaptive,
     bones: &[u16],
-    lattice_mm: f64,
+    options: &RegisterOptions,
 ) -> Result<Finished> {
+    let initial = &images.field;
     let grid = &pair.target.grid;
     let nothing_held = backend.zeros("nothing held", grid.len())?;
     let mut scale = 1.0;
     let warp = loop {
-        let warp = adaptive.warp_field(backend, grid, lattice_mm, scale)?;
+        let warp = adaptive.warp_field(backend, grid, options.adaptive.lattice_mm, scale)?;
         let (_, folds) = determinant(backend, &warp, &nothing_held)?;
         if folds.folded == 0 || scale < 0.1 {
             break warp;
         }
         scale *= 0.5;
+    };
+    let warp = match options.bone_margin_mm {
+        margin if margin > 0.0 && !bones.is_empty() => {
+            held_off_bones(backend, pair, images, bones, margin, &warp)?
+        }
+        _ => warp,
     };
     let mut field = DeviceImage {
         data: backend.compose(
@@ -494,7 +548,8 @@ impl Registration {
                 "control_points": self.adaptive.points,
                 "coefficients": self.adaptive.coefficients,
                 "scale": self.warp_scale,
-                "composition": "u(x) = R(x) + u0(x + R(x)); u0 = inverted skinning of the bone motions",
+                "composition": "u(x) = R'(x) + u0(x + R'(x)); u0 = inverted skinning of the bone motions; R' = R scaled by the distance to the nearest bone over bone_margin_mm (at most 1; R' = R when 0)",
+                "bone_margin_mm": options.bone_margin_mm,
                 "unfolding": self.unfolding,
             }),
         );
