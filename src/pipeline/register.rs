@@ -34,8 +34,9 @@ pub struct RegisterOptions {
     /// The adaptive warp is zero on the bones, which move exactly by their rigid motions, and
     /// rises linearly to its whole this far (mm) from the nearest bone; 0 leaves the warp on
     /// the bones as well. Measured (BENCHMARKS.md, 2026-12-03): 8 mm halves the bones' field
-    /// error at 90° and folds no more than leaving the warp on; 2–4 mm (a step at the bone's
-    /// surface at 2 mm voxels) leave a fold the unfolding cannot lift.
+    /// error at 90° and lowers the body's on every pair; 2–4 mm (a step at the bone's surface
+    /// at 2 mm voxels) leave a fold the unfolding cannot lift. Where two bones press on each
+    /// other (1 mm, 90°) a few more tissue voxels between them stay folded.
     pub bone_margin_mm: f64,
 }
 
