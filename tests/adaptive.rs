@@ -298,21 +298,18 @@ fn bones_of_the_final_field_move_exactly_rigidly() {
 
 /// The label of the voxel of `labels` nearest the world point `x`; none outside its grid.
 fn label_at(labels: &Labels, x: Vector3<f64>) -> Option<u16> {
-    let v = labels.grid.world_to_voxel_affine() * x.push(1.0);
-    let d = labels.grid.dims;
-    let ijk: Vec<usize> = (0..3)
-        .map(|a| v[a].round())
-        .zip(d)
-        .filter(|&(c, n)| c >= 0.0 && c < n as f64)
-        .map(|(c, _)| c as usize)
-        .collect();
-    (ijk.len() == 3).then(|| labels.data[ijk[0] + d[0] * (ijk[1] + d[1] * ijk[2])])
+    let grid = &labels.grid;
+    let [i, j, k] = {
+        let v = grid.world_to_voxel_affine() * x.push(1.0);
+        [v.x, v.y, v.z].map(|c| c.round() as usize)
+    };
+    grid.contains(&x).then(|| labels.data[grid.index(i, j, k)])
 }
 
 /// Voxels labelled `code` whose six neighbours are labelled `code` too.
 fn interior_voxels(labels: &Labels, code: u16) -> Vec<usize> {
     let d = labels.grid.dims;
-    let at = |i: usize, j: usize, k: usize| labels.data[i + d[0] * (j + d[1] * k)];
+    let at = |i: usize, j: usize, k: usize| labels.data[labels.grid.index(i, j, k)];
     let mut inside = Vec::new();
     for k in 1..d[2] - 1 {
         for j in 1..d[1] - 1 {
@@ -327,7 +324,7 @@ fn interior_voxels(labels: &Labels, code: u16) -> Vec<usize> {
                     at(i, j, k + 1),
                 ];
                 if around.iter().all(|&l| l == code) {
-                    inside.push(i + d[0] * (j + d[1] * k));
+                    inside.push(labels.grid.index(i, j, k));
                 }
             }
         }

@@ -144,21 +144,20 @@ pub struct StageTimes {
     pub finish: f64,
 }
 
-/// Up to `per_bone` points on each of `bones`' surface in the target: boundary voxels of the
-/// region whose source point the initial field puts in that bone, spread by farthest-point
-/// sampling. The bone at each voxel's source point is looked up where the backend computes;
-/// that map (one value per voxel) comes back for the boundaries and the sampling.
+/// Up to `per_bone` points on the surface in the target of each of `bones` bones: boundary
+/// voxels of the region whose source point the initial field puts in that bone (`bone_map`,
+/// [`initial_bones`]), spread by farthest-point sampling. The map (one value per voxel) comes
+/// back for the boundaries and the sampling.
 pub fn bone_pins<B: Backend>(
     backend: &B,
-    pair: &PairImages<B>,
-    initial: &InitialImages<B>,
-    bones: &[u16],
+    bone_map: &DeviceImage<B>,
+    bones: usize,
     per_bone: usize,
 ) -> Result<Vec<Vector3<f64>>> {
-    let grid = &initial.field.grid;
-    let bone_of = backend.download_one(&initial_bones(backend, pair, initial, bones)?.data)?;
+    let grid = &bone_map.grid;
+    let bone_of = backend.download_one(&bone_map.data)?;
     let mut pins = Vec::new();
-    for index in 1..=bones.len() {
+    for index in 1..=bones {
         let inside: Vec<bool> = bone_of.iter().map(|&b| b == index as f32).collect();
         pins.extend(spread(&surface_points(grid, &inside), per_bone));
     }
@@ -167,7 +166,7 @@ pub fn bone_pins<B: Backend>(
 
 /// 1 + the position among `bones` of the bone in which the initial field puts each target
 /// voxel's source point, 0 for soft tissue: where the initialisation moves a bone rigidly.
-fn initial_bones<B: Backend>(
+pub fn initial_bones<B: Backend>(
     backend: &B,
     pair: &PairImages<B>,
     initial: &InitialImages<B>,
@@ -187,7 +186,8 @@ fn initial_bones<B: Backend>(
     })
 }
 
-/// The adaptive `warp` held off the bones: zero where the initial field moves a bone, so that
+/// The adaptive `warp` held off the `bones` bones: zero where the initial field moves a bone
+/// (`bone_map`, [`initial_bones`]), so that
 /// the bones of the total field move exactly by their rigid motions, and rising linearly to
 /// the whole warp `margin_mm` from the nearest bone, so that the field has no step at a bone's
 /// surface. The warp's pins hold it near zero on each bone's surface already, but between
@@ -195,15 +195,13 @@ fn initial_bones<B: Backend>(
 /// rigid stage's own error.
 fn held_off_bones<B: Backend>(
     backend: &B,
-    pair: &PairImages<B>,
-    initial: &InitialImages<B>,
-    bones: &[u16],
+    bone_map: &DeviceImage<B>,
+    bones: usize,
     margin_mm: f64,
     warp: &DeviceImage<B>,
 ) -> Result<DeviceImage<B>> {
-    let bone_map = initial_bones(backend, pair, initial, bones)?;
-    let distance = regions::distance_maps(backend, &bone_map, bones.len())?;
-    let params = FadeParams::new(&warp.grid, bones.len(), margin_mm);
+    let distance = regions::distance_maps(backend, bone_map, bones)?;
+    let params = FadeParams::new(&warp.grid, bones, margin_mm);
     Ok(DeviceImage {
         data: backend.fade_warp(&params, &warp.data, &distance)?,
         grid: warp.grid.clone(),
@@ -350,9 +348,15 @@ pub fn register_observed<B: Backend>(
         None => (None, no_initialisation(backend, &pair)?),
     };
     observe(&images)?;
-    let pins = match &init {
-        Some(i) if options.pins_per_bone > 0 => {
-            bone_pins(backend, &pair, &images, &i.bones, options.pins_per_bone)?
+    let bones = init.as_ref().map_or(&[][..], |i| &i.bones[..]);
+    // Read by the pins and, after the adaptive stage, by the warp's holding off the bones.
+    let bone_map = match bones {
+        [] => None,
+        bones => Some(initial_bones(backend, &pair, &images, bones)?),
+    };
+    let pins = match &bone_map {
+        Some(map) if options.pins_per_bone > 0 => {
+            bone_pins(backend, map, bones.len(), options.pins_per_bone)?
         }
         _ => Vec::new(),
     };
@@ -375,12 +379,20 @@ pub fn register_observed<B: Backend>(
     let adaptive_seconds = clock.elapsed().as_secs_f64() - initialisation;
     let after_adaptive = backend.traffic();
     progress.begin("composition and resampling", 1);
-    let bones = init.as_ref().map_or(&[][..], |i| &i.bones[..]);
     let labels = SourceLabels {
         host: labels,
         device: &pair.labels,
     };
-    let finished = finish(backend, &pair, &labels, &images, &adaptive, bones, options)?;
+    let held = (bones, bone_map.as_ref());
+    let finished = finish(
+        backend,
+        &pair,
+        &labels,
+        &images.field,
+        &adaptive,
+        held,
+        options,
+    )?;
     progress.step(&format!("warp scale {}", finished.scale));
     progress.end();
     let timings = StageTimes {
@@ -456,8 +468,9 @@ struct Finished {
     unfolding: FoldRepair,
 }
 
-/// The total field of the adaptive warp and the `initial` field, unfolded where it folds, and
-/// the source resampled once through it; the field, the warped source and the Jacobian come
+/// The total field of the adaptive warp, held off the bones where the initial field moves them
+/// (`bone_map`), and the `initial` field, unfolded where it folds, and the source resampled
+/// once through it; the field, the warped source and the Jacobian come
 /// back together.
 ///
 /// Step control: the added warp itself must not fold; while it does, it is shrunk. Folds of
@@ -469,12 +482,11 @@ fn finish<B: Backend>(
     backend: &B,
     pair: &PairImages<B>,
     labels: &SourceLabels<B>,
-    images: &InitialImages<B>,
+    initial: &DeviceImage<B>,
     adaptive: &Adaptive,
-    bones: &[u16],
+    (bones, bone_map): (&[u16], Option<&DeviceImage<B>>),
     options: &RegisterOptions,
 ) -> Result<Finished> {
-    let initial = &images.field;
     let grid = &pair.target.grid;
     let nothing_held = backend.zeros("nothing held", grid.len())?;
     let mut scale = 1.0;
@@ -486,9 +498,9 @@ fn finish<B: Backend>(
         }
         scale *= 0.5;
     };
-    let warp = match options.bone_margin_mm {
-        margin if margin > 0.0 && !bones.is_empty() => {
-            held_off_bones(backend, pair, images, bones, margin, &warp)?
+    let warp = match (options.bone_margin_mm, bone_map) {
+        (margin, Some(map)) if margin > 0.0 => {
+            held_off_bones(backend, map, bones.len(), margin, &warp)?
         }
         _ => warp,
     };
