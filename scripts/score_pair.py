@@ -13,6 +13,10 @@ bone's motion to the other's as they slide on each other (the pair's own true fi
 det J <= 0 there too: the determinant measures the slide, not a fold); with --bones, each
 bone's rotation error (degrees) and its translation error at the
 bone's centroid (mm) against truth.json (RAS, source -> target, posereg's transform format).
+The soft-tissue error is also split by how the pair's own truth changes the tissue's volume
+(its det J): tissue kept within 0.8-1.25x its volume, and tissue squeezed or stretched beyond,
+which real tissue, nearly incompressible, is not (the generator's polyrigid flow compresses
+the tissue behind a deeply bent knee to a fraction of its volume).
 --row prints one row of scripts/compare_elastix.sh's independent-pairs table instead.
 """
 import argparse
@@ -55,6 +59,19 @@ def bone_contacts(field, pair):
             neighbours.append(padded[tuple(s)])
     neighbours = np.stack(neighbours)
     return (neighbours > 0).all(0) & (neighbours != neighbours[0]).any(0)
+
+
+KEPT_VOLUME = (0.8, 1.25)
+
+
+def by_truth_volume(error, soft, truth):
+    """Soft-tissue error where the truth keeps the volume within KEPT_VOLUME and elsewhere."""
+    det = jacobian_determinant(truth)
+    kept = soft & (det >= KEPT_VOLUME[0]) & (det <= KEPT_VOLUME[1])
+    strained = soft & ~kept
+    mean = lambda m: float(error[m].mean()) if m.any() else float("nan")
+    return {"soft_kept_mm": mean(kept), "soft_kept_share": float(kept.sum() / soft.sum()),
+            "soft_strained_mm": mean(strained)}
 
 
 def bone_errors(pair, transforms):
@@ -109,6 +126,7 @@ def main():
         "folded_share": float((det[body & ~contact] <= 0).sum() / body.sum()),
         "min_jacobian": float(det[body & ~contact].min()),
         "bone_contact_share": float((det[body & contact] <= 0).sum() / body.sum()),
+        **by_truth_volume(error, soft, truth),
     }
     if a.bones:
         result["bones"] = bone_errors(a.pair, a.bones)
@@ -121,6 +139,9 @@ def main():
     print(f"field error: body {result['mean_mm']:.2f} mm, bone {result['bone_mm']:.2f}, soft tissue "
           f"{result['soft_mm']:.2f}; folded {100 * result['folded_share']:.4f}% (min det J "
           f"{result['min_jacobian']:.3f}), {100 * result['bone_contact_share']:.4f}% more at bone contacts")
+    print(f"  soft tissue whose volume the truth keeps within {KEPT_VOLUME[0]}-{KEPT_VOLUME[1]}x "
+          f"({100 * result['soft_kept_share']:.0f}%): {result['soft_kept_mm']:.2f} mm; squeezed or "
+          f"stretched beyond: {result['soft_strained_mm']:.2f} mm")
     for name, e in result.get("bones", {}).items():
         print(f"  {name:<8} {e['degrees']:.2f}° {e['mm']:.2f} mm")
 
