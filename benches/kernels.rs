@@ -219,8 +219,8 @@ fn nonrigid_rows<B: Backend>(c: &mut Criterion, name: &str, b: &B, g: &Grid, lab
     use posereg::abi::{
         lattice_geometry, spline_buffer, RbfGradParams, RbfLatticeParams, SplatParams,
     };
-    let step = 4;
-    let ldims: [usize; 3] = std::array::from_fn(|a| (g.dims[a] - 1).div_ceil(step) + 1);
+    let step = [4; 3];
+    let ldims: [usize; 3] = std::array::from_fn(|a| (g.dims[a] - 1).div_ceil(step[a]) + 1);
     let points = 100;
     let centres: Vec<[f64; 3]> = (0..points)
         .map(|p| {
@@ -247,7 +247,8 @@ fn nonrigid_rows<B: Backend>(c: &mut Criterion, name: &str, b: &B, g: &Grid, lab
         .unwrap();
     let warp_params = RbfGradParams::new(g, ldims, step);
     let splat_params = SplatParams::new(ldims, step, g.dims);
-    let spacing = g.spacing().map(|h| h * step as f64);
+    let h = g.spacing();
+    let spacing: [f64; 3] = std::array::from_fn(|a| h[a] * step[a] as f64);
     let energy = posereg::nonrigid::regularise::energy_params(ldims, spacing, 3.0, 0.0, 1e-6);
     let warp = b.rbf_lattice(&shape, &geometry, &spline).unwrap();
     let (per_voxel, rows) = b.warp_cost(&warp_params, &warp, &images).unwrap();
@@ -384,8 +385,8 @@ fn kernels(c: &mut Criterion) {
             }))
         });
         // The non-rigid stage's per-iteration work: lattice every 4 voxels.
-        let step = 4;
-        let ldims: [usize; 3] = std::array::from_fn(|a| (dims[a] - 1).div_ceil(step) + 1);
+        let step = [4; 3];
+        let ldims: [usize; 3] = std::array::from_fn(|a| (dims[a] - 1).div_ceil(step[a]) + 1);
         let lattice: Vec<f32> = (0..3 * ldims.iter().product::<usize>())
             .map(|k| ((k % 17) as f32 - 8.0) * 0.1)
             .collect();

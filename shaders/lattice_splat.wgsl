@@ -1,7 +1,7 @@
 // lattice_splat.wgsl: the adjoint of rbf_grad's lattice interpolation. A voxel's value reaches
 // the lattice nodes of its cell with the trilinear weights it was interpolated with, so the
 // gradient of the cost with respect to the warp at node n is Σ_x w_n(x) g(x). Written as a
-// gather (each node sums the voxels within one lattice step), so no atomics are needed and the
+// gather (each node sums the voxels within one lattice step along each axis), so no atomics are needed and the
 // sum order is fixed.
 //
 // Bindings (group 0):
@@ -12,7 +12,8 @@
 
 // Keep in sync with abi::SplatParams.
 struct SplatParams {
-    dims: vec4<u32>,          // lattice lx, ly, lz, step (voxels)
+    dims: vec4<u32>,          // lattice lx, ly, lz, unused
+    step: vec4<u32>,          // lattice step along x, y, z (voxels), unused
     volume_dims: vec4<u32>,   // target nx, ny, nz, unused
 }
 
@@ -35,18 +36,18 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
         return;
     }
-    let s = d.w;
+    let s = params.step.xyz;
     let n = params.volume_dims.xyz;
     let a = vec3<u32>(gid.x, gid.y, gid.z);
     var sum = vec3<f32>(0.0);
     // The lattice covers the grid (its last node sits at or beyond the last voxel), so every
     // voxel lies between two nodes and these weights are exactly rbf_grad's.
-    for (var k = reach_lo(a.z, s); k < min((a.z + 1u) * s, n.z); k = k + 1u) {
-        let wz = weight(k, a.z, s);
-        for (var j = reach_lo(a.y, s); j < min((a.y + 1u) * s, n.y); j = j + 1u) {
-            let wy = weight(j, a.y, s);
-            for (var i = reach_lo(a.x, s); i < min((a.x + 1u) * s, n.x); i = i + 1u) {
-                let wx = weight(i, a.x, s);
+    for (var k = reach_lo(a.z, s.z); k < min((a.z + 1u) * s.z, n.z); k = k + 1u) {
+        let wz = weight(k, a.z, s.z);
+        for (var j = reach_lo(a.y, s.y); j < min((a.y + 1u) * s.y, n.y); j = j + 1u) {
+            let wy = weight(j, a.y, s.y);
+            for (var i = reach_lo(a.x, s.x); i < min((a.x + 1u) * s.x, n.x); i = i + 1u) {
+                let wx = weight(i, a.x, s.x);
                 let w = wx * wy * wz;
                 if (w > 0.0) {
                     let v = 3u * voxel_index(i, j, k, n);

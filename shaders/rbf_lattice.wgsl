@@ -24,7 +24,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= l.x || gid.y >= l.y || gid.z >= l.z) {
         return;
     }
-    let x = node_position(gid, params.step.x);
+    let x = node_position(gid, params.step.xyz);
     var r = vec3<f64>(
         spline[0] + spline[3] * x.x + spline[6] * x.y + spline[9] * x.z,
         spline[1] + spline[4] * x.x + spline[7] * x.y + spline[10] * x.z,

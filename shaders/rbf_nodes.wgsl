@@ -5,12 +5,13 @@
 // Keep in sync with abi::RbfLatticeParams.
 struct RbfLatticeParams {
     lattice: vec4<u32>,  // lx, ly, lz, control points
-    step: vec4<u32>,     // lattice step (voxels), nodes per chunk, chunks (rbf_adjoint), unused
+    step: vec4<u32>,     // lattice step along x, y, z (voxels), unused
+    chunking: vec4<u32>, // nodes per chunk, chunks (rbf_adjoint), unused, unused
 }
 
-// World position (mm) of lattice node `a`, which sits on voxel a · step.
-fn node_position(a: vec3<u32>, step: u32) -> vec3<f64> {
-    let v = vec3<f64>(f64(a.x * step), f64(a.y * step), f64(a.z * step));
+// World position (mm) of lattice node `a`, which sits on voxel a · step (per axis).
+fn node_position(a: vec3<u32>, step: vec3<u32>) -> vec3<f64> {
+    let v = vec3<f64>(f64(a.x * step.x), f64(a.y * step.y), f64(a.z * step.z));
     return vec3<f64>(
         geometry[0] * v.x + geometry[1] * v.y + geometry[2] * v.z + geometry[3],
         geometry[4] * v.x + geometry[5] * v.y + geometry[6] * v.z + geometry[7],

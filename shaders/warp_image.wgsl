@@ -2,8 +2,8 @@
 // at every voxel x of the target grid; 0 where x + R(x) falls outside I0. The host loop measures
 // the fit per cell and the intensity gain on it.
 //
-// R is known at the nodes of a coarse lattice (every `step`-th voxel, rbf_lattice) and
-// interpolated trilinearly (lattice_warp.wgsl), as the cost's kernels do.
+// R is known at the nodes of a coarse lattice (every `step`-th voxel along each axis,
+// rbf_lattice) and interpolated trilinearly (lattice_warp.wgsl), as the cost's kernels do.
 //
 // Bindings (group 0):
 //   0 uniform  RbfGradParams

@@ -639,7 +639,12 @@ fn chunking(values: usize, per_chunk: usize, w: u32) -> [u32; 4] {
 }
 
 fn dims4(g: &Grid, w: u32) -> [u32; 4] {
-    [g.dims[0] as u32, g.dims[1] as u32, g.dims[2] as u32, w]
+    padded(g.dims, w)
+}
+
+/// Three counts as a vec4<u32>, `w` last.
+fn padded(v: [usize; 3], w: u32) -> [u32; 4] {
+    [v[0] as u32, v[1] as u32, v[2] as u32, w]
 }
 
 /// Keep in sync with `PyramidParams` in shaders/pyramid.wgsl.
@@ -876,10 +881,12 @@ fn dual_quaternion(m: &Affine) -> [[f32; 4]; 2] {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct RbfGradParams {
-    /// Target nx, ny, nz, and the lattice step (voxels).
+    /// Target nx, ny, nz, unused.
     pub dims: [u32; 4],
     /// Lattice nodes along x, y, z, unused.
     pub lattice_dims: [u32; 4],
+    /// Lattice step along x, y, z (voxels: node a sits on voxel a · step), unused.
+    pub lattice_step: [u32; 4],
     /// Rows of the inverse linear part of the grid: a displacement in mm → index delta.
     pub mm_to_index: [[f32; 4]; 3],
     /// Index-space gradient → world gradient ((L⁻¹)ᵀ).
@@ -887,18 +894,14 @@ pub struct RbfGradParams {
 }
 
 impl RbfGradParams {
-    /// For a target `grid` with a lattice of `lattice_dims` nodes every `step` voxels.
-    pub fn new(grid: &Grid, lattice_dims: [usize; 3], step: usize) -> Self {
+    /// For a target `grid` with a lattice of `lattice_dims` nodes every `steps` voxels.
+    pub fn new(grid: &Grid, lattice_dims: [usize; 3], steps: [usize; 3]) -> Self {
         let l: nalgebra::Matrix3<f64> = grid.affine.fixed_view::<3, 3>(0, 0).into_owned();
         let inv = l.try_inverse().expect("validated grids are invertible");
         RbfGradParams {
-            dims: dims4(grid, step as u32),
-            lattice_dims: [
-                lattice_dims[0] as u32,
-                lattice_dims[1] as u32,
-                lattice_dims[2] as u32,
-                0,
-            ],
+            dims: dims4(grid, 0),
+            lattice_dims: padded(lattice_dims, 0),
+            lattice_step: padded(steps, 0),
             mm_to_index: linear_rows(&inv),
             gradient_to_world: linear_rows(&inv.transpose()),
         }
@@ -919,23 +922,21 @@ impl RbfGradParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SplatParams {
-    /// Lattice lx, ly, lz, and its step (voxels).
+    /// Lattice lx, ly, lz, unused.
     pub dims: [u32; 4],
+    /// Lattice step along x, y, z (voxels), unused.
+    pub step: [u32; 4],
     /// Volume nx, ny, nz, unused.
     pub volume_dims: [u32; 4],
 }
 
 impl SplatParams {
-    /// For a lattice of `lattice_dims` nodes every `step` voxels over a volume of `dims`.
-    pub fn new(lattice_dims: [usize; 3], step: usize, dims: [usize; 3]) -> Self {
+    /// For a lattice of `lattice_dims` nodes every `steps` voxels over a volume of `dims`.
+    pub fn new(lattice_dims: [usize; 3], steps: [usize; 3], dims: [usize; 3]) -> Self {
         SplatParams {
-            dims: [
-                lattice_dims[0] as u32,
-                lattice_dims[1] as u32,
-                lattice_dims[2] as u32,
-                step as u32,
-            ],
-            volume_dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, 0],
+            dims: padded(lattice_dims, 0),
+            step: padded(steps, 0),
+            volume_dims: padded(dims, 0),
         }
     }
 
@@ -951,8 +952,10 @@ impl SplatParams {
 pub struct RbfLatticeParams {
     /// Lattice nodes along x, y, z, and the number of control points.
     pub lattice: [u32; 4],
-    /// Lattice step (voxels); nodes per chunk and chunks of rbf_adjoint; unused.
+    /// Lattice step along x, y, z (voxels), unused.
     pub step: [u32; 4],
+    /// Nodes per chunk and chunks of rbf_adjoint, unused, unused.
+    pub chunking: [u32; 4],
 }
 
 /// Lattice nodes one rbf_adjoint invocation sums (well below lavapipe's 65 535 loop
@@ -960,29 +963,30 @@ pub struct RbfLatticeParams {
 pub const ADJOINT_CHUNK: usize = 4096;
 
 impl RbfLatticeParams {
-    /// A lattice of `lattice_dims` nodes every `step` voxels, for a warp of `points` control
+    /// A lattice of `lattice_dims` nodes every `steps` voxels, for a warp of `points` control
     /// points.
-    pub fn new(lattice_dims: [usize; 3], step: usize, points: usize) -> Self {
+    pub fn new(lattice_dims: [usize; 3], steps: [usize; 3], points: usize) -> Self {
         let nodes: usize = lattice_dims.iter().product();
         RbfLatticeParams {
-            lattice: [
-                lattice_dims[0] as u32,
-                lattice_dims[1] as u32,
-                lattice_dims[2] as u32,
-                points as u32,
-            ],
-            step: [
-                step as u32,
+            lattice: padded(lattice_dims, points as u32),
+            step: padded(steps, 0),
+            chunking: [
                 ADJOINT_CHUNK as u32,
                 nodes.div_ceil(ADJOINT_CHUNK) as u32,
+                0,
                 0,
             ],
         }
     }
 
+    /// Nodes per chunk of rbf_adjoint.
+    pub fn chunk_nodes(&self) -> usize {
+        self.chunking[0] as usize
+    }
+
     /// Chunks of nodes rbf_adjoint sums separately.
     pub fn chunks(&self) -> usize {
-        self.step[2] as usize
+        self.chunking[1] as usize
     }
 
     /// rbf_adjoint's output rows: the control points, then 4 affine rows.

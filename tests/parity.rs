@@ -457,7 +457,7 @@ fn warp_and_gain<B: Backend>(
     b: &B,
     (moving, fixed): (&Volume, &Volume),
     lattice: &[f32],
-    (ldims, step): ([usize; 3], usize),
+    (ldims, step): ([usize; 3], [usize; 3]),
 ) -> [Vec<f32>; 4] {
     use posereg::abi::{GainParams, RbfGradParams};
     let grid = &fixed.grid;
@@ -493,8 +493,8 @@ fn warp_image_and_gain_kernels_parity() {
     let grid = oblique_grid([27, 22, 17]);
     let moving = smooth_volume(&grid, 51);
     let fixed = smooth_volume(&grid, 52);
-    let step = 4;
-    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
+    let step = [4, 3, 5];
+    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);
     let lattice: Vec<f32> = (0..3 * ldims.iter().product::<usize>())
         .map(|k| ((k * 29) % 31) as f32 * 0.2 - 3.0)
         .collect();
@@ -559,11 +559,11 @@ fn evaluate<B: Backend>(
     b: &B,
     grid: &Grid,
     images: [&Volume; 3],
-    step: usize,
+    step: [usize; 3],
     spline: &[f64],
 ) -> Evaluation {
     use posereg::abi::{lattice_geometry, RbfGradParams, RbfLatticeParams, SplatParams};
-    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
+    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);
     let points = (spline.len() - 12) / 6;
     let shape = RbfLatticeParams::new(ldims, step, points);
     let up = |what, v: &Volume| b.upload(what, v.data.clone()).unwrap();
@@ -586,7 +586,8 @@ fn evaluate<B: Backend>(
     let splat = b
         .lattice_splat(&SplatParams::new(ldims, step, grid.dims), &gradient)
         .unwrap();
-    let spacing = grid.spacing().map(|h| h * step as f64);
+    let h = grid.spacing();
+    let spacing: [f64; 3] = std::array::from_fn(|a| h[a] * step[a] as f64);
     let energy_params =
         posereg::nonrigid::regularise::energy_params(ldims, spacing, 3.0, 0.5, 1e-3);
     let (node_gradient, energy) = b.lattice_energy(&energy_params, &warp, &splat).unwrap();
@@ -633,9 +634,10 @@ fn close_f64(name: &str, got: &[f64], want: &[f64], rel: f64) {
 #[test]
 fn nonrigid_evaluation_kernels_parity() {
     let Some(gpu) = gpu() else { return };
-    // A coarse lattice of odd size; and every voxel a node (as at coarse pyramid levels), over
-    // more than 65 535 nodes (llvmpipe ends longer loops: shaders/rbf_adjoint.wgsl).
-    for (dims, step, points) in [([27, 22, 17], 4, 40), ([41, 64, 27], 1, 23)] {
+    // A coarse lattice of odd size, its step different along each axis; and every voxel a node
+    // (as at coarse pyramid levels), over more than 65 535 nodes (llvmpipe ends longer loops:
+    // shaders/rbf_adjoint.wgsl).
+    for (dims, step, points) in [([27, 22, 17], [4, 3, 5], 40), ([41, 64, 27], [1; 3], 23)] {
         let grid = oblique_grid(dims);
         let moving = smooth_volume(&grid, 61);
         let fixed = smooth_volume(&grid, 62);
@@ -652,7 +654,7 @@ fn nonrigid_evaluation_kernels_parity() {
         let images = [&moving, &fixed, &covered];
         let want = evaluate(&CpuBackend, &grid, images, step, &spline);
         let got = evaluate(gpu, &grid, images, step, &spline);
-        let name = |k: &str| format!("step {step}: {k}");
+        let name = |k: &str| format!("step {step:?}: {k}");
         // The warp is summed in f64 and rounded once to f32: equal up to the last bit.
         close(&name("rbf_lattice"), &got.warp, &want.warp, 1e-5, 1e-6);
         // As rbf_grad: 2 r ∇I0 with r up to ~100, |∇| up to ~10.
@@ -704,8 +706,8 @@ fn final_field_kernels_parity_at_odd_sizes() {
     let Some(gpu) = gpu() else { return };
     let grid = oblique_grid([23, 18, 13]);
     // warp_field: a lattice every 4 voxels.
-    let step = 4;
-    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
+    let step = [4, 3, 5];
+    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);
     let lattice: Vec<f32> = (0..3 * ldims.iter().product::<usize>())
         .map(|k| ((k * 29) % 31) as f32 * 0.2 - 3.0)
         .collect();
@@ -1142,8 +1144,8 @@ fn local_correlation_cost_kernels_parity() {
     let covered: Vec<f32> = (0..grid.len())
         .map(|n| (n / slice > 1) as u8 as f32)
         .collect();
-    let step = 3;
-    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
+    let step = [3, 2, 3];
+    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);
     let lattice: Vec<f32> = (0..3 * ldims.iter().product::<usize>())
         .map(|k| ((k * 37) % 23) as f32 * 0.05 - 0.5)
         .collect();
@@ -1168,7 +1170,7 @@ fn lncc_cost_outputs<B: Backend>(
     grid: &Grid,
     images: [&Vec<f32>; 4],
     ldims: [usize; 3],
-    step: usize,
+    step: [usize; 3],
 ) -> Vec<Vec<f32>> {
     use posereg::abi::{LnccTermsParams, RbfGradParams};
     let [moving, fixed, covered, lattice] =

@@ -563,8 +563,8 @@ fn lattice_splat_is_the_adjoint_of_the_lattice_interpolation() {
     use posereg::abi::RbfGradParams;
     use posereg::cpu::warp_image::{warp_at, LatticeTaps};
     let grid = oblique_grid([19, 14, 11]);
-    let step = 4;
-    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
+    let step = [4, 3, 5];
+    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);
     let nodes = ldims.iter().product::<usize>();
     let lattice: Vec<f32> = (0..3 * nodes)
         .map(|k| ((k * 37) % 23) as f32 * 0.1 - 1.0)
@@ -633,12 +633,12 @@ fn rbf_cost_gradient_matches_finite_differences() {
     ];
     let positions: Vec<[f64; 3]> = centres.iter().map(|c| [c.x, c.y, c.z]).collect();
     let system = RbfSystem::new(centres.clone(), 0.0).unwrap();
-    let step = 3;
-    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
+    let step = [3, 2, 4];
+    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);
     let shape = RbfLatticeParams::new(ldims, step, centres.len());
     let geometry = Arc::new(lattice_geometry(&grid));
     let voxels = grid.len() as f64;
-    let spacing = [step as f64; 3];
+    let spacing = step.map(|s| s as f64);
     let energy = posereg::nonrigid::regularise::energy_params(
         ldims,
         spacing,
@@ -724,8 +724,8 @@ fn lncc_cost_gradient_matches_finite_differences() {
         fixed: &fixed,
         covered: &covered,
     };
-    let step = 3;
-    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
+    let step = [3; 3];
+    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);
     let params = RbfGradParams::new(&grid, ldims, step);
     let cost = LnccCost::new(&grid, 2, 50.0);
     let evaluate = |lattice: &[f32]| {
@@ -803,11 +803,12 @@ fn lattice_interpolation_error_of_a_cubic_rbf_warp_is_small() {
     let adaptive = Adaptive {
         points,
         coefficients: coefficients.clone(),
+        lattice_step: [4; 3],
         stages: Vec::new(),
         evaluations: Default::default(),
     };
     let field = adaptive
-        .warp_field(&CpuBackend, &grid, 5.0, 1.0)
+        .warp_field(&CpuBackend, &grid, 1.0)
         .unwrap()
         .download_field(&CpuBackend)
         .unwrap();
@@ -971,8 +972,8 @@ fn rbf_lattice_is_the_host_evaluation_rounded_once() {
         .unwrap()
         .coefficients(&values)
         .unwrap();
-    let step = 3;
-    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
+    let step = [3, 2, 4];
+    let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);
     let positions: Vec<[f64; 3]> = centres.iter().map(|c| [c.x, c.y, c.z]).collect();
     let got = CpuBackend
         .rbf_lattice(
@@ -988,7 +989,7 @@ fn rbf_lattice_is_the_host_evaluation_rounded_once() {
                 (n / ldims[0]) % ldims[1],
                 n / (ldims[0] * ldims[1]),
             ];
-            Vector3::from(grid.voxel_to_world(ijk.map(|v| (v * step) as f64)))
+            Vector3::from(grid.voxel_to_world(std::array::from_fn(|a| (ijk[a] * step[a]) as f64)))
         })
         .collect();
     for (n, x) in nodes.iter().enumerate() {

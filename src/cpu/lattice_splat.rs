@@ -18,7 +18,8 @@ fn weight(v: u32, a: u32, s: u32) -> f32 {
 
 /// Fills `out` (3 floats per lattice node) with Σ_x w_n(x) values(x).
 pub fn lattice_splat(params: &SplatParams, values: &[f32], out: &mut [f32]) {
-    let [lx, ly, _, s] = params.dims;
+    let [lx, ly, _, _] = params.dims;
+    let [sx, sy, sz, _] = params.step;
     let n = [
         params.volume_dims[0],
         params.volume_dims[1],
@@ -31,13 +32,13 @@ pub fn lattice_splat(params: &SplatParams, values: &[f32], out: &mut [f32]) {
             for b in 0..ly {
                 for a in 0..lx {
                     // The x weights of the node's reach, the same for each of its rows.
-                    let xs = reach_lo(a, s)..((a + 1) * s).min(n[0]);
-                    let wxs: Vec<f32> = xs.clone().map(|i| weight(i, a, s)).collect();
+                    let xs = reach_lo(a, sx)..((a + 1) * sx).min(n[0]);
+                    let wxs: Vec<f32> = xs.clone().map(|i| weight(i, a, sx)).collect();
                     let mut sum = [0.0f32; 3];
-                    for k in reach_lo(c, s)..((c + 1) * s).min(n[2]) {
-                        let wz = weight(k, c, s);
-                        for j in reach_lo(b, s)..((b + 1) * s).min(n[1]) {
-                            let wy = weight(j, b, s);
+                    for k in reach_lo(c, sz)..((c + 1) * sz).min(n[2]) {
+                        let wz = weight(k, c, sz);
+                        for j in reach_lo(b, sy)..((b + 1) * sy).min(n[1]) {
+                            let wy = weight(j, b, sy);
                             let row = 3 * voxel_index(0, j, k, n) as usize;
                             for (i, wx) in xs.clone().zip(&wxs) {
                                 let w = wx * wy * wz;

@@ -28,7 +28,7 @@ pub fn rbf_adjoint(
     partials: &mut [f64],
 ) {
     let rows = params.rows();
-    let chunk = params.step[1] as usize;
+    let chunk = params.chunk_nodes();
     let nodes = params.nodes();
     partials
         .par_chunks_mut(3 * rows)
@@ -43,7 +43,7 @@ pub fn rbf_adjoint(
                         (n as u32 / l[0]) % l[1],
                         n as u32 / (l[0] * l[1]),
                     ];
-                    node_position(geometry, a, params.step[0])
+                    node_position(geometry, a, params.step)
                 })
                 .collect();
             let gradient = &node_gradient[3 * c * chunk..3 * (c * chunk + positions.len())];

@@ -9,10 +9,10 @@ use rayon::prelude::*;
 /// Nodes one task evaluates (a run long enough for the loop over them to vectorise well).
 const NODES_PER_TASK: usize = 256;
 
-/// World position (mm) of lattice node `a`, which sits on voxel a · step.
+/// World position (mm) of lattice node `a`, which sits on voxel a · step (per axis).
 #[inline]
-pub fn node_position(geometry: &[f64], a: [u32; 3], step: u32) -> [f64; 3] {
-    let v = a.map(|c| (c * step) as f64);
+pub fn node_position(geometry: &[f64], a: [u32; 3], step: [u32; 4]) -> [f64; 3] {
+    let v: [f64; 3] = std::array::from_fn(|r| (a[r] * step[r]) as f64);
     std::array::from_fn(|r| {
         let g = &geometry[4 * r..4 * r + 4];
         g[0] * v[0] + g[1] * v[1] + g[2] * v[2] + g[3]
@@ -58,7 +58,7 @@ fn nodes_run(
     let x: Vec<[f64; 3]> = (first..first + out.len() / 3)
         .map(|n| {
             let a = [n as u32 % lx, (n as u32 / lx) % ly, n as u32 / (lx * ly)];
-            node_position(geometry, a, params.step[0])
+            node_position(geometry, a, params.step)
         })
         .collect();
     let [xs, ys, zs] = [0, 1, 2].map(|a| x.iter().map(|p| p[a]).collect::<Vec<f64>>());

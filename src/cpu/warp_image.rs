@@ -17,9 +17,9 @@ pub struct LatticeTaps {
 impl LatticeTaps {
     /// The taps of every voxel coordinate of `params`' grid.
     pub fn new(params: &RbfGradParams) -> Self {
-        let s = params.dims[3];
         LatticeTaps {
             axes: std::array::from_fn(|a| {
+                let s = params.lattice_step[a];
                 let top = params.lattice_dims[a] - 1;
                 (0..params.dims[a])
                     .map(|c| {

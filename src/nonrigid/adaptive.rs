@@ -54,14 +54,18 @@ pub struct AdaptiveOptions {
     /// Cells whose mean squared residual exceeds this multiple of the mean over all cells get a
     /// control point (the 2³ cells always do). Measured on the phantom: raising it from 1 to 8
     /// cut the points from ~900 to ~180 and lowered the error (10°, small: 2.70 → 1.40 mm) —
-    /// fewer, well-lattice points keep the optimisation well conditioned.
-    /// Per pyramid level, coarse to fine.
+    /// fewer, well-lattice points keep the optimisation well conditioned. At the finest level
+    /// 4: with the bones held rigid and the lattice tied to the cells, more points there lowered
+    /// the error on all fifteen measured pairs (knee 1 mm 90°: 1.89 → 1.79 mm; BENCHMARKS.md,
+    /// fourteenth session). Per pyramid level, coarse to fine.
     pub threshold: PerLevel<f64>,
     /// L-BFGS iterations per refinement, per pyramid level, coarse to fine.
     pub iterations: PerLevel<usize>,
     /// Relative cost decrease below which an optimisation stops.
     pub tolerance: PerLevel<f64>,
-    /// Lattice spacing the warp is evaluated on (mm).
+    /// Finest spacing (mm) of the lattice the warp is evaluated on. After the initialisation,
+    /// along an axis where a level's finest cells are wider, the lattice is coarser: half a
+    /// cell ([`lattice_steps`]).
     pub lattice_mm: f64,
     /// Smoothing μ added to the RBF system's diagonal (0 interpolates).
     pub smoothing: f64,
@@ -91,13 +95,18 @@ pub struct AdaptiveOptions {
     pub lncc_radius: usize,
 }
 
+/// The cell threshold's default: 8, and 4 at the finest level (AdaptiveOptions::threshold).
+fn default_threshold() -> PerLevel<f64> {
+    PerLevel::coarse_to_fine(vec![8.0, 8.0, 4.0]).expect("three values")
+}
+
 impl Default for AdaptiveOptions {
     fn default() -> Self {
         AdaptiveOptions {
             levels: 3,
             cell_levels: vec![2, 4, 8, 16],
             min_cell_voxels: 3,
-            threshold: PerLevel::all(8.0),
+            threshold: default_threshold(),
             iterations: PerLevel::all(30),
             tolerance: PerLevel::all(1e-5),
             lattice_mm: 5.0,
@@ -146,7 +155,11 @@ impl AdaptiveOptions {
         if !finite_non_negative(self.smoothing) || !finite_non_negative(self.gain_scale_mm) {
             return bad("smoothing and gain_scale_mm must be finite and zero or positive");
         }
-        self.threshold.check("adaptive.threshold", self.levels)?;
+        // The default reads as "4 at the finest level, 8 above" for any level count
+        // (PerLevel::at_level takes the finest values); a threshold given is held to the count.
+        if self.threshold != default_threshold() {
+            self.threshold.check("adaptive.threshold", self.levels)?;
+        }
         self.similarity.check("adaptive.similarity", self.levels)?;
         if !(1..=MAX_LNCC_RADIUS).contains(&self.lncc_radius) {
             return bad(&format!(
@@ -237,6 +250,9 @@ pub struct Adaptive {
     pub points: Vec<ControlPoint>,
     /// The solved warp.
     pub coefficients: RbfCoefficients,
+    /// The finest level's lattice step along each axis (voxels of the target grid): R is
+    /// evaluated at its nodes and interpolated between them.
+    pub lattice_step: [usize; 3],
     /// Record per refinement.
     pub stages: Vec<StageReport>,
     /// What the optimiser's cost evaluations moved between host and device.
@@ -263,11 +279,39 @@ impl Evaluations {
     }
 }
 
-/// A lattice of nodes every `step` voxels over a grid, lattice where the backend computes: the
-/// warp is evaluated at its nodes and interpolated at the grid's voxels.
+/// `wanted` cells per axis on `grid`, fewer where an axis has fewer than `min_voxels` voxels
+/// per cell.
+fn cells_on(grid: &Grid, wanted: usize, min_voxels: usize) -> [usize; 3] {
+    std::array::from_fn(|a| wanted.min(grid.dims[a] / min_voxels).max(1))
+}
+
+/// The lattice's step (voxels) along each axis of a level's `grid`: `lattice_mm` at the grid's
+/// finest spacing, or, once the moving image is `prealigned` by the initialisation, half the
+/// side of the level's finest cells along an axis where that is coarser. After the
+/// initialisation R is a correction, a sum of cubic radial functions centred a cell or more
+/// apart and smooth on the scale of a cell, and its nodes cost one f64 square root per control
+/// point each: on the half phantom, whose finest cells are 10.6 × 20 × 19 mm, a 5 mm lattice
+/// had 4× the nodes and no more accuracy than half a cell. Without the initialisation R
+/// carries the joint's whole motion, bent at the joint, and wants the finer lattice (paper
+/// phantom 10°: 1.38 → 1.45 mm at half a cell; BENCHMARKS.md, fourteenth session).
+pub fn lattice_steps(grid: &Grid, options: &AdaptiveOptions, prealigned: bool) -> [usize; 3] {
+    let finest = ((options.lattice_mm / grid.finest_spacing()).round() as usize).max(1);
+    if !prealigned {
+        return [finest; 3];
+    }
+    let wanted = options.cell_levels.iter().copied().max().unwrap_or(1);
+    let cells = cells_on(grid, wanted, options.min_cell_voxels);
+    std::array::from_fn(|a| {
+        let half_cell = grid.dims[a] as f64 / cells[a] as f64 / 2.0;
+        finest.max(half_cell.round() as usize)
+    })
+}
+
+/// A lattice of nodes every `step` voxels (per axis) over a grid, lattice where the backend
+/// computes: the warp is evaluated at its nodes and interpolated at the grid's voxels.
 struct Lattice<B: Backend> {
     dims: [usize; 3],
-    step: usize,
+    step: [usize; 3],
     spacing_mm: [f64; 3],
     geometry: B::Buffer<f64>,
     /// Parameters of the kernels that interpolate it at the grid's voxels.
@@ -275,13 +319,13 @@ struct Lattice<B: Backend> {
 }
 
 impl<B: Backend> Lattice<B> {
-    fn new(backend: &B, grid: &Grid, lattice_mm: f64) -> Result<Self> {
-        let step = ((lattice_mm / grid.finest_spacing()).round() as usize).max(1);
-        let dims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step) + 1);
+    fn new(backend: &B, grid: &Grid, step: [usize; 3]) -> Result<Self> {
+        let dims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);
+        let spacing = grid.spacing();
         Ok(Lattice {
             dims,
             step,
-            spacing_mm: grid.spacing().map(|h| h * step as f64),
+            spacing_mm: std::array::from_fn(|a| spacing[a] * step[a] as f64),
             geometry: backend.upload("lattice geometry", lattice_geometry(grid))?,
             voxel_params: RbfGradParams::new(grid, dims, step),
         })
@@ -566,7 +610,8 @@ pub fn register<B: Backend>(
     let evaluations = std::cell::Cell::new(Evaluations::default());
     progress.begin("adaptive RBF", levels.len() * options.cell_levels.len());
     for (index, level) in levels.iter().enumerate().rev() {
-        let lattice = Lattice::new(backend, &level.fixed.grid, options.lattice_mm)?;
+        let step = lattice_steps(&level.fixed.grid, options, moving.prealigned);
+        let lattice = Lattice::new(backend, &level.fixed.grid, step)?;
         let target_variance = variance(backend, &level.fixed)?;
         let weights = energy_weights(target_variance, index, moving.prealigned, options);
         // Once the moving image is aligned, its smooth brightness difference to the target is
@@ -597,6 +642,7 @@ pub fn register<B: Backend>(
     Ok(Adaptive {
         points,
         coefficients,
+        lattice_step: lattice_steps(&levels[0].fixed.grid, options, moving.prealigned),
         stages,
         evaluations: evaluations.get(),
     })
@@ -719,8 +765,7 @@ impl<'a, B: Backend> LevelRun<'a, B> {
 
     /// `wanted` cells per axis, fewer where an axis has too few voxels.
     fn cells(&self, wanted: usize) -> [usize; 3] {
-        let dims = self.level.fixed.grid.dims;
-        std::array::from_fn(|a| wanted.min(dims[a] / self.options.min_cell_voxels).max(1))
+        cells_on(&self.level.fixed.grid, wanted, self.options.min_cell_voxels)
     }
 
     /// Adds a control point at the centre of each cell that fits poorly (every cell at the
@@ -828,10 +873,9 @@ impl Adaptive {
         &self,
         backend: &B,
         grid: &Grid,
-        lattice_mm: f64,
         scale: f64,
     ) -> Result<DeviceImage<B>> {
-        let lattice = Lattice::new(backend, grid, lattice_mm)?;
+        let lattice = Lattice::new(backend, grid, self.lattice_step)?;
         let centres: Vec<Vector3<f64>> = self
             .points
             .iter()
@@ -849,5 +893,51 @@ impl Adaptive {
             data: backend.warp_field(&params, &values)?,
             grid: grid.clone(),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::Affine;
+
+    #[test]
+    fn the_default_threshold_fits_any_level_count_and_a_given_one_its_own() {
+        for levels in 1..=MAX_LEVELS {
+            let options = AdaptiveOptions {
+                levels,
+                ..Default::default()
+            };
+            assert!(options.check().is_ok(), "{levels} levels");
+        }
+        let given = AdaptiveOptions {
+            levels: 2,
+            threshold: "8x8x3".parse().unwrap(),
+            ..Default::default()
+        };
+        assert!(given.check().is_err(), "three values for two levels");
+    }
+
+    #[test]
+    fn after_the_initialisation_the_lattice_is_half_a_cell_where_cells_are_wide() {
+        let grid = |dims, h: [f64; 3]| {
+            let mut a = Affine::identity();
+            for k in 0..3 {
+                a[(k, k)] = h[k];
+            }
+            Grid::new(dims, a).unwrap()
+        };
+        let options = AdaptiveOptions::default();
+        // The half phantom: 16 cells of 10.6 × 20 × 19 mm; 5 mm is 2 voxels.
+        let phantom = grid([68, 128, 128], [2.5, 2.5, 2.4]);
+        assert_eq!(lattice_steps(&phantom, &options, true), [2, 4, 4]);
+        // Without the initialisation, lattice_mm along every axis.
+        assert_eq!(lattice_steps(&phantom, &options, false), [2, 2, 2]);
+        // The knee at 2 mm: cells of 10 × 10 × 7.4 mm, no wider than two lattice spacings.
+        let knee = grid([80, 80, 59], [2.0; 3]);
+        assert_eq!(lattice_steps(&knee, &options, true), [3, 3, 3]);
+        // A level too small for 16 cells: 5 cells of 3.4 voxels, 1.7 voxels to half a cell.
+        let coarse = grid([17, 32, 32], [10.0, 10.0, 9.6]);
+        assert_eq!(lattice_steps(&coarse, &options, true), [2, 2, 2]);
     }
 }
