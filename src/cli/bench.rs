@@ -122,7 +122,8 @@ fn mib(bytes: u64) -> f64 {
 }
 
 /// Bytes of a registration's input volumes (source, labels, target as f32) and of the volumes it
-/// writes (field, warped source, Jacobian).
+/// writes (field, warped source and Jacobian on the target's grid; the inverse field on the
+/// source's).
 struct Sizes {
     inputs: u64,
     outputs: u64,
@@ -191,10 +192,10 @@ pub fn run(args: &BenchArgs, device: &DeviceWanted) -> anyhow::Result<()> {
     let voxels = |p: &posereg::phantom::Phantom| p.image.grid.len() as u64;
     let sizes = Sizes {
         inputs: 4 * (2 * voxels(&pair.0) + voxels(&pair.1)),
-        outputs: 20 * voxels(&pair.1),
+        outputs: 20 * voxels(&pair.1) + 12 * voxels(&pair.0),
     };
     println!(
-        "inputs (source, labels, target as f32): {:.2} MiB; outputs (field, warped, Jacobian): {:.2} MiB",
+        "inputs (source, labels, target as f32): {:.2} MiB; outputs (field, warped, Jacobian, inverse field): {:.2} MiB",
         mib(sizes.inputs),
         mib(sizes.outputs)
     );

@@ -48,7 +48,7 @@ pub struct RegisterArgs {
     #[arg(long)]
     pub iterations: Option<PerLevel<usize>>,
     /// Adaptive stage: cells whose residual exceeds this multiple of the mean get a control
-    /// point, per level coarse to fine, e.g. 8x8x12.
+    /// point, per level coarse to fine (default 8x8x4: 4 at the finest level, 8 above).
     #[arg(long)]
     pub threshold: Option<PerLevel<f64>>,
     /// Adaptive stage: the image term per level coarse to fine, ssd or lncc (local normalised
