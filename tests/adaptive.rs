@@ -387,7 +387,8 @@ fn paper_experiment_one_on_the_gpu() {
 /// That floor was measured (2026-12-04, fourteenth session, with the lattice tied to the cells
 /// and threshold 8x8x4): the CPU path at 60° against itself with the last bit of every 7th,
 /// 11th, 13th, 17th or 19th target voxel flipped gives fields 0.030–0.039 mm apart and 0–3
-/// control points more (of 420). With the sixth session's defaults it was 0.059–0.111 mm at 60°
+/// control points more (of 420, on `posereg phantom`'s small pair, whose noise differs from
+/// this test's; 30° was not re-measured). With the sixth session's defaults it was 0.059–0.111 mm at 60°
 /// (0.014–0.035 at 30°), and this test's bounds were 0.15 mm: L-BFGS, stopped by its iteration
 /// cap on the finer levels before it converges, carries a last-bit difference to 10⁻³ of the
 /// cost within a level, and a lattice of every voxel at the middle level gave it more to
@@ -397,7 +398,8 @@ fn paper_experiment_one_on_the_gpu() {
 /// still differ in the last bit (jacobian, compose, rigid_gn, the dual-quaternion blend: most
 /// likely multiply-adds fused by the driver). Measured here on lavapipe: fields 0.023 and
 /// 0.036 mm apart; 376 / 376 and 408 / 409 points; errors 0.553 / 0.556 and 0.945 / 0.946 mm.
-/// Both backends give the same bits run to run, so a run that passes here passes again.
+/// Both backends give the same bits run to run on one driver, so a run that passes on
+/// lavapipe passes there again; another driver may round differently.
 ///
 /// In one fresh-clone CI run the GPU side once gave 199 control points at 30° (fields 0.133 mm
 /// apart): the tests of one binary share one GPU backend, and a download used to take the

@@ -705,7 +705,7 @@ fn field_on<B: Backend>(backend: &B, field: &Field) -> B::Buffer<f32> {
 fn final_field_kernels_parity_at_odd_sizes() {
     let Some(gpu) = gpu() else { return };
     let grid = oblique_grid([23, 18, 13]);
-    // warp_field: a lattice every 4 voxels.
+    // warp_field: a lattice every 4, 3 and 5 voxels along x, y and z.
     let step = [4, 3, 5];
     let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);
     let lattice: Vec<f32> = (0..3 * ldims.iter().product::<usize>())

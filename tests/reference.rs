@@ -803,12 +803,12 @@ fn lattice_interpolation_error_of_a_cubic_rbf_warp_is_small() {
     let adaptive = Adaptive {
         points,
         coefficients: coefficients.clone(),
-        lattice_step: [4; 3],
+        lattice: (grid.clone(), [4; 3]),
         stages: Vec::new(),
         evaluations: Default::default(),
     };
     let field = adaptive
-        .warp_field(&CpuBackend, &grid, 1.0)
+        .warp_field(&CpuBackend, 1.0)
         .unwrap()
         .download_field(&CpuBackend)
         .unwrap();

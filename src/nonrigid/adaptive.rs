@@ -55,8 +55,9 @@ pub struct AdaptiveOptions {
     /// control point (the 2³ cells always do). Measured on the phantom: raising it from 1 to 8
     /// cut the points from ~900 to ~180 and lowered the error (10°, small: 2.70 → 1.40 mm) —
     /// fewer, well-lattice points keep the optimisation well conditioned. At the finest level
-    /// 4: with the bones held rigid and the lattice tied to the cells, more points there lowered
-    /// the error on all fifteen measured pairs (knee 1 mm 90°: 1.89 → 1.79 mm; BENCHMARKS.md,
+    /// 4: with the bones held rigid and the lattice tied to the cells, every one of fifteen
+    /// measured pairs came out as accurate or more at two decimals, the knee and the
+    /// generator's pairs by 0.01–0.10 mm (knee 1 mm 90°: 1.89 → 1.79 mm; BENCHMARKS.md,
     /// fourteenth session). Per pyramid level, coarse to fine.
     pub threshold: PerLevel<f64>,
     /// L-BFGS iterations per refinement, per pyramid level, coarse to fine.
@@ -64,8 +65,8 @@ pub struct AdaptiveOptions {
     /// Relative cost decrease below which an optimisation stops.
     pub tolerance: PerLevel<f64>,
     /// Finest spacing (mm) of the lattice the warp is evaluated on. After the initialisation,
-    /// along an axis where a level's finest cells are wider, the lattice is coarser: half a
-    /// cell ([`lattice_steps`]).
+    /// along an axis where half a level's finest cell is wider (cells wider than about two
+    /// of these), the lattice is half a cell there ([`lattice_steps`]).
     pub lattice_mm: f64,
     /// Smoothing μ added to the RBF system's diagonal (0 interpolates).
     pub smoothing: f64,
@@ -250,9 +251,10 @@ pub struct Adaptive {
     pub points: Vec<ControlPoint>,
     /// The solved warp.
     pub coefficients: RbfCoefficients,
-    /// The finest level's lattice step along each axis (voxels of the target grid): R is
-    /// evaluated at its nodes and interpolated between them.
-    pub lattice_step: [usize; 3],
+    /// The grid of the finest level (the target's), and its lattice's step along each axis
+    /// (voxels of that grid): R is evaluated at the lattice's nodes and interpolated between
+    /// them.
+    pub lattice: (Grid, [usize; 3]),
     /// Record per refinement.
     pub stages: Vec<StageReport>,
     /// What the optimiser's cost evaluations moved between host and device.
@@ -642,7 +644,13 @@ pub fn register<B: Backend>(
     Ok(Adaptive {
         points,
         coefficients,
-        lattice_step: lattice_steps(&levels[0].fixed.grid, options, moving.prealigned),
+        lattice: {
+            let finest = &levels[0].fixed.grid;
+            (
+                finest.clone(),
+                lattice_steps(finest, options, moving.prealigned),
+            )
+        },
         stages,
         evaluations: evaluations.get(),
     })
@@ -866,16 +874,12 @@ impl<'a, B: Backend> LevelRun<'a, B> {
 }
 
 impl Adaptive {
-    /// R on every voxel of `grid` (3 values per voxel, where the backend computes), scaled by
-    /// `scale`, through the same lattice interpolation the optimiser used. Only the lattice
-    /// passes the host, to be scaled.
-    pub fn warp_field<B: Backend>(
-        &self,
-        backend: &B,
-        grid: &Grid,
-        scale: f64,
-    ) -> Result<DeviceImage<B>> {
-        let lattice = Lattice::new(backend, grid, self.lattice_step)?;
+    /// R on every voxel of the finest level's grid (3 values per voxel, where the backend
+    /// computes), scaled by `scale`, through the lattice and interpolation the optimiser used
+    /// there. Only the lattice passes the host, to be scaled.
+    pub fn warp_field<B: Backend>(&self, backend: &B, scale: f64) -> Result<DeviceImage<B>> {
+        let (grid, step) = &self.lattice;
+        let lattice = Lattice::new(backend, grid, *step)?;
         let centres: Vec<Vector3<f64>> = self
             .points
             .iter()
@@ -936,7 +940,8 @@ mod tests {
         // The knee at 2 mm: cells of 10 × 10 × 7.4 mm, no wider than two lattice spacings.
         let knee = grid([80, 80, 59], [2.0; 3]);
         assert_eq!(lattice_steps(&knee, &options, true), [3, 3, 3]);
-        // A level too small for 16 cells: 5 cells of 3.4 voxels, 1.7 voxels to half a cell.
+        // A level too small for 16 cells: 5 × 10 × 10 cells of 3.4 × 3.2 × 3.2 voxels, half a
+        // cell 1.7 and 1.6 voxels, rounded to 2.
         let coarse = grid([17, 32, 32], [10.0, 10.0, 9.6]);
         assert_eq!(lattice_steps(&coarse, &options, true), [2, 2, 2]);
     }

@@ -491,7 +491,7 @@ fn finish<B: Backend>(
     let nothing_held = backend.zeros("nothing held", grid.len())?;
     let mut scale = 1.0;
     let warp = loop {
-        let warp = adaptive.warp_field(backend, grid, scale)?;
+        let warp = adaptive.warp_field(backend, scale)?;
         let (_, folds) = determinant(backend, &warp, &nothing_held)?;
         if folds.folded == 0 || scale < 0.1 {
             break warp;
@@ -558,7 +558,7 @@ impl Registration {
             serde_json::json!({
                 "basis": "cubic, phi(r) = r^3, world RAS mm, on the target grid",
                 "lattice_mm": options.adaptive.lattice_mm,
-                "lattice_step": self.adaptive.lattice_step,
+                "lattice_step": self.adaptive.lattice.1,
                 "control_points": self.adaptive.points,
                 "coefficients": self.adaptive.coefficients,
                 "scale": self.warp_scale,
