@@ -1,8 +1,8 @@
 // lattice_splat.wgsl: the adjoint of rbf_grad's lattice interpolation. A voxel's value reaches
 // the lattice nodes of its cell with the trilinear weights it was interpolated with, so the
 // gradient of the cost with respect to the warp at node n is Σ_x w_n(x) g(x). Written as a
-// gather (each node sums the voxels within one lattice step along each axis), so no atomics are needed and the
-// sum order is fixed.
+// gather (each node sums the voxels within one lattice step along each axis), so no atomics
+// are needed and the sum order is fixed.
 //
 // Bindings (group 0):
 //   0 uniform  SplatParams

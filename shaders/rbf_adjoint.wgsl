@@ -5,7 +5,7 @@
 // RbfSystem::value_gradient turns the result into the gradient with respect to the control
 // values.
 //
-// The nodes are split into chunks of params.chunking.x; each invocation sums one chunk for one
+// The nodes are split into chunks of params.chunks.y; each invocation sums one chunk for one
 // output row, in node order, and sum_partials adds the chunks in order. (One invocation over
 // every node was wrong on lavapipe: llvmpipe ends any loop after 65 535 iterations.)
 //
@@ -53,13 +53,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let t = gid.x;
     let c = gid.y;
     let rows = params.lattice.w + 4u;
-    if (t >= rows || c >= params.chunking.y) {
+    if (t >= rows || c >= params.chunks.z) {
         return;
     }
     let l = params.lattice.xyz;
-    let nodes = l.x * l.y * l.z;
+    let nodes = params.chunks.x;
+    let per_chunk = params.chunks.y;
     var sum = vec3<f64>(0.0lf);
-    for (var n = c * params.chunking.x; n < min((c + 1u) * params.chunking.x, nodes); n = n + 1u) {
+    for (var n = c * per_chunk; n < min((c + 1u) * per_chunk, nodes); n = n + 1u) {
         let a = vec3<u32>(n % l.x, (n / l.x) % l.y, n / (l.x * l.y));
         let x = node_position(a, params.step.xyz);
         let g = gradient_at(n);

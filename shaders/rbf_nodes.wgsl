@@ -6,7 +6,7 @@
 struct RbfLatticeParams {
     lattice: vec4<u32>,  // lx, ly, lz, control points
     step: vec4<u32>,     // lattice step along x, y, z (voxels), unused
-    chunking: vec4<u32>, // nodes per chunk, chunks (rbf_adjoint), unused, unused
+    chunks: vec4<u32>,   // nodes, nodes per chunk, chunks (rbf_adjoint), unused
 }
 
 // World position (mm) of lattice node `a`, which sits on voxel a · step (per axis).

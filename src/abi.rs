@@ -954,8 +954,8 @@ pub struct RbfLatticeParams {
     pub lattice: [u32; 4],
     /// Lattice step along x, y, z (voxels), unused.
     pub step: [u32; 4],
-    /// Nodes per chunk and chunks of rbf_adjoint, unused, unused.
-    pub chunking: [u32; 4],
+    /// rbf_adjoint's chunks: nodes, nodes per chunk, chunks, unused.
+    pub chunks: [u32; 4],
 }
 
 /// Lattice nodes one rbf_adjoint invocation sums (well below lavapipe's 65 535 loop
@@ -970,23 +970,18 @@ impl RbfLatticeParams {
         RbfLatticeParams {
             lattice: padded(lattice_dims, points as u32),
             step: padded(steps, 0),
-            chunking: [
-                ADJOINT_CHUNK as u32,
-                nodes.div_ceil(ADJOINT_CHUNK) as u32,
-                0,
-                0,
-            ],
+            chunks: chunking(nodes, ADJOINT_CHUNK, 0),
         }
     }
 
     /// Nodes per chunk of rbf_adjoint.
     pub fn chunk_nodes(&self) -> usize {
-        self.chunking[0] as usize
+        self.chunks[1] as usize
     }
 
     /// Chunks of nodes rbf_adjoint sums separately.
     pub fn chunks(&self) -> usize {
-        self.chunking[1] as usize
+        self.chunks[2] as usize
     }
 
     /// rbf_adjoint's output rows: the control points, then 4 affine rows.
