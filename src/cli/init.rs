@@ -342,7 +342,7 @@ fn reach_line(reach: &posereg::init::reach::ReachChoice) -> String {
     match tried.is_empty() {
         true => format!("reach limit {} (given)", reach.limit),
         false => format!(
-            "reach limit {} (local correlation with the target: {})",
+            "reach limit {:.3} (local correlation with the target: {})",
             reach.limit,
             tried.join(", ")
         ),

@@ -25,22 +25,28 @@ pub fn lattice_splat(params: &SplatParams, values: &[f32], out: &mut [f32]) {
         params.volume_dims[1],
         params.volume_dims[2],
     ];
+    // The x weights of each node column's reach, the same for each of its rows.
+    let x_reach: Vec<(std::ops::Range<u32>, Vec<f32>)> = (0..lx)
+        .map(|a| {
+            let xs = reach_lo(a, sx)..((a + 1) * sx).min(n[0]);
+            let wxs = xs.clone().map(|i| weight(i, a, sx)).collect();
+            (xs, wxs)
+        })
+        .collect();
     out.par_chunks_mut((3 * lx * ly) as usize)
         .enumerate()
         .for_each(|(zl, slice)| {
             let c = zl as u32;
             for b in 0..ly {
                 for a in 0..lx {
-                    // The x weights of the node's reach, the same for each of its rows.
-                    let xs = reach_lo(a, sx)..((a + 1) * sx).min(n[0]);
-                    let wxs: Vec<f32> = xs.clone().map(|i| weight(i, a, sx)).collect();
+                    let (xs, wxs) = &x_reach[a as usize];
                     let mut sum = [0.0f32; 3];
                     for k in reach_lo(c, sz)..((c + 1) * sz).min(n[2]) {
                         let wz = weight(k, c, sz);
                         for j in reach_lo(b, sy)..((b + 1) * sy).min(n[1]) {
                             let wy = weight(j, b, sy);
                             let row = 3 * voxel_index(0, j, k, n) as usize;
-                            for (i, wx) in xs.clone().zip(&wxs) {
+                            for (i, wx) in xs.clone().zip(wxs) {
                                 let w = wx * wy * wz;
                                 if w > 0.0 {
                                     let v = row + 3 * i as usize;

@@ -32,15 +32,10 @@ impl LatticeTaps {
         }
     }
 
-    /// The lattice between which voxel row (j, k) (along x) interpolates.
+    /// The lattice columns voxel row (j, k) (along x) interpolates between, blended along y
+    /// and z once for the whole row.
     #[inline]
-    pub fn row<'a>(
-        &self,
-        params: &RbfGradParams,
-        lattice: &'a [f32],
-        j: u32,
-        k: u32,
-    ) -> RowTaps<'a> {
+    pub fn row(&self, params: &RbfGradParams, lattice: &[f32], j: u32, k: u32) -> RowTaps {
         let ([y0, y1], ty) = self.axes[1][j as usize];
         let ([z0, z1], tz) = self.axes[2][k as usize];
         let l = [
@@ -48,43 +43,34 @@ impl LatticeTaps {
             params.lattice_dims[1],
             params.lattice_dims[2],
         ];
-        let row = |y, z| {
-            let first = 3 * voxel_index(0, y, z, l) as usize;
-            &lattice[first..first + 3 * l[0] as usize]
+        let node = |x, y, z| {
+            let n = 3 * voxel_index(x, y, z, l) as usize;
+            Vec3::from_slice(&lattice[n..n + 3])
         };
-        RowTaps {
-            rows: [row(y0, z0), row(y1, z0), row(y0, z1), row(y1, z1)],
-            ty,
-            tz,
-        }
+        // shaders/lattice_warp.wgsl's column(), for every x node.
+        let columns = (0..l[0])
+            .map(|x| {
+                let c0 = (1.0 - ty) * node(x, y0, z0) + ty * node(x, y1, z0);
+                let c1 = (1.0 - ty) * node(x, y0, z1) + ty * node(x, y1, z1);
+                (1.0 - tz) * c0 + tz * c1
+            })
+            .collect();
+        RowTaps { columns }
     }
 }
 
-/// The four lattice rows one voxel row interpolates between (y0 z0, y1 z0, y0 z1, y1 z1, 3
-/// floats per node) and its y and z weights: the node lookups of a row, done once.
-pub struct RowTaps<'a> {
-    rows: [&'a [f32]; 4],
-    ty: f32,
-    tz: f32,
+/// The lattice of one voxel row blended along y and z (one column per x node): the node
+/// lookups and the y and z interpolation of a row, done once.
+pub struct RowTaps {
+    columns: Vec<Vec3>,
 }
 
-impl RowTaps<'_> {
+impl RowTaps {
     /// Trilinear interpolation of the lattice at voxel i of the row, in the shader's order.
     #[inline]
     pub fn warp_at(&self, taps: &LatticeTaps, i: u32) -> Vec3 {
         let ([x0, x1], tx) = taps.axes[0][i as usize];
-        let n = |r: usize, x: u32| {
-            let o = 3 * x as usize;
-            Vec3::from_slice(&self.rows[r][o..o + 3])
-        };
-        let (ty, tz) = (self.ty, self.tz);
-        let c00 = (1.0 - tx) * n(0, x0) + tx * n(0, x1);
-        let c10 = (1.0 - tx) * n(1, x0) + tx * n(1, x1);
-        let c01 = (1.0 - tx) * n(2, x0) + tx * n(2, x1);
-        let c11 = (1.0 - tx) * n(3, x0) + tx * n(3, x1);
-        let c0 = (1.0 - ty) * c00 + ty * c10;
-        let c1 = (1.0 - ty) * c01 + ty * c11;
-        (1.0 - tz) * c0 + tz * c1
+        (1.0 - tx) * self.columns[x0 as usize] + tx * self.columns[x1 as usize]
     }
 }
 

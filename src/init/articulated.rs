@@ -93,8 +93,8 @@ pub struct InitOptions {
     pub blending: Blending,
     /// Limits of how far a small segment's tissue reaches (skinning::reach_scale: 1 as far
     /// as its distance, 2 twice as far as a bone of the largest segment's size would): each
-    /// is tried on a coarse grid and the one whose initialised image correlates best with the
-    /// target is kept (crate::init::reach); one value fixes it. The right limit differs between the
+    /// is tried on a coarse grid, and the limit kept is where the initialised image's local
+    /// correlation with the target peaks (crate::init::reach); one value fixes it. The right limit differs between the
     /// project's phantom (2) and the real knee bent by the independent generator (1).
     pub reach: Vec<f64>,
 }
@@ -140,9 +140,10 @@ impl InitOptions {
         if self.reach.is_empty()
             || self.reach.len() > MAX_REACH_CANDIDATES
             || !self.reach.iter().all(|&r| within(r, 1.0, 4.0))
+            || !self.reach.windows(2).all(|w| w[0] < w[1])
         {
             return bad(&format!(
-                "reach must list 1 to {MAX_REACH_CANDIDATES} limits, each 1 to 4"
+                "reach must list 1 to {MAX_REACH_CANDIDATES} rising limits, each 1 to 4"
             ));
         }
         if (1..self.bones.len()).any(|i| self.bones[..i].contains(&self.bones[i])) {
@@ -1029,6 +1030,21 @@ mod tests {
             .into_iter()
             .take(PATELLA_SCORES.len())
             .collect()
+    }
+
+    #[test]
+    fn reach_limits_must_rise() {
+        for reach in [vec![1.5, 1.0], vec![1.0, 1.0], vec![]] {
+            let options = InitOptions {
+                reach: reach.clone(),
+                ..Default::default()
+            };
+            let err = options.check().err().map(|e| e.to_string());
+            assert!(
+                err.as_deref().is_some_and(|e| e.contains("rising limits")),
+                "{reach:?}: {err:?}"
+            );
+        }
     }
 
     #[test]
