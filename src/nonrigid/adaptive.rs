@@ -210,6 +210,13 @@ const MAX_FIRST_CELLS: usize = 4;
 const MAX_CELLS: usize = 64;
 /// Widest LNCC window radius (voxels): 17³ voxels a window.
 const MAX_LNCC_RADIUS: usize = 8;
+/// New points a refinement needs before it optimises (fewer wait for the level's next
+/// refinement): each optimisation costs its level's L-BFGS run whatever the points it adds,
+/// and one to three new points in coarse cells lowered the cost little for a whole run at the
+/// finest level. Measured on the knee pairs and the half phantom (BENCHMARKS.md, sixteenth
+/// session): every pair as accurate or more, ≈ 10% fewer evaluations on the bench's pair.
+const FEWEST_TO_OPTIMISE: usize = 4;
+
 /// Most L-BFGS iterations per refinement.
 const MAX_ITERATIONS: usize = 10_000;
 
@@ -233,7 +240,7 @@ pub struct StageReport {
     pub level: usize,
     /// Cells per axis.
     pub cells: [usize; 3],
-    /// Points added.
+    /// Points added (with any that earlier refinements of the level added and left to it).
     pub added: usize,
     /// The cost's image term.
     pub similarity: Similarity,
@@ -635,8 +642,11 @@ pub fn register<B: Backend>(
             options,
         };
         let evaluator = run.evaluator(target_variance, weights);
+        // Points added but not yet optimised (a refinement that added too few to pay for it).
+        let mut waiting = 0;
         for &wanted in &options.cell_levels {
-            stages.extend(run.refine(wanted, &mut points, &evaluator, &evaluations, progress)?);
+            let points = (&mut points, &mut waiting);
+            stages.extend(run.refine(wanted, points, &evaluator, &evaluations, progress)?);
         }
     }
     let (coefficients, _) = solve(&points, options.smoothing)?;
@@ -736,11 +746,13 @@ impl<'a, B: Backend> LevelRun<'a, B> {
     }
 
     /// One refinement: points added where `wanted` cells per axis fit poorly, then every point
-    /// optimised; what it did, or None when no point was added.
+    /// optimised; what it did, or None when it optimised nothing. Fewer than
+    /// [`FEWEST_TO_OPTIMISE`] new points (counting those `waiting` from the level's refinements
+    /// before) wait for the next refinement, except at the level's last.
     fn refine(
         &self,
         wanted: usize,
-        points: &mut Vec<ControlPoint>,
+        (points, waiting): (&mut Vec<ControlPoint>, &mut usize),
         evaluator: &Evaluator<B>,
         evaluations: &std::cell::Cell<Evaluations>,
         progress: &dyn Progress,
@@ -749,10 +761,16 @@ impl<'a, B: Backend> LevelRun<'a, B> {
         let [x, y, z] = cells;
         let refinement = format!("level {}, {x}x{y}x{z} cells", self.index);
         let added = self.add_points(points, wanted, cells)?;
-        if added == 0 {
-            progress.step(&format!("{refinement}: no new points"));
+        *waiting += added;
+        let last = Some(&wanted) == self.options.cell_levels.last();
+        if *waiting == 0 || (*waiting < FEWEST_TO_OPTIMISE && !last) {
+            progress.step(&match added {
+                0 => format!("{refinement}: no new points"),
+                _ => format!("{refinement}: +{added} points, optimised with the next refinement's"),
+            });
             return Ok(None);
         }
+        let added = std::mem::take(waiting);
         let result = self.optimise(points, evaluator, evaluations)?;
         progress.step(&format!(
             "{refinement}: +{added} points ({} in all), cost {:.4} -> {:.4}",
