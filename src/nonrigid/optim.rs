@@ -112,6 +112,15 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_small_first_step_does_not_end_the_minimisation() {
+        // From x = 10⁴ the first step (length 1) lowers x² by 2·10⁻⁴ of itself, under the
+        // tolerance; the second, with curvature known, lands on the minimum.
+        let f = |x: &[f64]| -> Result<(f64, Vec<f64>), ()> { Ok((x[0] * x[0], vec![2.0 * x[0]])) };
+        let r = lbfgs(f, vec![1e4], 50, 1e-3).unwrap();
+        assert!(r.x[0].abs() < 1e-6 && r.iterations >= 2, "{r:?}");
+    }
+
+    #[test]
     fn minimises_a_rosenbrock_valley() {
         let f = |x: &[f64]| -> Result<(f64, Vec<f64>), ()> {
             let (a, b) = (x[0], x[1]);
