@@ -5,14 +5,10 @@
 // of the motions' unit dual quaternions (a rigid motion again; see src/vsd.rs). Inside a bone (nearest voxel of the source label grid) the weights are that
 // bone's alone, so bones move exactly rigidly up to their labelled surface; elsewhere w_j is
 // trilinear from the coarser weight grid, clamped to its edge. For each target voxel
-// p this finds the source point x with B(x) = p: start from the first bone whose inverse
-// M_j⁻¹ p blends back onto p, else the one that blends back closest, then quasi-Newton steps
-// x ← x − t J⁻¹ (B(x) − p) with t the first of 1, 1/2, ... 1/16 that lowers the miss and J first
-// A = Σ_j w_j L_j (the blended linear part; it leaves the weights' own derivative out), then
-// corrected after each accepted step by Broyden's rank-one update J += (ΔB − J Δx) Δxᵀ / |Δx|²,
-// which learns that derivative from the steps (superlinear convergence where A alone converges
-// linearly: half the blends on the half phantom at 60°). A step that fails restarts J from A
-// once before the voxel gives up.
+// p this finds the source point x with B(x) = p: start from the bone whose inverse M_j⁻¹ p
+// blends back closest to p, then Newton-like steps x ← x − t A(x)⁻¹ (B(x) − p) with
+// A = Σ_j w_j L_j (the blended linear part; the weights' own derivative is left out, which keeps
+// each step a 3×3 solve) and t the first of 1, 1/2, ... 1/16 that lowers the miss.
 // Output per voxel: u = x − p (the initial displacement field, world mm) and the residual
 // |B(x) − p| (mm): where it is not small the blend was not inverted (it folds there).
 //
@@ -156,20 +152,25 @@ fn dual_quaternion_motion(real_sum: vec4<f32>, dual_sum: vec4<f32>, x: vec3<f32>
     return b;
 }
 
-// Where the steps towards p's source point start, the blend there and its miss.
-struct Start {
-    x: vec3<f32>,
-    miss: f32,
-    b: Blend,
-}
-
-// The first bone's inverse M_j⁻¹ p whose blend lands within CONVERGED_MM of p, else the one
-// that lands closest (the first of equals).
-fn start(p: vec3<f32>) -> Start {
-    var s: Start;
-    s.x = p;
-    s.miss = 3.4e38;
-    for (var j = 0u; j < params.blend.x && s.miss > CONVERGED_MM; j = j + 1u) {
+@compute @workgroup_size(4, 4, 4)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let d = params.dims;
+    if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
+        return;
+    }
+    let bones = params.blend.x;
+    let v = vec3<f32>(f32(gid.x), f32(gid.y), f32(gid.z));
+    let p = vec3<f32>(
+        affine_row(params.target_to_world[0], v),
+        affine_row(params.target_to_world[1], v),
+        affine_row(params.target_to_world[2], v),
+    );
+    var x = p;
+    var best = 3.4e38;
+    // The blend at x, kept from where x was chosen: each step reuses it instead of blending
+    // again at the same point.
+    var b: Blend;
+    for (var j = 0u; j < bones; j = j + 1u) {
         let candidate = vec3<f32>(
             affine_row(params.inverse[3u * j], p),
             affine_row(params.inverse[3u * j + 1u], p),
@@ -177,63 +178,23 @@ fn start(p: vec3<f32>) -> Start {
         );
         let at = blend(candidate);
         let miss = length(at.point - p);
-        if (miss < s.miss) {
-            s.miss = miss;
-            s.x = candidate;
-            s.b = at;
+        if (miss < best) {
+            best = miss;
+            x = candidate;
+            b = at;
         }
     }
-    if (s.miss == 3.4e38) {
+    if (best == 3.4e38) {
         // No candidate's miss was finite: step from the blend at p itself.
-        s.b = blend(s.x);
+        b = blend(x);
     }
-    return s;
-}
-
-// The step's Jacobian estimate (rows).
-struct Jacobian {
-    r0: vec3<f32>,
-    r1: vec3<f32>,
-    r2: vec3<f32>,
-}
-
-// Broyden's update of j after a step dx that moved the blend by df; j unchanged for a step too
-// short to tell anything.
-fn broyden(j: Jacobian, dx: vec3<f32>, df: vec3<f32>) -> Jacobian {
-    let dd = dot(dx, dx);
-    if (dd <= 0.0) {
-        return j;
-    }
-    let r = (df - vec3<f32>(dot(j.r0, dx), dot(j.r1, dx), dot(j.r2, dx))) / dd;
-    return Jacobian(j.r0 + r.x * dx, j.r1 + r.y * dx, j.r2 + r.z * dx);
-}
-
-@compute @workgroup_size(4, 4, 4)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let d = params.dims;
-    if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
-        return;
-    }
-    let v = vec3<f32>(f32(gid.x), f32(gid.y), f32(gid.z));
-    let p = vec3<f32>(
-        affine_row(params.target_to_world[0], v),
-        affine_row(params.target_to_world[1], v),
-        affine_row(params.target_to_world[2], v),
-    );
-    let s = start(p);
-    var x = s.x;
-    var err = s.miss;
-    // The blend at x, kept from where x was chosen: each step reuses it instead of blending
-    // again at the same point.
-    var b = s.b;
-    var j = Jacobian(b.r0, b.r1, b.r2);
-    var fresh = true;
+    var err = best;
     for (var it = 0u; it < params.blend.y && err > CONVERGED_MM; it = it + 1u) {
         let e = b.point - p;
-        let det = det3(j.r0, j.r1, j.r2);
+        let det = det3(b.r0, b.r1, b.r2);
         var step = e;
         if (abs(det) > 1e-6) {
-            step = solve3(j.r0, j.r1, j.r2, det, e);
+            step = solve3(b.r0, b.r1, b.r2, det, e);
         }
         // Backtrack: where the weights change fast the full step overshoots and would oscillate
         // between two sides of the solution; take the first fraction that lowers the miss.
@@ -244,7 +205,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let at = blend(trial);
             let miss = length(at.point - p);
             if (miss < err) {
-                j = broyden(j, trial - x, at.point - b.point);
                 x = trial;
                 err = miss;
                 b = at;
@@ -253,13 +213,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             t = t * 0.5;
         }
         if (!moved) {
-            if (fresh) {
-                break;
-            }
-            // Restart from the blend's linear part once before giving up.
-            j = Jacobian(b.r0, b.r1, b.r2);
+            break;
         }
-        fresh = !moved;
     }
     let o = voxel_index(gid.x, gid.y, gid.z, d.xyz);
     field[3u * o] = x.x - p.x;

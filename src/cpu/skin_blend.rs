@@ -155,112 +155,6 @@ fn dual_quaternion_motion(real_sum: Vec4, dual_sum: Vec4, x: Vec3) -> Blend {
     }
 }
 
-/// Where the steps towards `p`'s source point start: the first bone's inverse M_j⁻¹ p whose
-/// blend lands within [`CONVERGED_MM`] of `p`, else the one that lands closest (the first of
-/// equals); with the blend there and its miss.
-fn start(
-    params: &SkinBlendParams,
-    weight: &[f32],
-    bone_of_voxel: &[f32],
-    p: Vec3,
-) -> (Vec3, f32, Blend) {
-    let pa = p.to_array();
-    let mut x = p;
-    let mut best = NOT_CHOSEN;
-    // The blend at x, kept from where x was chosen: each step reuses it instead of blending
-    // again at the same point.
-    let mut b = Blend::default();
-    for j in 0..params.blend[0] {
-        let inv = |r: u32| params.inverse[(3 * j + r) as usize];
-        let candidate = Vec3::new(
-            affine_row(inv(0), pa),
-            affine_row(inv(1), pa),
-            affine_row(inv(2), pa),
-        );
-        let at = blend(params, weight, bone_of_voxel, candidate);
-        let miss = (at.point - p).length();
-        if miss < best {
-            best = miss;
-            x = candidate;
-            b = at;
-        }
-        if best <= CONVERGED_MM {
-            break;
-        }
-    }
-    if best == NOT_CHOSEN {
-        // No candidate's miss was finite: step from the blend at p itself.
-        b = blend(params, weight, bone_of_voxel, x);
-    }
-    (x, best, b)
-}
-
-/// The source point whose blend lands on `p`, stepped from `x` (whose blend `b` misses `p` by
-/// `miss`), and its final miss. Each step solves J s = B(x) − p with J the blended linear part
-/// at first, then corrected after each accepted step by Broyden's rank-one update J += (ΔB − J
-/// Δx) Δxᵀ / |Δx|², which learns the weights' derivative the linear part leaves out (linear
-/// convergence becomes superlinear: on the half phantom at 60° half the blends, none left at
-/// the step limit). A step that lowers the miss for none of t = 1, 1/2, … 1/16 restarts J from
-/// the blend's linear part once before giving up.
-fn newton_broyden(
-    params: &SkinBlendParams,
-    weight: &[f32],
-    bone_of_voxel: &[f32],
-    p: Vec3,
-    mut x: Vec3,
-    mut err: f32,
-    mut b: Blend,
-) -> (Vec3, f32) {
-    let mut j = [b.r0, b.r1, b.r2];
-    let mut fresh = true;
-    let mut it = 0;
-    while it < params.blend[1] && err > CONVERGED_MM {
-        it += 1;
-        let e = b.point - p;
-        let det = det3(j[0], j[1], j[2]);
-        let step = if det.abs() > 1e-6 {
-            solve3(j[0], j[1], j[2], det, e)
-        } else {
-            e
-        };
-        let mut t = 1.0f32;
-        let mut moved = false;
-        for _ in 0..5 {
-            let trial = x - t * step;
-            let at = blend(params, weight, bone_of_voxel, trial);
-            let miss = (at.point - p).length();
-            if miss < err {
-                j = broyden(j, trial - x, at.point - b.point);
-                x = trial;
-                err = miss;
-                b = at;
-                moved = true;
-                break;
-            }
-            t *= 0.5;
-        }
-        if !moved {
-            if fresh {
-                break;
-            }
-            j = [b.r0, b.r1, b.r2];
-        }
-        fresh = !moved;
-    }
-    (x, err)
-}
-
-/// Broyden's update of the Jacobian estimate `j` (rows) after a step `dx` that moved the blend
-/// by `df`; `j` unchanged for a step too short to tell anything.
-fn broyden(j: [Vec3; 3], dx: Vec3, df: Vec3) -> [Vec3; 3] {
-    let dd = dx.dot(dx);
-    if dd <= 0.0 {
-        return j;
-    }
-    let r = (df - Vec3::new(j[0].dot(dx), j[1].dot(dx), j[2].dot(dx))) / dd;
-    [j[0] + r.x * dx, j[1] + r.y * dx, j[2] + r.z * dx]
-}
-
 /// Fills `field` (3 floats per target voxel: u) and `residual` (1 float per target voxel);
 /// `bone_of_voxel` holds 1 + the bone index (0 for soft tissue) per source label voxel.
 pub fn skin_blend(
@@ -271,6 +165,7 @@ pub fn skin_blend(
     residual: &mut [f32],
 ) {
     let [nx, ny, _, _] = params.dims;
+    let bones = params.blend[0];
     let slice = (nx * ny) as usize;
     field
         .par_chunks_mut(3 * slice)
@@ -283,8 +178,61 @@ pub fn skin_blend(
                     let p = Vec3::from_array(std::array::from_fn(|r| {
                         affine_row(params.target_to_world[r], v)
                     }));
-                    let (x, best, b) = start(params, weight, bone_of_voxel, p);
-                    let (x, err) = newton_broyden(params, weight, bone_of_voxel, p, x, best, b);
+                    let pa = p.to_array();
+                    let mut x = p;
+                    let mut best = NOT_CHOSEN;
+                    // The blend at x, kept from where x was chosen: each step reuses it
+                    // instead of blending again at the same point.
+                    let mut b = Blend::default();
+                    for j in 0..bones {
+                        let inv = |r: u32| params.inverse[(3 * j + r) as usize];
+                        let candidate = Vec3::new(
+                            affine_row(inv(0), pa),
+                            affine_row(inv(1), pa),
+                            affine_row(inv(2), pa),
+                        );
+                        let at = blend(params, weight, bone_of_voxel, candidate);
+                        let miss = (at.point - p).length();
+                        if miss < best {
+                            best = miss;
+                            x = candidate;
+                            b = at;
+                        }
+                    }
+                    if best == NOT_CHOSEN {
+                        // No candidate's miss was finite: step from the blend at p itself.
+                        b = blend(params, weight, bone_of_voxel, x);
+                    }
+                    let mut err = best;
+                    let mut it = 0;
+                    while it < params.blend[1] && err > CONVERGED_MM {
+                        it += 1;
+                        let e = b.point - p;
+                        let det = det3(b.r0, b.r1, b.r2);
+                        let step = if det.abs() > 1e-6 {
+                            solve3(b.r0, b.r1, b.r2, det, e)
+                        } else {
+                            e
+                        };
+                        let mut t = 1.0f32;
+                        let mut moved = false;
+                        for _ in 0..5 {
+                            let trial = x - t * step;
+                            let at = blend(params, weight, bone_of_voxel, trial);
+                            let miss = (at.point - p).length();
+                            if miss < err {
+                                x = trial;
+                                err = miss;
+                                b = at;
+                                moved = true;
+                                break;
+                            }
+                            t *= 0.5;
+                        }
+                        if !moved {
+                            break;
+                        }
+                    }
                     let v = (i + nx * j) as usize;
                     field[3 * v..3 * v + 3].copy_from_slice(&[x.x - p.x, x.y - p.y, x.z - p.z]);
                     residual[v] = err;

@@ -17,7 +17,7 @@ use crate::images::regions;
 use crate::init::skinning::SkinningWeights;
 use crate::volume::{Affine, Grid};
 
-/// Quasi-Newton inversion steps per voxel (each with up to five halvings).
+/// Newton-like inversion steps per voxel.
 pub const INVERSION_ITERATIONS: u32 = 30;
 
 /// The initial field and how well the blend was inverted, where the backend computes.

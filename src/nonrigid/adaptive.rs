@@ -213,9 +213,8 @@ const MAX_LNCC_RADIUS: usize = 8;
 /// New points a refinement needs before it optimises (fewer wait for the level's next
 /// refinement): each optimisation costs its level's L-BFGS run whatever the points it adds,
 /// and one to three new points in coarse cells lowered the cost little for a whole run at the
-/// finest level. Measured on the knee pairs and the half phantom (BENCHMARKS.md, sixteenth
-/// session): as accurate within 0.02 mm, most pairs more; 208 → 190 evaluations on the
-/// bench's pair.
+/// finest level. Measured with the L-BFGS change beside it on the knee pairs and the half
+/// phantoms (BENCHMARKS.md, sixteenth session): most pairs within 0.01 mm, one 0.05 mm worse.
 const FEWEST_TO_OPTIMISE: usize = 4;
 
 /// Most L-BFGS iterations per refinement.
