@@ -40,8 +40,8 @@ pub struct RegisterArgs {
     /// How the bone motions are blended across the soft tissue (init.blending).
     #[arg(long, value_enum)]
     pub blending: Option<Blending>,
-    /// How far a small bone's tissue reaches, e.g. 1,1.5,2 (init.reach): several limits are
-    /// tried and the best fit to the target kept; one fixes it.
+    /// How far a small bone's tissue reaches, e.g. 1,1.5,2 (init.reach): several rising limits
+    /// are tried and the limit where the fit to the target peaks kept; one fixes it.
     #[arg(long, value_delimiter = ',')]
     pub reach: Option<Vec<f64>>,
     /// Adaptive stage: L-BFGS iterations per refinement, per level coarse to fine, e.g. 40x30x20.

@@ -94,8 +94,9 @@ pub struct InitOptions {
     /// Limits of how far a small segment's tissue reaches (skinning::reach_scale: 1 as far
     /// as its distance, 2 twice as far as a bone of the largest segment's size would): each
     /// is tried on a coarse grid, and the limit kept is where the initialised image's local
-    /// correlation with the target peaks (crate::init::reach); one value fixes it. The right limit differs between the
-    /// project's phantom (2) and the real knee bent by the independent generator (1).
+    /// correlation with the target peaks (crate::init::reach); one value fixes it. Rising. The
+    /// right limit differs between the project's phantom (2) and the real knee bent by the
+    /// independent generator (1).
     pub reach: Vec<f64>,
 }
 
@@ -826,9 +827,9 @@ struct Blend<'a, B: Backend> {
 pub type ToSource<'a, B> = &'a dyn Fn(DeviceImage<B>) -> Result<DeviceImage<B>>;
 
 impl<B: Backend> Blend<'_, B> {
-    /// The blend inverted on `target`, its folds repaired, with the reach limit among
-    /// `options.reach` whose field `judge` scores highest once brought to the source
-    /// (`to_source`): the initial field where the backend computes.
+    /// The blend inverted on `target`, its folds repaired, with the reach limit where the
+    /// scores `judge` gives `options.reach`'s fields, brought to the source (`to_source`),
+    /// peak: the initial field where the backend computes.
     fn field(
         &self,
         backend: &B,

@@ -127,10 +127,12 @@ pub fn choose<B: Backend>(
     Ok(ReachChoice { limit, tried })
 }
 
-/// The index of the best fit among `tried`, the first of equals.
+/// The index of the best fit among `tried`, the first of equals; a NaN fit is never best
+/// unless every fit is NaN.
 fn best_of(tried: &[ReachTried]) -> usize {
     (1..tried.len()).fold(0, |best, i| {
-        match tried[i].local_correlation > tried[best].local_correlation {
+        let (this, kept) = (tried[i].local_correlation, tried[best].local_correlation);
+        match this > kept || (kept.is_nan() && !this.is_nan()) {
             true => i,
             false => best,
         }
@@ -138,9 +140,9 @@ fn best_of(tried: &[ReachTried]) -> usize {
 }
 
 /// The limit at the vertex of the parabola through three candidates (rising limits), within
-/// their limits; where the parabola is not concave (the fits fall or rise ever faster, or lie
-/// on a line) the best one's limit. The vertex moves continuously with the fits, from the best
-/// limit's neighbourhood to the edges.
+/// their limits; where the parabola is not concave (the fits fall ever slower or rise ever
+/// faster, or lie on a line) the best one's limit. The vertex moves continuously with the fits
+/// (not where the middle one fits worst and the outer two tie, which concave fits never do).
 fn peak(three: &[ReachTried]) -> f64 {
     let [(x0, y0), (x1, y1), (x2, y2)] =
         [0, 1, 2].map(|i| (three[i].limit, three[i].local_correlation));
@@ -151,7 +153,8 @@ fn peak(three: &[ReachTried]) -> f64 {
         return three[best_of(three)].limit;
     }
     // The parabola's slope d0 + curvature (2x − x0 − x1) vanishes at its vertex.
-    (0.5 * (x0 + x1 - d0 / curvature)).clamp(x0, x2)
+    // max/min rather than clamp: no panic should limits ever arrive unordered.
+    (0.5 * (x0 + x1 - d0 / curvature)).max(x0).min(x2)
 }
 
 #[cfg(test)]
@@ -186,8 +189,8 @@ mod tests {
     }
 
     #[test]
-    fn fits_that_fall_or_rise_ever_faster_keep_the_best_limit() {
-        // The real knee bent by the generator: the fit falls with the limit.
+    fn convex_fits_keep_the_best_limit() {
+        // The real knee bent by the generator: the fit falls with the limit, ever slower.
         assert_eq!(
             peak(&tried([(1.0, 0.840), (1.5, 0.802), (2.0, 0.782)])),
             1.0

@@ -61,8 +61,8 @@ pub const MAX_REACH: f64 = 2.0;
 /// 1.50 / 2.56 mm without scaling). Where the truth lets tissue follow the nearest bone
 /// whatever its size (the real knee bent by the independent generator) the scaling costs
 /// accuracy instead: limit 3 → 2 → none, 2 mm 45° 2.04 → 1.97 → 1.05 mm. Which holds depends
-/// on the joint and the scan, so the initialisation tries several limits and keeps the one
-/// whose initialised image correlates best with the target (crate::init::reach). A small
+/// on the joint and the scan, so the initialisation tries several limits and keeps the limit
+/// where its initialised image's correlation with the target peaks (crate::init::reach). A small
 /// bone moving with a large one (the fibula with the tibia) reaches as far as the large one:
 /// scaled as a bone of its own, it left the tissue around it to the femur (the knee at 90°:
 /// 37 mm off there in the initial field, 8 mm as the segment).

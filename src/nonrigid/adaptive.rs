@@ -262,7 +262,7 @@ pub struct Adaptive {
     /// (voxels of that grid): R is evaluated at the lattice's nodes and interpolated between
     /// them.
     pub lattice: (Grid, [usize; 3]),
-    /// Record per refinement.
+    /// Record per refinement that optimised.
     pub stages: Vec<StageReport>,
     /// What the optimiser's cost evaluations moved between host and device.
     pub evaluations: Evaluations,
@@ -766,7 +766,9 @@ impl<'a, B: Backend> LevelRun<'a, B> {
         if *waiting == 0 || (*waiting < FEWEST_TO_OPTIMISE && !last) {
             progress.step(&match added {
                 0 => format!("{refinement}: no new points"),
-                _ => format!("{refinement}: +{added} points, optimised with the next refinement's"),
+                _ => format!(
+                    "{refinement}: +{added} points, left to a later refinement of the level"
+                ),
             });
             return Ok(None);
         }
