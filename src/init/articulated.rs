@@ -827,9 +827,10 @@ struct Blend<'a, B: Backend> {
 pub type ToSource<'a, B> = &'a dyn Fn(DeviceImage<B>) -> Result<DeviceImage<B>>;
 
 impl<B: Backend> Blend<'_, B> {
-    /// The blend inverted on `target`, its folds repaired, with the reach limit where the
-    /// scores `judge` gives `options.reach`'s fields, brought to the source (`to_source`),
-    /// peak: the initial field where the backend computes.
+    /// The blend inverted on `target`, its folds repaired, with the reach limit
+    /// [`reach::choose`] keeps from `options.reach` (each candidate's field brought to the
+    /// source by `to_source` and scored by `judge`): the initial field where the backend
+    /// computes.
     fn field(
         &self,
         backend: &B,

@@ -645,8 +645,14 @@ pub fn register<B: Backend>(
         // Points added but not yet optimised (a refinement that added too few to pay for it).
         let mut waiting = 0;
         for &wanted in &options.cell_levels {
-            let points = (&mut points, &mut waiting);
-            stages.extend(run.refine(wanted, points, &evaluator, &evaluations, progress)?);
+            stages.extend(run.refine(
+                wanted,
+                &mut points,
+                &mut waiting,
+                &evaluator,
+                &evaluations,
+                progress,
+            )?);
         }
     }
     let (coefficients, _) = solve(&points, options.smoothing)?;
@@ -752,7 +758,8 @@ impl<'a, B: Backend> LevelRun<'a, B> {
     fn refine(
         &self,
         wanted: usize,
-        (points, waiting): (&mut Vec<ControlPoint>, &mut usize),
+        points: &mut Vec<ControlPoint>,
+        waiting: &mut usize,
         evaluator: &Evaluator<B>,
         evaluations: &std::cell::Cell<Evaluations>,
         progress: &dyn Progress,
