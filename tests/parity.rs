@@ -204,14 +204,37 @@ fn jacobian_parity_at_odd_sizes() {
     }
 }
 
+/// Every element within `abs + rel × |cpu|`; prints how many are not and the worst, so that a
+/// driver's failure shows its whole extent rather than the first element out of bounds.
 fn close(name: &str, got: &[f32], want: &[f32], abs: f32, rel: f32) {
+    close_but_a_few(name, (got, want), (abs, rel), 0);
+}
+
+/// As `close`, but up to `few` elements may miss the tolerance, each by at most 10×: for sums
+/// of trilinear gradients, which jump at cell faces. A hardware driver fuses multiply-adds in a
+/// sample's position (Vulkan allows it, WGSL cannot forbid it), so a sample within an ulp of a
+/// face can fall in the neighbouring cell, whose gradient differs by the image's second
+/// difference (measured on an NVIDIA H200: 3 of 15 979 rigid_gn partials, 1.7× the tolerance).
+fn close_but_a_few(name: &str, (got, want): (&[f32], &[f32]), (abs, rel): (f32, f32), few: usize) {
     assert_eq!(got.len(), want.len(), "{name}: lengths");
-    for (i, (g, w)) in got.iter().zip(want).enumerate() {
-        assert!(
-            (g - w).abs() <= abs + rel * w.abs(),
-            "{name}[{i}]: gpu {g} vs cpu {w}"
+    let excess = |(g, w): (&f32, &f32)| (g - w).abs() / (abs + rel * w.abs());
+    let ratios: Vec<f32> = got.iter().zip(want).map(excess).collect();
+    let (worst, ratio) =
+        ratios.iter().enumerate().fold(
+            (0, 0.0f32),
+            |m, (i, &r)| if r > m.1 || r.is_nan() { (i, r) } else { m },
         );
-    }
+    let beyond = ratios.iter().filter(|&&r| r.is_nan() || r > 1.0).count();
+    eprintln!(
+        "{name}: {beyond} of {} beyond tolerance; worst [{worst}] gpu {} vs cpu {} ({ratio:.2}× the tolerance)",
+        got.len(),
+        got.get(worst).unwrap_or(&0.0),
+        want.get(worst).unwrap_or(&0.0)
+    );
+    assert!(
+        beyond <= few && (beyond == 0 || ratio <= 10.0),
+        "{name}: {beyond} elements beyond tolerance (at most {few} allowed, each within 10×)"
+    );
 }
 
 #[test]
@@ -297,9 +320,11 @@ fn rigid_kernels_parity() {
     let images = (&source, &mask, &target);
     let cpu = rigid_outputs(&CpuBackend, images, &motion, &candidates);
     let got = rigid_outputs(gpu, images, &motion, &candidates);
-    // Column sums of up to 23 products of gradients (~10) and lever arms (~30 mm).
+    // Column sums of up to 23 products of gradients (~10) and lever arms (~30 mm); a few may
+    // hold a sample on a cell face (close_but_a_few). 0.1% of them at most.
     let narrow = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
-    close("rigid_gn", &narrow(&got[0]), &narrow(&cpu[0]), 1e-2, 1e-4);
+    let partials = (&narrow(&got[0])[..], &narrow(&cpu[0])[..]);
+    close_but_a_few("rigid_gn", partials, (1e-2, 1e-4), cpu[0].len() / 1000);
     close(
         "rigid_score",
         &narrow(&got[1]),
@@ -422,33 +447,46 @@ fn skinning_kernels_parity() {
             )
             .unwrap(),
         );
-        // This fixture's labels alternate every 7 voxels, so the blend is discontinuous and
-        // does not invert everywhere; where it does not, eight steps of a non-converging
-        // iteration amplify ulp differences (sqrt, division) into different iterates. Where
-        // the CPU's inversion converged (residual < 0.01 mm), every channel agrees to ulp-level
-        // differences in mm-sized coordinates; and both converge on the same voxels.
-        let converged = |out: &[f32]| out.chunks(4).filter(|c| c[3] < 0.01).count();
-        let (cpu_converged, gpu_converged) = (converged(&cpu), converged(&got));
-        assert!(
-            cpu_converged > cpu.len() / 8
-                && cpu_converged.abs_diff(gpu_converged) <= cpu.len() / 400,
-            "{blending:?}: converged on {cpu_converged} (cpu) and {gpu_converged} (gpu) voxels"
-        );
-        let keep = |out: &[f32]| -> Vec<f32> {
-            out.chunks(4)
-                .zip(cpu.chunks(4))
-                .filter(|(_, c)| c[3] < 0.01)
-                .flat_map(|(o, _)| o.to_vec())
-                .collect()
-        };
-        close(
-            &format!("skin_blend {blending:?}"),
-            &keep(&got),
-            &keep(&cpu),
-            2e-3,
-            1e-4,
-        );
+        blends_agree(&format!("skin_blend {blending:?}"), &got, &cpu);
     }
+}
+
+/// Two skin_blend outputs (x, y, z and the residual per voxel; residual < 0.01 mm where the
+/// inversion converged) agree. This fixture's labels alternate every 7 voxels, so the blend is
+/// discontinuous and folds. Where it does not invert, eight steps of a non-converging iteration
+/// amplify ulp differences (sqrt, division) into different iterates; where it folds, a point
+/// has several preimages, and which one the iteration reaches follows near-ties between its
+/// starting points (each bone's inverse), which a driver's fused multiply-adds can tip (NVIDIA
+/// H200: 16 of 1142 converged voxels; lavapipe: none). So: both converge on the same voxels but
+/// 1 in 100; where both did, at most 5% lie on another preimage (> 0.1 mm apart) and the rest
+/// agree within ulps plus their residuals.
+fn blends_agree(name: &str, got: &[f32], cpu: &[f32]) {
+    let converged = |out: &[f32]| out[3] < 0.01;
+    let apart = |g: &[f32], c: &[f32]| (0..3).map(|k| (g[k] - c[k]).abs()).fold(0.0, f32::max);
+    let voxels: Vec<(&[f32], &[f32])> = got.chunks(4).zip(cpu.chunks(4)).collect();
+    let cpu_converged = voxels.iter().filter(|(_, c)| converged(c)).count();
+    let one_only = voxels
+        .iter()
+        .filter(|(g, c)| converged(g) != converged(c))
+        .count();
+    let both: Vec<_> = voxels
+        .iter()
+        .filter(|(g, c)| converged(g) && converged(c))
+        .collect();
+    let other = both.iter().filter(|(g, c)| apart(g, c) > 0.1).count();
+    let worst = both
+        .iter()
+        .filter(|(g, c)| apart(g, c) <= 0.1)
+        .map(|(g, c)| apart(g, c) / (2e-3 + 2.0 * (g[3] + c[3])))
+        .fold(0.0f32, f32::max);
+    eprintln!(
+        "{name}: {cpu_converged} of {} voxels converged on the cpu, {one_only} on one backend \
+         only, {other} of {} on another preimage; the rest {worst:.2}× their tolerance apart",
+        voxels.len(),
+        both.len()
+    );
+    assert!(cpu_converged > voxels.len() / 8 && one_only <= voxels.len() / 100);
+    assert!(other <= both.len() / 20 && worst <= 1.0);
 }
 
 /// warp_image, then the gain's kernels on it (terms, a pyramid level down, ratio, applied back
@@ -620,14 +658,20 @@ fn evaluate<B: Backend>(
     }
 }
 
+/// Every element within `rel ×` the largest |cpu| value; prints the worst.
 fn close_f64(name: &str, got: &[f64], want: &[f64], rel: f64) {
     assert_eq!(got.len(), want.len(), "{name}: lengths");
     let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-30);
-    let worst = got
+    let (at, worst) = got
         .iter()
         .zip(want)
-        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-    eprintln!("{name}: max |gpu - cpu| = {worst:e} (largest value {scale:e})");
+        .map(|(a, b)| (a - b).abs())
+        .enumerate()
+        .fold((0, 0.0f64), |m, (i, d)| if d > m.1 { (i, d) } else { m });
+    eprintln!(
+        "{name}: max |gpu - cpu| = {worst:e} at [{at}] (largest value {scale:e}; {:.2e} of it)",
+        worst / scale
+    );
     assert!(worst <= rel * scale, "{name}: {worst} > {rel} × {scale}");
 }
 
@@ -997,7 +1041,10 @@ fn distance_and_moments_kernels_parity() {
     let got = distances_and_moments(gpu, &grid, &index);
     // Square roots of sums of squared mm: ulps.
     close("edt", &got.0, &cpu.0, 1e-4, 1e-5);
-    close_f64("moments", &got.1, &cpu.1, 1e-9);
+    // Sums (f64) of voxel positions and their products; a driver that fuses multiply-adds
+    // moves each f32 position by an ulp (6e-8 of it): 1.2e-8 of the largest moment measured
+    // on an NVIDIA H200, none on lavapipe.
+    close_f64("moments", &got.1, &cpu.1, 1e-7);
     assert!(cpu.1[0] > 0.0 && cpu.0.iter().all(|d| d.is_finite()));
 }
 
@@ -1153,10 +1200,12 @@ fn local_correlation_cost_kernels_parity() {
     let want = lncc_cost_outputs(&CpuBackend, &grid, images, ldims, step);
     let got = lncc_cost_outputs(gpu, &grid, images, ldims, step);
     let wide = |v: &[f32]| v.iter().map(|&x| x as f64).collect::<Vec<f64>>();
-    // Equal to the bit on lavapipe (measured); a driver that fuses multiply-adds in the box
-    // sums of ≤ 125 products of values ~100 moves ρ² and its terms by a few ulps of the sums.
+    // Equal to the bit on lavapipe (measured). A driver that fuses multiply-adds moves the box
+    // sums of ≤ 125 products of values ~100 by a few ulps, and a window's variance Σa²/n − m²
+    // loses to cancellation what its mean square exceeds it by: terms, which divide by two
+    // variances, moved by 4.4e-4 of the largest on an NVIDIA H200.
     for (k, name) in ["terms", "rows", "gradient"].iter().enumerate() {
-        close_f64(name, &wide(&got[k]), &wide(&want[k]), 1e-4);
+        close_f64(name, &wide(&got[k]), &wide(&want[k]), 2e-3);
     }
     assert!(
         want[2].iter().any(|&g| g != 0.0),
