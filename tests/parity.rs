@@ -457,7 +457,7 @@ fn skinning_kernels_parity() {
 /// amplify ulp differences (sqrt, division) into different iterates; where it folds, a point
 /// has several preimages, and which one the iteration reaches follows near-ties between its
 /// starting points (each bone's inverse), which a driver's fused multiply-adds can tip (NVIDIA
-/// H200: 16 of 1142 converged voxels; lavapipe: none). So: both converge on the same voxels but
+/// H200: 15–16 of 1142 converged voxels; lavapipe: none). So: both converge on the same voxels but
 /// 1 in 100; where both did, at most 5% lie on another preimage (> 0.1 mm apart) and the rest
 /// agree within ulps plus their residuals.
 fn blends_agree(name: &str, got: &[f32], cpu: &[f32]) {

@@ -323,7 +323,7 @@ pub fn unfold(
 /// The voxels [`unfold`] lifts: a flag per voxel, and the voxels that may be flagged (those of
 /// the last sweep and those flagged since), from which each sweep takes the flagged ones in
 /// index order. Each push refreshes seven determinants; a sorted set of the voxels paid a tree
-/// update for each (at 1 mm, 90°: most of 6.9 s on the host).
+/// update for each (the push at 1 mm, 90°: 6.9 → 6.0 s with these flags and `Stencil::around`).
 struct ToLift {
     flag: Vec<bool>,
     maybe: Vec<usize>,
