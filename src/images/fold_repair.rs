@@ -21,7 +21,7 @@ pub const FOLD_THRESHOLD: f32 = 0.05;
 /// Inversion residual, as a share of the finest voxel spacing, below which a voxel mapped into a
 /// bone moves with it (a solved pull-back of a bone voxel is exact to float precision).
 const RIGID_RESIDUAL: f32 = 0.1;
-/// Most repair rounds.
+/// Most smoothing rounds.
 const REPAIR_ROUNDS: usize = 30;
 /// Voxels around each folded voxel that are smoothed with it.
 const REPAIR_MARGIN: usize = 2;
@@ -35,7 +35,7 @@ pub struct FoldRepair {
     pub folded_before: usize,
     /// Voxels with det ≤ 0.05 after both steps, bone voxels included.
     pub folded_after: usize,
-    /// Rounds of local smoothing.
+    /// Rounds of local smoothing kept (the round that did not lower the count is not).
     pub rounds: usize,
     /// Steps of the targeted push.
     pub unfold_steps: usize,
@@ -109,7 +109,8 @@ pub struct SourceLabels<'a, B: Backend> {
 
 /// Removes the folds of an initial field. First it smooths the displacement locally — the
 /// voxels with det J ≤ 0.05 and two voxels around them, by 27-neighbour averaging — which
-/// undoes most folds and keeps the field smooth; then [`unfold`] lifts what is left. Both leave
+/// undoes most folds and keeps the field smooth, round after round while a round lowers their
+/// count; then [`unfold`] lifts what is left. Both leave
 /// bone voxels untouched so bones stay rigid, and do not push a soft-tissue voxel's source point
 /// into a bone (that would grow the bone in the initialised source: at 60° the patella by 10%),
 /// short of [`unfold`]'s last resort, one voxel at a fold no push can lift.
@@ -146,7 +147,6 @@ pub fn repair_folds<B: Backend>(
         for _ in 0..SWEEPS_PER_ROUND {
             smoothed = backend.fold_smooth(&lookup, &smoothed, &region, &labels.device.data)?;
         }
-        report.rounds += 1;
         let smoothed = DeviceImage {
             grid: grid.clone(),
             data: smoothed,
@@ -159,6 +159,7 @@ pub fn repair_folds<B: Backend>(
             break;
         }
         (field, det, folds) = (smoothed, smoothed_det, smoothed_folds);
+        report.rounds += 1;
     }
     if folds.low > 0 {
         (field, report.folded_after, report.unfold_steps) =
