@@ -110,10 +110,10 @@ pub struct SourceLabels<'a, B: Backend> {
 /// Removes the folds of an initial field. First it smooths the displacement locally — the
 /// voxels with det J ≤ 0.05 and two voxels around them, by 27-neighbour averaging — which
 /// undoes most folds and keeps the field smooth, round after round while a round lowers their
-/// count; then [`unfold`] lifts what is left. Both leave
-/// bone voxels untouched so bones stay rigid, and do not push a soft-tissue voxel's source point
-/// into a bone (that would grow the bone in the initialised source: at 60° the patella by 10%),
-/// short of [`unfold`]'s last resort, one voxel at a fold no push can lift.
+/// count; then [`unfold`] lifts what is left. Both leave bone voxels untouched so bones stay
+/// rigid, and do not push a soft-tissue voxel's source point into a bone (that would grow the
+/// bone in the initialised source: at 60° the patella by 10%), short of [`unfold`]'s last
+/// resort, one voxel at a fold no push can lift.
 /// A bone voxel is one whose source point lies in one of the `bones` of `labels` *and* whose
 /// blend was inverted (`residual`, mm, below [`RIGID_RESIDUAL`] of a voxel): where the blend
 /// folds, the pull-back can stop inside a bone without solving it, and those voxels are
