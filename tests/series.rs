@@ -27,7 +27,9 @@ fn registered(inputs: Inputs, options: &RegisterOptions) -> Registration {
 }
 
 /// Quarter phantom (5 mm voxels), 0° → 60° → 120° against 0° → 120°: mean field error over
-/// the target's body (measured: 2.82 against 6.98 mm).
+/// the target's body (measured: 2.13 against 3.34 mm; 2.16 against 6.00 mm before the blend's
+/// fold smoothing stopped where it stalls, which had smoothed the straight 120° field for 30
+/// rounds).
 #[test]
 fn chaining_through_a_middle_pose_beats_registering_straight_to_120_degrees() {
     let source = phantom(0.0, 1);
@@ -64,7 +66,7 @@ fn chaining_through_a_middle_pose_beats_registering_straight_to_120_degrees() {
     let (chained_mm, straight_mm) = (error(&chained), error(&straight));
     eprintln!("120°: chained {chained_mm:.2} mm, straight {straight_mm:.2} mm");
     assert!(
-        chained_mm < 0.6 * straight_mm && chained_mm < 3.5,
+        chained_mm < 0.75 * straight_mm && chained_mm < 3.5,
         "chained {chained_mm} mm against straight {straight_mm} mm"
     );
     // The bones are registered from the source, the middle pose's motions tried first: the
