@@ -38,7 +38,8 @@ struct SkinBlendParams {
 
 // A voxel whose blend lands within this of its target point needs no more steps (mm): a
 // thousandth of a millimetre, far below any registration's error; the steps converge
-// linearly (the weights' derivative is left out), and 1e-4 cost a fifth more time.
+// linearly (the weights' derivative is left out), and 1e-4 took a quarter longer (half phantom
+// 60°: 2.04 against 1.62 s).
 const CONVERGED_MM: f32 = 1e-3;
 @group(0) @binding(1) var<storage, read> weight: array<f32>;
 @group(0) @binding(2) var<storage, read> bone_of_voxel: array<f32>;

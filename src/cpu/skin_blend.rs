@@ -8,7 +8,8 @@ use rayon::prelude::*;
 
 /// A voxel whose blend lands within this of its target point needs no more steps (mm): a
 /// thousandth of a millimetre, far below any registration's error; the steps converge
-/// linearly (the weights' derivative is left out), and 1e-4 cost a fifth more time.
+/// linearly (the weights' derivative is left out), and 1e-4 took a quarter longer (half phantom
+/// 60°: 2.04 against 1.62 s).
 const CONVERGED_MM: f32 = 1e-3;
 /// The miss before any candidate is chosen (the shader's literal).
 const NOT_CHOSEN: f32 = 3.4e38;
