@@ -7,10 +7,11 @@ FIELD is a displacement field in the ITK convention (posereg's field.nii.gz, ela
 deformationField.nii, ANTs' warp, SimpleITK's): on the target grid, LPS mm, target point ->
 source point. Prints the mean field error over the body, the bones and the soft tissue (the
 pair's masks), and the folded share of the body (det J <= 0, central differences in world
-space) with bone contacts apart: voxels whose difference stencil maps wholly into bones of
-the source labels, two different ones, where a field that keeps bones rigid jumps from one
-bone's motion to the other's as they slide on each other (the pair's own true field has
-det J <= 0 there too: the determinant measures the slide, not a fold); with --bones, each
+space) with bone contacts apart: voxels whose difference stencil spans two bones of the
+source labels (along one axis its two neighbours in two different bones, or all six neighbours
+in bones, two different ones), where a field that keeps bones rigid jumps from one bone's
+motion to the other's as they slide on each other (the pair's own true field has det J <= 0
+at many of them too: the determinant measures the slide, not a fold); with --bones, each
 bone's rotation error (degrees) and its translation error at the
 bone's centroid (mm) against truth.json (RAS, source -> target, posereg's transform format).
 The soft-tissue error is also split by how the pair's own truth changes the tissue's volume
@@ -43,22 +44,30 @@ def jacobian_determinant(field):
 
 
 def bone_contacts(field, pair):
-    """True where the voxel's six face neighbours (the voxel itself on a face) all map, through
-    `field`, into bones of the pair's source labels (nearest voxel), two different ones: the
-    determinant there is a function of the bones' motions alone."""
+    """True where the voxel's difference stencil (its six face neighbours, the voxel itself on a
+    face) spans two bones of the pair's source labels (nearest voxel) through `field`: along one
+    axis its two neighbours in two different bones, or all six in bones, two different ones. A
+    difference across the jump from one bone's motion to the other's measures their slide, not
+    the field's derivative."""
     labels = sitk.ReadImage(os.path.join(pair, "source_labels.nii.gz"))
     transform = sitk.DisplacementFieldTransform(sitk.Image(field))
     mapped = sitk.GetArrayFromImage(sitk.Resample(labels, field, transform, sitk.sitkNearestNeighbor, 0))
     padded = np.pad(mapped, 1, mode="edge")
     core = tuple(slice(1, -1) for _ in range(3))
+    spans_along_an_axis = np.zeros(mapped.shape, bool)
     neighbours = []
     for axis in range(3):
+        pair_of = []
         for step in (-1, 1):
             s = list(core)
             s[axis] = slice(1 + step, padded.shape[axis] - 1 + step)
-            neighbours.append(padded[tuple(s)])
+            pair_of.append(padded[tuple(s)])
+        lo, hi = pair_of
+        spans_along_an_axis |= (lo > 0) & (hi > 0) & (lo != hi)
+        neighbours += pair_of
     neighbours = np.stack(neighbours)
-    return (neighbours > 0).all(0) & (neighbours != neighbours[0]).any(0)
+    all_in_bones = (neighbours > 0).all(0) & (neighbours != neighbours[0]).any(0)
+    return spans_along_an_axis | all_in_bones
 
 
 KEPT_VOLUME = (0.8, 1.25)

@@ -230,10 +230,10 @@ pub trait Backend {
     ) -> Result<Self::Buffer<f32>>;
 
     /// Per chunk of abi::STATS_CHUNK voxels of a Jacobian determinant `det`, the bone contacts
-    /// at or below the threshold apart (voxels whose six stencil neighbours are all `held`, in
-    /// two different bones; `held` values are bone numbers): its minimum, the voxels ≤ 0, the
-    /// voxels ≤ `params`' threshold, and those of them not `held` (> 0); then the bone contacts
-    /// ≤ 0 (shaders/fold_stats.wgsl).
+    /// at or below the threshold apart (voxels whose stencil spans two bones `held`: along one
+    /// axis, or all six neighbours held; `held` values are bone numbers): its minimum, the
+    /// voxels ≤ 0, the voxels ≤ `params`' threshold, and those of them not `held` (> 0); then
+    /// the bone contacts ≤ 0 (shaders/fold_stats.wgsl).
     fn fold_stats(
         &self,
         params: &ThresholdParams,

@@ -53,10 +53,11 @@ fn face_neighbour(c: [u32; 3], axis: usize, step: i32, dims: [u32; 3]) -> u32 {
     voxel_index(p[0], p[1], p[2], dims)
 }
 
-/// Whether voxel v is a bone contact: its six stencil neighbours (the voxel itself on a face)
-/// all held, in two different bones (`held` values are bone numbers). Its determinant is then a
-/// function of the bones' motions alone, and where they slide on each other it measures the
-/// slide.
+/// Whether voxel v is a bone contact (`held` values are bone numbers): along one axis its two
+/// stencil neighbours (the voxel itself on a face) held in two different bones, or all six held,
+/// in two different bones. Its determinant then takes a difference across the jump from one
+/// bone's rigid motion to the other's, or is a function of the bones' motions alone; where they
+/// slide on each other it measures the slide.
 fn is_contact(held: &[f32], dims: [u32; 3], v: u32) -> bool {
     let c = [
         v % dims[0],
@@ -66,13 +67,16 @@ fn is_contact(held: &[f32], dims: [u32; 3], v: u32) -> bool {
     let first = held[face_neighbour(c, 0, -1, dims) as usize];
     let mut all_held = true;
     let mut two_bones = false;
-    for s in 0..6u32 {
-        let n = face_neighbour(c, (s / 2) as usize, 2 * (s % 2) as i32 - 1, dims);
-        let other = held[n as usize];
-        all_held = all_held && is_held(other);
-        two_bones = two_bones || other != first;
+    let mut spans_along_an_axis = false;
+    for axis in 0..3 {
+        let lo = held[face_neighbour(c, axis, -1, dims) as usize];
+        let hi = held[face_neighbour(c, axis, 1, dims) as usize];
+        let both_held = is_held(lo) && is_held(hi);
+        all_held = all_held && both_held;
+        two_bones = two_bones || lo != first || hi != first;
+        spans_along_an_axis = spans_along_an_axis || (both_held && lo != hi);
     }
-    all_held && two_bones
+    spans_along_an_axis || (all_held && two_bones)
 }
 
 /// Fills `mark` (1 float per voxel) with 1 on the voxels not held whose value is at most the
@@ -193,5 +197,24 @@ mod tests {
         let mut stats = vec![0.0; FOLD_STATS_WIDTH * params.chunks()];
         fold_stats(&params, &det, &held, &mut stats);
         assert_eq!(stats, [-0.25, 1.0, 1.0, 1.0, 1.0]);
+    }
+
+    /// A 5 × 3 slice with det ≤ 0 at (2, 1), tissue between bone 1 (x = 1) and bone 2 (x = 3)
+    /// with tissue above and below it: its x difference spans the two bones, a contact though
+    /// not every neighbour is held; and at (4, 2), tissue beside bone 2 only, a fold.
+    #[test]
+    fn a_stencil_spanning_two_bones_along_one_axis_is_a_contact() {
+        let grid = Grid::new([5, 3, 1], Affine::identity()).unwrap();
+        let mut det = [1.0; 15];
+        det[5 + 2] = -2.0;
+        det[10 + 4] = -0.5;
+        let mut held = [0.0; 15];
+        held[5 + 1] = 1.0;
+        held[5 + 3] = 2.0;
+        held[10 + 3] = 2.0;
+        let params = ThresholdParams::new(&grid, 0.05);
+        let mut stats = vec![0.0; FOLD_STATS_WIDTH * params.chunks()];
+        fold_stats(&params, &det, &held, &mut stats);
+        assert_eq!(stats, [-0.5, 1.0, 1.0, 1.0, 1.0]);
     }
 }

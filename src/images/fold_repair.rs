@@ -41,11 +41,12 @@ pub struct FoldRepair {
     pub unfold_steps: usize,
 }
 
-/// A Jacobian determinant's fold statistics. Bone contacts — voxels whose stencil neighbours
-/// all move with bones, two different ones, so that the field jumps from one bone's rigid
-/// motion to the other's as the bones slide on each other — are counted apart: a determinant
-/// across that jump measures the slide, not a fold, and no field with rigid bones can change
-/// it.
+/// A Jacobian determinant's fold statistics. Bone contacts — voxels whose difference stencil
+/// spans two bones (along one axis its two neighbours move with two different bones, or all six
+/// move with bones, two different ones), so that a difference takes the jump from one bone's
+/// rigid motion to the other's as the bones slide on each other — are counted apart: a
+/// determinant across that jump measures the slide, not a fold, and no field with rigid bones
+/// can change it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Folds {
     /// The smallest determinant, bone contacts at or below [`FOLD_THRESHOLD`] aside.
@@ -264,9 +265,14 @@ const UNFOLD_TARGET: f32 = 0.3;
 /// where every push of a tissue voxel beside a folded bone voxel would, it takes the bone's
 /// motion instead (`bone_extended`: at a deep bend, the voxel between femur and tibia mapped
 /// to the wrong side of the femur's surface — 2 mm 90° knee: the last 3 folds of the body).
-/// Bone contacts (stencil neighbours all in bones, two different ones) are left: nothing that
-/// keeps bones rigid lifts them (see [`Folds`]). `det` is the field's Jacobian determinant (the
-/// jacobian kernel's). Returns the steps taken; the caller counts what is left with the kernel.
+/// Bone contacts are left (see [`Folds`]), in two passes. The first lifts every fold but the
+/// voxels whose six stencil neighbours all lie in bones, whose determinant no push changes.
+/// Where folds are left, the second leaves also the voxels whose difference along one axis
+/// spans two bones: tissue beside them can often lift them (the first pass does), but where it
+/// cannot, the pushes on them pin the folds beside them (1 mm 90° knee: five such voxels on the
+/// femur–tibia contact held a sixth, on its rim, folded). `det` is the field's Jacobian
+/// determinant (the jacobian kernel's). Returns the sweeps taken; the caller counts what is
+/// left with the kernel.
 pub fn unfold(
     field: &mut Field,
     mut det: Vec<f32>,
@@ -274,8 +280,31 @@ pub fn unfold(
     in_bone: &(dyn Fn(usize, [f32; 3]) -> bool + Sync),
 ) -> usize {
     let stencil = Stencil::new(&field.grid);
+    let folded = |det: f32| det <= FOLD_THRESHOLD;
+    let but_enclosed_by_bones = |v: usize, det: f32| folded(det) && !stencil.all_in_bones(held, v);
+    let steps = push_folds(
+        &stencil,
+        field,
+        &mut det,
+        held,
+        in_bone,
+        &but_enclosed_by_bones,
+    );
+    let but_contacts = |v: usize, det: f32| folded(det) && !stencil.is_contact(held, v);
+    steps + push_folds(&stencil, field, &mut det, held, in_bone, &but_contacts)
+}
+
+/// [`unfold`]'s sweeps over the voxels `to_lift` (voxel, det) flags, until none is left or
+/// [`UNFOLD_STEPS`] sweeps have run; returns the sweeps.
+fn push_folds(
+    stencil: &Stencil,
+    field: &mut Field,
+    det: &mut [f32],
+    held: &[f32],
+    in_bone: &(dyn Fn(usize, [f32; 3]) -> bool + Sync),
+    to_lift: &dyn Fn(usize, f32) -> bool,
+) -> usize {
     let rigid = |q: usize| held[q] > 0.0;
-    let to_lift = |v: usize, det: f32| det <= FOLD_THRESHOLD && !stencil.is_contact(held, v);
     let largest_step = field.grid.finest_spacing() as f32 / 4.0;
     // Tissue voxels that no fraction of the last step could move without entering a bone: the
     // next step leaves them and lifts the folds beside them by their other neighbours.
@@ -454,10 +483,19 @@ impl Stencil {
         determinant_and_gradient(d, self.index_per_mm)
     }
 
-    /// Whether voxel n is a bone contact: its six stencil neighbours (n itself on a face) all
-    /// held, in two different bones (`held`: bone numbers, 0 for tissue) — the host twin of
-    /// shaders/fold_stats.wgsl's.
+    /// Whether voxel n is a bone contact (`held`: bone numbers, 0 for tissue): along one axis
+    /// its two stencil neighbours held in two different bones, or all six held, in two
+    /// different bones — the host twin of shaders/fold_stats.wgsl's.
     fn is_contact(&self, held: &[f32], n: usize) -> bool {
+        let spans_along_an_axis = self
+            .around(n)
+            .iter()
+            .any(|&(lo, hi, _)| held[lo] > 0.0 && held[hi] > 0.0 && held[lo] != held[hi]);
+        spans_along_an_axis || self.all_in_bones(held, n)
+    }
+
+    /// Whether voxel n's six stencil neighbours are all held, in two different bones.
+    fn all_in_bones(&self, held: &[f32], n: usize) -> bool {
         let neighbours = &self.touched_by(n)[1..];
         let first = held[neighbours[0]];
         neighbours.iter().all(|&v| held[v] > 0.0) && neighbours.iter().any(|&v| held[v] != first)

@@ -105,9 +105,9 @@ pub struct Registration {
     pub min_jacobian: f32,
     /// Share of target voxels with determinant ≤ 0, bone contacts aside: where the map folds.
     pub folded_share: f64,
-    /// Share of target voxels with determinant ≤ 0 at a bone contact (a voxel whose stencil
-    /// neighbours all move with bones, two different ones sliding on each other: the
-    /// determinant measures the slide, not a fold).
+    /// Share of target voxels with determinant ≤ 0 at a bone contact (a voxel whose difference
+    /// stencil spans two bones sliding on each other: the determinant measures the slide, not a
+    /// fold).
     pub contact_share: f64,
     /// Factor the RBF warp was scaled by to keep the field from folding (1 when untouched).
     pub warp_scale: f64,
