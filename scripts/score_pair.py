@@ -45,13 +45,16 @@ def jacobian_determinant(field):
 
 def bone_contacts(field, pair):
     """True where the voxel's difference stencil (its six face neighbours, the voxel itself on a
-    face) spans two bones of the pair's source labels (nearest voxel) through `field`: along one
-    axis its two neighbours in two different bones, or all six in bones, two different ones. A
-    difference across the jump from one bone's motion to the other's measures their slide, not
-    the field's derivative."""
+    face) spans two bones of the pair's source labels (nearest voxel; the bones truth.json
+    lists, not other codes such as a soft-tissue label) through `field`: along one axis its two
+    neighbours in two different bones, or all six in bones, two different ones. A difference
+    across the jump from one bone's motion to the other's measures their slide, not the field's
+    derivative."""
     labels = sitk.ReadImage(os.path.join(pair, "source_labels.nii.gz"))
     transform = sitk.DisplacementFieldTransform(sitk.Image(field))
     mapped = sitk.GetArrayFromImage(sitk.Resample(labels, field, transform, sitk.sitkNearestNeighbor, 0))
+    bones = [b["label"] for b in json.load(open(os.path.join(pair, "truth.json")))["bones"]]
+    mapped = np.where(np.isin(mapped, bones), mapped, 0)
     padded = np.pad(mapped, 1, mode="edge")
     core = tuple(slice(1, -1) for _ in range(3))
     spans_along_an_axis = np.zeros(mapped.shape, bool)
