@@ -326,14 +326,10 @@ fn push_folds(
             }
             // ∂det/∂u at each neighbour in the stencil that may move, with the neighbour
             // opposite it across n.
-            let movable: Vec<(usize, Vec3, Across)> = (0..3)
+            let movable: Vec<(usize, Vec3, usize)> = (0..3)
                 .zip(stencil.around(n))
-                .flat_map(|(axis, (lo, hi, factor))| {
-                    let across = |opposite| Across { n, opposite, axis };
-                    [
-                        (hi, g[axis] * factor, across(lo)),
-                        (lo, -g[axis] * factor, across(hi)),
-                    ]
+                .flat_map(|(a, (lo, hi, factor))| {
+                    [(hi, g[a] * factor, lo), (lo, -g[a] * factor, hi)]
                 })
                 .filter(|&(q, _, _)| {
                     q != n && !rigid(q) && !refused_before.contains(&q) && !blocked.contains(&q)
@@ -344,10 +340,10 @@ fn push_folds(
                 continue;
             }
             let s = (UNFOLD_TARGET - now) / norm;
-            for (q, gq, across) in movable {
+            for (q, gq, opposite) in movable {
                 let shift = (gq * s).clamp_length_max(largest_step);
                 let moved = outside_bones(field, q, shift, in_bone)
-                    .or_else(|| bone_extended(stencil, field, held, across));
+                    .or_else(|| bone_extended(field, held, n, opposite));
                 match moved {
                     Some(moved) => field.data[q] = moved,
                     None => {
@@ -425,44 +421,19 @@ fn outside_bones(
         .find(|&moved| !in_bone(q, moved) || in_bone(q, field.data[q]))
 }
 
-/// A neighbour of a folded voxel `n` that a push would move, seen from n: `opposite` is the
-/// neighbour across n from it along `axis`.
-#[derive(Clone, Copy)]
-struct Across {
-    n: usize,
-    opposite: usize,
-    axis: usize,
-}
-
-/// The displacement that extends a bone's rigid motion to the neighbour q of the folded voxel n
-/// across from `opposite` (exact for the bone's motion), or None. Where n and `opposite` are
-/// held in the same bone, one voxel past n: 2 u(n) − u(opposite). Where n is tissue held on
-/// five sides by one bone (`opposite` and both neighbours along the other two axes): through n,
-/// with the bone's rotation completed from those two axes ([`Stencil::rigid_step`]). A tissue
-/// voxel beside a fold whose every push would enter the bone then moves with the bone instead:
-/// at a deep bend the tissue voxel between femur and tibia can be on the wrong side of the
-/// femur's surface (2 mm 90° knee), and a tissue voxel can sit in a notch of a bone's image
-/// (generator's 120° phantom); no push that stays out of the bone lifts either fold.
-fn bone_extended(
-    stencil: &Stencil,
-    field: &Field,
-    held: &[f32],
-    Across { n, opposite, axis }: Across,
-) -> Option<[f32; 3]> {
-    let bone = held[opposite];
-    if bone <= 0.0 || opposite == n {
+/// The displacement that extends the rigid motion of the bone holding voxel n one voxel past
+/// it, to the neighbour across n from `opposite` (2 u(n) − u(opposite), exact for the bone's
+/// affine motion), where n and `opposite` are held in the same bone; None otherwise. A tissue
+/// voxel beside a folded bone voxel whose every push would enter that bone then moves with the
+/// bone instead: at a deep bend the tissue voxel between femur and tibia can be on the wrong
+/// side of the femur's surface, and no push that stays out of the bone lifts the fold.
+fn bone_extended(field: &Field, held: &[f32], n: usize, opposite: usize) -> Option<[f32; 3]> {
+    let bone = held[n];
+    if bone <= 0.0 || opposite == n || held[opposite] != bone {
         return None;
     }
     let u = |v: usize| Vec3::from_array(field.data[v]);
-    if held[n] == bone {
-        return Some((2.0 * u(n) - u(opposite)).to_array());
-    }
-    if held[n] > 0.0 {
-        return None;
-    }
-    let step = stencil.rigid_step(field, held, n, axis, bone)?;
-    let towards_q = if opposite > n { -2.0 } else { 2.0 };
-    Some((u(opposite) + towards_q * step).to_array())
+    Some((2.0 * u(n) - u(opposite)).to_array())
 }
 
 /// The Jacobian kernel's finite-difference stencil on a grid, on the host: which neighbours it
@@ -472,8 +443,6 @@ struct Stencil {
     stride: [usize; 3],
     /// Row a: d(index a)/d(world mm).
     index_per_mm: [Vec3; 3],
-    /// Element a: the world step (mm) of one voxel along index axis a.
-    mm_per_index: [Vec3; 3],
 }
 
 impl Stencil {
@@ -486,39 +455,7 @@ impl Stencil {
             index_per_mm: std::array::from_fn(|a| {
                 Vec3::new(inv[(a, 0)] as f32, inv[(a, 1)] as f32, inv[(a, 2)] as f32)
             }),
-            mm_per_index: std::array::from_fn(|a| {
-                let m = &grid.affine;
-                Vec3::new(m[(0, a)] as f32, m[(1, a)] as f32, m[(2, a)] as f32)
-            }),
         }
-    }
-
-    /// The displacement's change per voxel along `axis` under the rigid motion of `bone`, from
-    /// voxel n's differences along the other two axes where both their neighbours are held in
-    /// that bone; None otherwise. With R the bone's rotation and e_a the world step of axis a,
-    /// those differences are R e_b − e_b and R e_c − e_c; R keeps cross products, so writing
-    /// e_axis in the basis (e_b, e_c, e_b × e_c) gives R e_axis.
-    fn rigid_step(
-        &self,
-        field: &Field,
-        held: &[f32],
-        n: usize,
-        axis: usize,
-        bone: f32,
-    ) -> Option<Vec3> {
-        let u = |v: usize| Vec3::from_array(field.data[v]);
-        let around = self.around(n);
-        let [b, c] = [(axis + 1) % 3, (axis + 2) % 3];
-        let turned = |a: usize| {
-            let (lo, hi, factor) = around[a];
-            let inside = lo != n && hi != n && held[lo] == bone && held[hi] == bone;
-            inside.then(|| self.mm_per_index[a] + (u(hi) - u(lo)) * factor)
-        };
-        let (rb, rc) = (turned(b)?, turned(c)?);
-        let (eb, ec) = (self.mm_per_index[b], self.mm_per_index[c]);
-        let basis = glam::Mat3::from_cols(eb, ec, eb.cross(ec));
-        let k = basis.inverse() * self.mm_per_index[axis];
-        Some(k.x * rb + k.y * rc + k.z * rb.cross(rc) - self.mm_per_index[axis])
     }
 
     /// The neighbours differenced along each axis at voxel n, and the factor on their
@@ -629,42 +566,6 @@ mod tests {
                 );
             }
         }
-    }
-
-    /// On an oblique grid with unequal spacings, a field that is one rigid motion everywhere:
-    /// the step along each axis completed from the other two is the field's own difference.
-    #[test]
-    fn a_rigid_step_is_completed_from_two_axes() {
-        let turn = nalgebra::Rotation3::from_euler_angles(0.3, -0.2, 0.5);
-        let mut affine = Affine::identity();
-        let scaled = turn.matrix() * nalgebra::Matrix3::from_diagonal(&[0.8, 1.1, 2.0].into());
-        affine.fixed_view_mut::<3, 3>(0, 0).copy_from(&scaled);
-        let grid = Grid::new([5, 5, 5], affine).unwrap();
-        let motion = nalgebra::Rotation3::from_euler_angles(0.9, 0.4, -0.7);
-        let data: Vec<[f32; 3]> = (0..grid.len())
-            .map(|m| {
-                let p = grid.world_of(m);
-                let moved = motion * p + nalgebra::Vector3::new(3.0, -1.0, 2.0);
-                (moved - p).map(|x| x as f32).into()
-            })
-            .collect();
-        let field = Image::from_data(grid.clone(), data).unwrap();
-        let stencil = Stencil::new(&grid);
-        let held = vec![1.0; grid.len()];
-        let n = grid.index(2, 2, 2);
-        for (axis, (lo, hi, factor)) in stencil.around(n).into_iter().enumerate() {
-            let step = stencil.rigid_step(&field, &held, n, axis, 1.0).unwrap();
-            let u = |v: usize| Vec3::from_array(field.data[v]);
-            let expected = (u(hi) - u(lo)) * factor;
-            assert!(
-                (step - expected).length() < 1e-4,
-                "axis {axis}: {step} vs {expected}"
-            );
-        }
-        let tissue_beside = vec![0.0; grid.len()];
-        assert!(stencil
-            .rigid_step(&field, &tissue_beside, n, 0, 1.0)
-            .is_none());
     }
 
     /// Unfolds `field` (an n³ grid, identity affine) beside the bone whose source voxels have
