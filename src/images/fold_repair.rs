@@ -128,9 +128,9 @@ pub fn repair_folds<B: Backend>(
     bones: &[u16],
 ) -> Result<(DeviceImage<B>, FoldRepair)> {
     let grid = field.grid.clone();
+    let held = rigid_bones(backend, &field, residual, labels, bones)?;
     let solved = RIGID_RESIDUAL * grid.finest_spacing() as f32;
     let lookup = BoneLookupParams::new(&labels.host.grid, &grid, bones, solved)?;
-    let held = backend.bone_at_source(&lookup, &field.data, &residual.data, &labels.device.data)?;
     let folded = ThresholdParams::new(&grid, FOLD_THRESHOLD);
     let dilation = DilateParams::passes(&grid, REPAIR_MARGIN);
     let (mut det, mut folds) = determinant(backend, &field, &held)?;
@@ -164,9 +164,26 @@ pub fn repair_folds<B: Backend>(
     }
     if folds.low > 0 {
         (field, report.folded_after, report.unfold_steps) =
-            unfold_on_host(backend, field, &det, &held, labels, bones)?;
+            unfold_on_host(backend, field, &det, (&held, &held), labels, bones)?;
     }
     Ok((field, report))
+}
+
+/// The bone (its number, 0 for none) whose rigid motion an initial field moves each voxel by:
+/// its source point in one of the `bones` of `labels` and the blend inverted there (`residual`,
+/// mm, below [`RIGID_RESIDUAL`] of a voxel). The adaptive warp is held off these voxels, so a
+/// registration's total field moves them by their bone's motion too.
+pub fn rigid_bones<B: Backend>(
+    backend: &B,
+    initial: &DeviceImage<B>,
+    residual: &DeviceImage<B>,
+    labels: &SourceLabels<B>,
+    bones: &[u16],
+) -> Result<B::Buffer<f32>> {
+    let grid = &initial.grid;
+    let solved = RIGID_RESIDUAL * grid.finest_spacing() as f32;
+    let lookup = BoneLookupParams::new(&labels.host.grid, grid, bones, solved)?;
+    backend.bone_at_source(&lookup, &initial.data, &residual.data, &labels.device.data)
 }
 
 /// The bone (its number, 0 for none) in which `labels` hold each voxel's source point
@@ -183,15 +200,16 @@ pub fn bones_at_source<B: Backend>(
 }
 
 /// Unfolds a registration's total field, whose Jacobian determinant is `det` with fold
-/// statistics `folds`: [`unfold`] with the voxels `held` in a bone ([`bones_at_source`]) held,
-/// and tissue pushed into a bone only as its last resort. The adaptive warp is smooth and does
+/// statistics `folds`: [`unfold`] with the voxels `held` in a bone ([`bones_at_source`]) placing
+/// the bone contacts, the voxels at their bone's motion (`rigid`, [`rigid_bones`]) held, and
+/// tissue pushed into a bone only as its last resort. The adaptive warp is smooth and does
 /// not fold (its step control sees to that), but composed with an initial field that is sharply
 /// compressed behind a bent knee it can carry a few voxels past each other there.
 pub fn unfold_registration<B: Backend>(
     backend: &B,
     field: DeviceImage<B>,
     (det, folds): (&B::Buffer<f32>, &Folds),
-    held: &B::Buffer<f32>,
+    (held, rigid): (&B::Buffer<f32>, &B::Buffer<f32>),
     labels: &SourceLabels<B>,
     bones: &[u16],
 ) -> Result<(DeviceImage<B>, FoldRepair)> {
@@ -205,25 +223,26 @@ pub fn unfold_registration<B: Backend>(
         // 46% of the voxels, and unfolding took 150 s): left as it is for the checks to report.
         return Ok((field, report));
     }
-    let (field, left, steps) = unfold_on_host(backend, field, det, held, labels, bones)?;
+    let (field, left, steps) = unfold_on_host(backend, field, det, (held, rigid), labels, bones)?;
     report.folded_after = left;
     report.unfold_steps = steps;
     Ok((field, report))
 }
 
-/// [`unfold`] on the host: the field, its determinant and the held voxels come back (one
-/// wait), the unfolded field goes up again, and the kernel counts the voxels still at or
+/// [`unfold`] on the host: the field, its determinant, the held and the rigid voxels come back
+/// (one wait), the unfolded field goes up again, and the kernel counts the voxels still at or
 /// below the threshold. Returns the field, that count and the steps taken.
 fn unfold_on_host<B: Backend>(
     backend: &B,
     field: DeviceImage<B>,
     det: &B::Buffer<f32>,
-    held: &B::Buffer<f32>,
+    (held, rigid): (&B::Buffer<f32>, &B::Buffer<f32>),
     labels: &SourceLabels<B>,
     bones: &[u16],
 ) -> Result<(DeviceImage<B>, usize, usize)> {
-    let mut host = backend.download(&[&field.data, det, held])?;
-    let (held_host, det_host) = (
+    let mut host = backend.download(&[&field.data, det, held, rigid])?;
+    let (rigid_host, held_host, det_host) = (
+        host.pop().unwrap_or_default(),
         host.pop().unwrap_or_default(),
         host.pop().unwrap_or_default(),
     );
@@ -241,7 +260,11 @@ fn unfold_on_host<B: Backend>(
         .map(|c| c as f32);
         bone_at(&lookup, &codes, p, u) > 0
     };
-    let steps = unfold(&mut unfolded, det_host, &held_host, &in_bone);
+    let on_host = Held {
+        bones: &held_host,
+        rigid: &rigid_host,
+    };
+    let steps = unfold(&mut unfolded, det_host, on_host, &in_bone);
     let field = DeviceImage::upload_field(backend, "unfolded field", unfolded)?;
     let (_, folds) = determinant(backend, &field, held)?;
     Ok((field, folds.low, steps))
@@ -260,12 +283,12 @@ const UNFOLD_TARGET: f32 = 0.3;
 /// lift it (linearised) to [`UNFOLD_TARGET`] — the folding correction NiftyReg applies to spline
 /// grids, on a dense field. Smoothing cannot undo a fold pinned by a bone (beside a bone whose
 /// voxels stay rigid the average pulls the tissue's source point into the bone); this can.
-/// Voxels `held` in a bone (> 0, the bone's number) never move, and no push carries a voxel's
-/// source point into a bone (`in_bone(n, u)` says whether voxel n displaced by u lands in one);
+/// Voxels at their bone's motion (`held.rigid` > 0, the bone's number) never move, and no push
+/// carries a voxel's source point into a bone (`in_bone(n, u)` says whether voxel n displaced by u lands in one);
 /// where every push of a tissue voxel beside a folded bone voxel would, it takes the bone's
 /// motion instead (`bone_extended`: at a deep bend, the voxel between femur and tibia mapped
 /// to the wrong side of the femur's surface — 2 mm 90° knee: the last 3 folds of the body).
-/// Bone contacts are left (see [`Folds`]), in two passes. The first lifts every fold but the
+/// Bone contacts (placed by `held.bones`) are left (see [`Folds`]), in two passes. The first lifts every fold but the
 /// voxels whose six stencil neighbours all lie in bones, whose determinant no push changes.
 /// Where folds are left, the second leaves also the voxels whose difference along one axis
 /// spans two bones: tissue beside them can often lift them (the first pass does), but where it
@@ -276,7 +299,7 @@ const UNFOLD_TARGET: f32 = 0.3;
 pub fn unfold(
     field: &mut Field,
     mut det: Vec<f32>,
-    held: &[f32],
+    Held { bones: held, rigid }: Held,
     in_bone: &(dyn Fn(usize, [f32; 3]) -> bool + Sync),
 ) -> usize {
     let stencil = Stencil::new(&field.grid);
@@ -286,12 +309,25 @@ pub fn unfold(
         &stencil,
         field,
         &mut det,
-        held,
+        rigid,
         in_bone,
         &but_enclosed_by_bones,
     );
     let but_contacts = |v: usize, det: f32| folded(det) && !stencil.is_contact(held, v);
-    steps + push_folds(&stencil, field, &mut det, held, in_bone, &but_contacts)
+    steps + push_folds(&stencil, field, &mut det, rigid, in_bone, &but_contacts)
+}
+
+/// Which voxels of a field move with a bone, for [`unfold`] (bone numbers, 0 for none). By
+/// their source point (`bones`), which places the bone contacts, and by their displacement being
+/// their bone's own motion (`rigid`), which no push changes. An initial field's bone voxels
+/// are both; a registration's total field can also carry tissue into a bone's label off the
+/// bone's motion (at 120°, 3–6 mm off, where the blend was not inverted), which may move.
+#[derive(Clone, Copy)]
+pub struct Held<'a> {
+    /// The bone each voxel's source point lies in.
+    pub bones: &'a [f32],
+    /// The bone whose motion each voxel's displacement is.
+    pub rigid: &'a [f32],
 }
 
 /// [`unfold`]'s sweeps over the voxels `to_lift` (voxel, det) flags, until none is left or
@@ -300,11 +336,11 @@ fn push_folds(
     stencil: &Stencil,
     field: &mut Field,
     det: &mut [f32],
-    held: &[f32],
+    rigid_in: &[f32],
     in_bone: &(dyn Fn(usize, [f32; 3]) -> bool + Sync),
     to_lift: &dyn Fn(usize, f32) -> bool,
 ) -> usize {
-    let rigid = |q: usize| held[q] > 0.0;
+    let rigid = |q: usize| rigid_in[q] > 0.0;
     let largest_step = field.grid.finest_spacing() as f32 / 4.0;
     // Tissue voxels that no fraction of the last step could move without entering a bone: the
     // next step leaves them and lifts the folds beside them by their other neighbours.
@@ -343,7 +379,7 @@ fn push_folds(
             for (q, gq, opposite) in movable {
                 let shift = (gq * s).clamp_length_max(largest_step);
                 let moved = outside_bones(field, q, shift, in_bone)
-                    .or_else(|| bone_extended(field, held, n, opposite));
+                    .or_else(|| bone_extended(field, rigid_in, n, opposite));
                 match moved {
                     Some(moved) => field.data[q] = moved,
                     None => {
@@ -568,25 +604,44 @@ mod tests {
         }
     }
 
-    /// Unfolds `field` (an n³ grid, identity affine) beside the bone whose source voxels have
-    /// code 2 in `codes`, asserting that it folds before and nowhere after; returns the voxels
-    /// held in the bone.
-    fn unfold_beside_bone(field: &mut Field, codes: &[f32]) -> Vec<f32> {
-        let grid = field.grid.clone();
-        let n = grid.dims[0];
+    /// Whether voxel m of an n³ grid (identity affine) displaced by u lands in the bone whose
+    /// source voxels have code 2 in `codes`.
+    fn in_bone_of(n: usize, codes: &[f32]) -> impl Fn(usize, [f32; 3]) -> bool + Sync + '_ {
+        let grid = Grid::new([n, n, n], Affine::identity()).unwrap();
         let lookup = BoneLookupParams::new(&grid, &grid, &[2], f32::MAX).unwrap();
-        let in_bone = |m: usize, u: [f32; 3]| {
+        move |m: usize, u: [f32; 3]| {
             let p = [m % n, (m / n) % n, m / (n * n)].map(|c| c as f32);
             bone_at(&lookup, codes, p, u) > 0
-        };
-        let held: Vec<f32> = (0..grid.len())
-            .map(|m| 2.0 * in_bone(m, field.data[m]) as u8 as f32)
-            .collect();
+        }
+    }
+
+    /// Unfolds `field`, asserting that it folds before; returns the least det J after and the
+    /// sweeps taken.
+    fn unfolded(
+        field: &mut Field,
+        held: Held,
+        in_bone: &(dyn Fn(usize, [f32; 3]) -> bool + Sync),
+    ) -> (f32, usize) {
         let before = host_determinant(&CpuBackend, field).unwrap();
         assert!(before.iter().any(|&d| d <= 0.0), "the test field must fold");
-        let steps = unfold(field, before, &held, &in_bone);
+        let steps = unfold(field, before, held, in_bone);
         let after = host_determinant(&CpuBackend, field).unwrap();
-        let least = after.iter().cloned().fold(f32::INFINITY, f32::min);
+        (after.iter().cloned().fold(f32::INFINITY, f32::min), steps)
+    }
+
+    /// Unfolds `field` (an n³ grid, identity affine) beside the bone whose source voxels have
+    /// code 2 in `codes`, asserting that it folds nowhere after; returns the voxels held in the
+    /// bone.
+    fn unfold_beside_bone(field: &mut Field, codes: &[f32]) -> Vec<f32> {
+        let in_bone = in_bone_of(field.grid.dims[0], codes);
+        let held: Vec<f32> = (0..field.grid.len())
+            .map(|m| 2.0 * in_bone(m, field.data[m]) as u8 as f32)
+            .collect();
+        let both = Held {
+            bones: &held,
+            rigid: &held,
+        };
+        let (least, steps) = unfolded(field, both, &in_bone);
         assert!(
             least > FOLD_THRESHOLD,
             "least det {least} after {steps} steps"
@@ -594,20 +649,60 @@ mod tests {
         held
     }
 
+    /// Tissue mapped inside a bone off the bone's motion: the bone is the slab 4 ≤ x ≤ 7, which
+    /// the field leaves where it is; the tissue voxel x = 8 maps to x = 5.5, inside it, folding
+    /// the bone voxel x = 7 (det −0.25). Held as bone by its source point alone, nothing may
+    /// move and the fold stays; held only where the field is the bone's motion, x = 8 moves
+    /// out and the fold lifts.
+    #[test]
+    fn tissue_inside_a_bone_off_its_motion_may_move() {
+        let n = 16;
+        let (field, codes) = slab_and_shifted_voxel(n, -2.5);
+        let (grid, data) = (field.grid, field.data);
+        let in_bone = in_bone_of(n, &codes);
+        let by_source: Vec<f32> = (0..grid.len())
+            .map(|m| 2.0 * in_bone(m, data[m]) as u8 as f32)
+            .collect();
+        let at_motion: Vec<f32> = (0..grid.len())
+            .map(|m| 2.0 * (in_bone(m, data[m]) && data[m] == [0.0; 3]) as u8 as f32)
+            .collect();
+        let least_after = |rigid: &[f32]| {
+            let mut field = Image::from_data(grid.clone(), data.clone()).unwrap();
+            let held = Held {
+                bones: &by_source,
+                rigid,
+            };
+            unfolded(&mut field, held, &in_bone).0
+        };
+        assert!(
+            least_after(&by_source) <= 0.0,
+            "held by source point, the fold stays"
+        );
+        let least = least_after(&at_motion);
+        assert!(least > FOLD_THRESHOLD, "least det {least}");
+    }
+
+    /// An n³ grid (identity affine) whose source labels hold a bone (code 2) in the slab
+    /// 4 ≤ x ≤ 7, tissue (1) elsewhere, and a field that leaves every voxel where it is but
+    /// those at x = 8, which it shifts by `shift_x` voxels along x.
+    fn slab_and_shifted_voxel(n: usize, shift_x: f32) -> (Field, Vec<f32>) {
+        let grid = Grid::new([n, n, n], Affine::identity()).unwrap();
+        let data: Vec<[f32; 3]> = (0..grid.len())
+            .map(|m| [if m % n == 8 { shift_x } else { 0.0 }, 0.0, 0.0])
+            .collect();
+        let codes = (0..grid.len())
+            .map(|m| if (4..=7).contains(&(m % n)) { 2.0 } else { 1.0 })
+            .collect();
+        (Image::from_data(grid, data).unwrap(), codes)
+    }
+
     #[test]
     fn a_tissue_voxel_behind_a_bone_moves_with_the_bone() {
         let n = 16;
-        let grid = Grid::new([n, n, n], Affine::identity()).unwrap();
-        // The bone: the slab 4 ≤ x ≤ 7 of the source labels, which the field leaves where it is;
-        // the tissue voxel x = 8 maps to x = 2, behind the bone: det −2 at x = 7. Every push
-        // that lifts it carries x = 8's source point into the bone (alone they leave det −1.27).
-        let data: Vec<[f32; 3]> = (0..grid.len())
-            .map(|m| [if m % n == 8 { -6.0 } else { 0.0 }, 0.0, 0.0])
-            .collect();
-        let mut field = Image::from_data(grid.clone(), data).unwrap();
-        let codes: Vec<f32> = (0..grid.len())
-            .map(|m| if (4..=7).contains(&(m % n)) { 2.0 } else { 1.0 })
-            .collect();
+        // The bone, which the field leaves where it is; the tissue voxel x = 8 maps to x = 2,
+        // behind the bone: det −2 at x = 7. Every push that lifts it carries x = 8's source
+        // point into the bone (alone they leave det −1.27).
+        let (mut field, codes) = slab_and_shifted_voxel(n, -6.0);
         unfold_beside_bone(&mut field, &codes);
         let behind = 8 + n * (7 + n * 7);
         assert_eq!(field.data[behind], [0.0; 3], "x = 8 moves as the bone does");

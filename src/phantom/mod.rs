@@ -13,7 +13,7 @@ pub mod shapes;
 
 use crate::backend::Backend;
 use crate::error::{Error, Result};
-use crate::images::fold_repair::{host_determinant, unfold};
+use crate::images::fold_repair::{host_determinant, unfold, Held};
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
 use acquisition::{add_rician_noise, BiasField};
@@ -214,7 +214,11 @@ fn unfolded<B: Backend>(backend: &B, grid: &Grid, straight: Vec<Vec3>) -> Result
         .collect();
     let mut field = Image::from_data(grid.clone(), sampled)?;
     let det = host_determinant(backend, &field)?;
-    unfold(&mut field, det, &held, &|n, u| {
+    let both = Held {
+        bones: &held,
+        rigid: &held,
+    };
+    unfold(&mut field, det, both, &|n, u| {
         in_bone(world_of(grid, n) + Vec3::from_array(u))
     });
     Ok(straight

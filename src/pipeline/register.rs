@@ -5,7 +5,7 @@ use crate::abi::{BoneLookupParams, ComposeParams, FadeParams, Interpolation, Res
 use crate::backend::{resample_onto, Backend, DeviceImage, Traffic};
 use crate::error::{Error, Result};
 use crate::images::fold_repair::{
-    bones_at_source, determinant, unfold_registration, FoldRepair, Folds, SourceLabels,
+    bones_at_source, determinant, rigid_bones, unfold_registration, FoldRepair, Folds, SourceLabels,
 };
 use crate::images::inverse::{invert, round_trip, RoundTrip};
 use crate::images::regions;
@@ -384,15 +384,7 @@ pub fn register_observed<B: Backend>(
         device: &pair.labels,
     };
     let held = (bones, bone_map.as_ref());
-    let finished = finish(
-        backend,
-        &pair,
-        &labels,
-        &images.field,
-        &adaptive,
-        held,
-        options,
-    )?;
+    let finished = finish(backend, &pair, &labels, &images, &adaptive, held, options)?;
     progress.step(&format!("warp scale {}", finished.scale));
     progress.end();
     let timings = StageTimes {
@@ -482,7 +474,7 @@ fn finish<B: Backend>(
     backend: &B,
     pair: &PairImages<B>,
     labels: &SourceLabels<B>,
-    initial: &DeviceImage<B>,
+    initial: &InitialImages<B>,
     adaptive: &Adaptive,
     (bones, bone_map): (&[u16], Option<&DeviceImage<B>>),
     options: &RegisterOptions,
@@ -506,9 +498,9 @@ fn finish<B: Backend>(
     };
     let mut field = DeviceImage {
         data: backend.compose(
-            &ComposeParams::new(grid, &initial.grid),
+            &ComposeParams::new(grid, &initial.field.grid),
             &warp.data,
-            &initial.data,
+            &initial.field.data,
         )?,
         grid: grid.clone(),
     };
@@ -517,7 +509,17 @@ fn finish<B: Backend>(
     // Only a field that folds is unfolded: the others keep their bits.
     let mut unfolding = FoldRepair::default();
     if folds.folded > 0 {
-        let unfolded = unfold_registration(backend, field, (&det, &folds), &held, labels, bones)?;
+        // Where the warp is held off the bones, the voxels the initial field moves by a bone's
+        // motion keep it; tissue carried into a bone's label may move.
+        let rigid = match (options.bone_margin_mm, bone_map) {
+            (margin, Some(_)) if margin > 0.0 => {
+                rigid_bones(backend, &initial.field, &initial.residual, labels, bones)?
+            }
+            _ => held.clone(),
+        };
+        let held_rigid = (&held, &rigid);
+        let unfolded =
+            unfold_registration(backend, field, (&det, &folds), held_rigid, labels, bones)?;
         (field, unfolding) = unfolded;
         (det, folds) = determinant(backend, &field, &held)?;
     }
