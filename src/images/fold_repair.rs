@@ -128,9 +128,8 @@ pub fn repair_folds<B: Backend>(
     bones: &[u16],
 ) -> Result<(DeviceImage<B>, FoldRepair)> {
     let grid = field.grid.clone();
-    let held = rigid_bones(backend, &field, residual, labels, bones)?;
-    let solved = RIGID_RESIDUAL * grid.finest_spacing() as f32;
-    let lookup = BoneLookupParams::new(&labels.host.grid, &grid, bones, solved)?;
+    let lookup = solved_lookup(labels, &grid, bones)?;
+    let held = backend.bone_at_source(&lookup, &field.data, &residual.data, &labels.device.data)?;
     let folded = ThresholdParams::new(&grid, FOLD_THRESHOLD);
     let dilation = DilateParams::passes(&grid, REPAIR_MARGIN);
     let (mut det, mut folds) = determinant(backend, &field, &held)?;
@@ -164,7 +163,7 @@ pub fn repair_folds<B: Backend>(
     }
     if folds.low > 0 {
         (field, report.folded_after, report.unfold_steps) =
-            unfold_on_host(backend, field, &det, (&held, &held), labels, bones)?;
+            unfold_on_host(backend, field, &det, (&held, None), labels, bones)?;
     }
     Ok((field, report))
 }
@@ -180,10 +179,19 @@ pub fn rigid_bones<B: Backend>(
     labels: &SourceLabels<B>,
     bones: &[u16],
 ) -> Result<B::Buffer<f32>> {
-    let grid = &initial.grid;
-    let solved = RIGID_RESIDUAL * grid.finest_spacing() as f32;
-    let lookup = BoneLookupParams::new(&labels.host.grid, grid, bones, solved)?;
+    let lookup = solved_lookup(labels, &initial.grid, bones)?;
     backend.bone_at_source(&lookup, &initial.data, &residual.data, &labels.device.data)
+}
+
+/// The bone lookup of `labels` from `grid` that counts a voxel in a bone only where the blend
+/// was inverted (residual below [`RIGID_RESIDUAL`] of a voxel).
+fn solved_lookup<B: Backend>(
+    labels: &SourceLabels<B>,
+    grid: &Grid,
+    bones: &[u16],
+) -> Result<BoneLookupParams> {
+    let solved = RIGID_RESIDUAL * grid.finest_spacing() as f32;
+    BoneLookupParams::new(&labels.host.grid, grid, bones, solved)
 }
 
 /// The bone (its number, 0 for none) in which `labels` hold each voxel's source point
@@ -201,15 +209,15 @@ pub fn bones_at_source<B: Backend>(
 
 /// Unfolds a registration's total field, whose Jacobian determinant is `det` with fold
 /// statistics `folds`: [`unfold`] with the voxels `held` in a bone ([`bones_at_source`]) placing
-/// the bone contacts, the voxels at their bone's motion (`rigid`, [`rigid_bones`]) held, and
-/// tissue pushed into a bone only as its last resort. The adaptive warp is smooth and does
+/// the bone contacts, the voxels at their bone's motion (`rigid`, [`rigid_bones`]; None: those
+/// held) held, and tissue pushed into a bone only as its last resort. The adaptive warp is smooth and does
 /// not fold (its step control sees to that), but composed with an initial field that is sharply
 /// compressed behind a bent knee it can carry a few voxels past each other there.
 pub fn unfold_registration<B: Backend>(
     backend: &B,
     field: DeviceImage<B>,
     (det, folds): (&B::Buffer<f32>, &Folds),
-    (held, rigid): (&B::Buffer<f32>, &B::Buffer<f32>),
+    (held, rigid): (&B::Buffer<f32>, Option<&B::Buffer<f32>>),
     labels: &SourceLabels<B>,
     bones: &[u16],
 ) -> Result<(DeviceImage<B>, FoldRepair)> {
@@ -229,20 +237,23 @@ pub fn unfold_registration<B: Backend>(
     Ok((field, report))
 }
 
-/// [`unfold`] on the host: the field, its determinant, the held and the rigid voxels come back
-/// (one wait), the unfolded field goes up again, and the kernel counts the voxels still at or
-/// below the threshold. Returns the field, that count and the steps taken.
+/// [`unfold`] on the host: the field, its determinant, the held voxels and the rigid ones
+/// (None: those held) come back (one wait), the unfolded field goes up again, and the kernel
+/// counts the voxels still at or below the threshold. Returns the field, that count and the
+/// steps taken.
 fn unfold_on_host<B: Backend>(
     backend: &B,
     field: DeviceImage<B>,
     det: &B::Buffer<f32>,
-    (held, rigid): (&B::Buffer<f32>, &B::Buffer<f32>),
+    (held, rigid): (&B::Buffer<f32>, Option<&B::Buffer<f32>>),
     labels: &SourceLabels<B>,
     bones: &[u16],
 ) -> Result<(DeviceImage<B>, usize, usize)> {
-    let mut host = backend.download(&[&field.data, det, held, rigid])?;
-    let (rigid_host, held_host, det_host) = (
-        host.pop().unwrap_or_default(),
+    let mut wanted = vec![&field.data, det, held];
+    wanted.extend(rigid);
+    let mut host = backend.download(&wanted)?;
+    let rigid_host = rigid.and_then(|_| host.pop());
+    let (held_host, det_host) = (
         host.pop().unwrap_or_default(),
         host.pop().unwrap_or_default(),
     );
@@ -262,7 +273,7 @@ fn unfold_on_host<B: Backend>(
     };
     let on_host = Held {
         bones: &held_host,
-        rigid: &rigid_host,
+        rigid: rigid_host.as_deref().unwrap_or(&held_host),
     };
     let steps = unfold(&mut unfolded, det_host, on_host, &in_bone);
     let field = DeviceImage::upload_field(backend, "unfolded field", unfolded)?;
@@ -284,12 +295,13 @@ const UNFOLD_TARGET: f32 = 0.3;
 /// grids, on a dense field. Smoothing cannot undo a fold pinned by a bone (beside a bone whose
 /// voxels stay rigid the average pulls the tissue's source point into the bone); this can.
 /// Voxels at their bone's motion (`held.rigid` > 0, the bone's number) never move, and no push
-/// carries a voxel's source point into a bone (`in_bone(n, u)` says whether voxel n displaced by u lands in one);
-/// where every push of a tissue voxel beside a folded bone voxel would, it takes the bone's
+/// carries a voxel's source point into a bone (`in_bone(n, u)` says whether voxel n displaced
+/// by u lands in one); where every push of a tissue voxel beside a folded bone voxel would, it takes the bone's
 /// motion instead (`bone_extended`: at a deep bend, the voxel between femur and tibia mapped
 /// to the wrong side of the femur's surface — 2 mm 90° knee: the last 3 folds of the body).
-/// Bone contacts (placed by `held.bones`) are left (see [`Folds`]), in two passes. The first lifts every fold but the
-/// voxels whose six stencil neighbours all lie in bones, whose determinant no push changes.
+/// Bone contacts (placed by `held.bones`) are left (see [`Folds`]), in two passes. The first
+/// lifts every fold but the voxels whose six stencil neighbours all lie in bones, whose
+/// determinant no push changes.
 /// Where folds are left, the second leaves also the voxels whose difference along one axis
 /// spans two bones: tissue beside them can often lift them (the first pass does), but where it
 /// cannot, the pushes on them pin the folds beside them (1 mm 90° knee: five such voxels on the

@@ -512,12 +512,16 @@ fn finish<B: Backend>(
         // Where the warp is held off the bones, the voxels the initial field moves by a bone's
         // motion keep it; tissue carried into a bone's label may move.
         let rigid = match (options.bone_margin_mm, bone_map) {
-            (margin, Some(_)) if margin > 0.0 => {
-                rigid_bones(backend, &initial.field, &initial.residual, labels, bones)?
-            }
-            _ => held.clone(),
+            (margin, Some(_)) if margin > 0.0 => Some(rigid_bones(
+                backend,
+                &initial.field,
+                &initial.residual,
+                labels,
+                bones,
+            )?),
+            _ => None,
         };
-        let held_rigid = (&held, &rigid);
+        let held_rigid = (&held, rigid.as_ref());
         let unfolded =
             unfold_registration(backend, field, (&det, &folds), held_rigid, labels, bones)?;
         (field, unfolding) = unfolded;
