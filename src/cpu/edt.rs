@@ -1,7 +1,9 @@
-//! CPU twin of shaders/edt.wgsl: one line per rayon task.
+//! CPU twin of shaders/edt.wgsl: the lines in parallel, each read once into a buffer (the
+//! shader reads a sample each time its envelope needs it; the values are the same).
 
 use super::common::{dims3, voxel_index};
 use crate::abi::EdtParams;
+use crate::sample::floor;
 use rayon::prelude::*;
 
 /// No sample along the line yet (the shader's FAR).
@@ -30,7 +32,7 @@ impl Lines<'_> {
     fn sample(&self, q: u32, (a, b, s): (u32, u32, u32)) -> f32 {
         let v = self.voxel_of(q, a, b);
         if self.params.stack[1] == 1 {
-            return if (self.input[v] + 0.5).floor() == (s + 1) as f32 {
+            return if floor(self.input[v] + 0.5) == (s + 1) as f32 {
                 0.0
             } else {
                 FAR
@@ -39,23 +41,16 @@ impl Lines<'_> {
         self.input[s as usize * self.voxels + v]
     }
 
-    /// One line's pass into `out`: the lower envelope (`hull`, `bounds`) of the parabolas of
-    /// its samples, then each position's lowest.
-    fn pass(
-        &self,
-        line: (u32, u32, u32),
-        hull: &mut Vec<u32>,
-        bounds: &mut Vec<f32>,
-        out: &mut Vec<f32>,
-    ) {
-        let axis = self.params.dims[3] as usize;
-        let n = self.params.dims[axis];
-        let h = self.params.spacing[axis];
+    /// One line's pass into `out` (its n positions): the line's samples gathered into `f`, the
+    /// lower envelope (`hull`, `bounds`) of their parabolas, then each position's lowest.
+    fn pass(&self, line: (u32, u32, u32), scratch: &mut Scratch, out: &mut [f32]) {
+        let Scratch { f, hull, bounds } = scratch;
+        let h = self.params.spacing[self.params.dims[3] as usize];
+        f.clear();
+        f.extend((0..out.len() as u32).map(|q| self.sample(q, line)));
         hull.clear();
         bounds.clear();
-        out.clear();
-        for q in 0..n {
-            let fq = self.sample(q, line);
+        for (q, &fq) in f.iter().enumerate() {
             if fq >= FAR {
                 continue;
             }
@@ -67,7 +62,7 @@ impl Lines<'_> {
                     break;
                 };
                 let xp = p as f32 * h;
-                let s = ((fq + xq * xq) - (self.sample(p, line) + xp * xp)) / (2.0 * (xq - xp));
+                let s = ((fq + xq * xq) - (f[p] + xp * xp)) / (2.0 * (xq - xp));
                 if s <= *bounds.last().expect("as long as hull") {
                     hull.pop();
                     bounds.pop();
@@ -79,7 +74,7 @@ impl Lines<'_> {
             }
         }
         let mut k = 0;
-        for q in 0..n {
+        for (q, out) in out.iter_mut().enumerate() {
             let mut value = FAR;
             if !hull.is_empty() {
                 let xq = q as f32 * h;
@@ -87,44 +82,66 @@ impl Lines<'_> {
                     k += 1;
                 }
                 let e = xq - hull[k] as f32 * h;
-                value = e * e + self.sample(hull[k], line);
+                value = e * e + f[hull[k]];
             }
-            out.push(if self.params.stack[2] == 1 {
+            *out = if self.params.stack[2] == 1 {
                 value.sqrt()
             } else {
                 value
-            });
+            };
         }
     }
 }
 
-/// Fills `output` (the stack) with one axis's pass over every line of every volume.
+/// A line's samples and its envelope (the shader's private arrays), reused from line to line.
+#[derive(Default)]
+struct Scratch {
+    f: Vec<f32>,
+    hull: Vec<usize>,
+    bounds: Vec<f32>,
+}
+
+/// Fills `output` (the stack) with one axis's pass over every line of every volume: the lines
+/// in parallel, each into its own run of a buffer in line order (a + na (b + nb s)), then each
+/// slice of the output gathered from it in parallel.
 pub fn edt(params: &EdtParams, input: &[f32], output: &mut [f32]) {
-    let d = dims3(params.dims);
-    let voxels = d.iter().map(|&n| n as usize).product();
+    let d = dims3(params.dims).map(|n| n as usize);
+    let voxels = d.iter().product();
     let lines = Lines {
         params,
         input,
         voxels,
     };
-    let [na, nb] = params.lines().map(|n| n as u32);
-    let starts: Vec<(u32, u32, u32)> = (0..params.stack[0])
-        .flat_map(|s| (0..nb).flat_map(move |b| (0..na).map(move |a| (a, b, s))))
-        .collect();
-    let values: Vec<Vec<f32>> = starts
-        .par_iter()
-        .map_init(
-            || (Vec::new(), Vec::new()),
-            |(hull, bounds), &line| {
-                let mut out = Vec::new();
-                lines.pass(line, hull, bounds, &mut out);
-                out
-            },
-        )
-        .collect();
-    for (&(a, b, s), values) in starts.iter().zip(values) {
-        for (q, value) in values.into_iter().enumerate() {
-            output[s as usize * voxels + lines.voxel_of(q as u32, a, b)] = value;
-        }
-    }
+    let [na, nb] = params.lines();
+    let axis = params.dims[3] as usize;
+    let n = d[axis];
+    let mut by_line = vec![0.0f32; output.len()];
+    by_line
+        .par_chunks_mut(n)
+        .enumerate()
+        .for_each_init(Scratch::default, |scratch, (l, out)| {
+            let line = (
+                (l % na) as u32,
+                ((l / na) % nb) as u32,
+                (l / (na * nb)) as u32,
+            );
+            lines.pass(line, scratch, out);
+        });
+    let [nx, ny, nz] = d;
+    output
+        .par_chunks_mut(nx * ny)
+        .enumerate()
+        .for_each(|(slice, out)| {
+            let (s, z) = (slice / nz, slice % nz);
+            for y in 0..ny {
+                for x in 0..nx {
+                    let (q, a, b) = match axis {
+                        0 => (x, y, z),
+                        1 => (y, x, z),
+                        _ => (z, x, y),
+                    };
+                    out[x + nx * y] = by_line[(a + na * (b + nb * s)) * n + q];
+                }
+            }
+        });
 }
