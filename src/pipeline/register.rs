@@ -490,11 +490,11 @@ fn finish<B: Backend>(
         }
         scale *= 0.5;
     };
-    let warp = match (options.bone_margin_mm, bone_map) {
-        (margin, Some(map)) if margin > 0.0 => {
-            held_off_bones(backend, map, bones.len(), margin, &warp)?
-        }
-        _ => warp,
+    // The bone map the warp is held off, where it is held off the bones at all.
+    let held_off = bone_map.filter(|_| options.bone_margin_mm > 0.0);
+    let warp = match held_off {
+        Some(map) => held_off_bones(backend, map, bones.len(), options.bone_margin_mm, &warp)?,
+        None => warp,
     };
     let mut field = DeviceImage {
         data: backend.compose(
@@ -511,16 +511,9 @@ fn finish<B: Backend>(
     if folds.folded > 0 {
         // Where the warp is held off the bones, the voxels the initial field moves by a bone's
         // motion keep it; tissue carried into a bone's label may move.
-        let rigid = match (options.bone_margin_mm, bone_map) {
-            (margin, Some(_)) if margin > 0.0 => Some(rigid_bones(
-                backend,
-                &initial.field,
-                &initial.residual,
-                labels,
-                bones,
-            )?),
-            _ => None,
-        };
+        let rigid = held_off
+            .map(|_| rigid_bones(backend, &initial.field, &initial.residual, labels, bones))
+            .transpose()?;
         let held_rigid = (&held, rigid.as_ref());
         let unfolded =
             unfold_registration(backend, field, (&det, &folds), held_rigid, labels, bones)?;
