@@ -61,20 +61,21 @@ pub fn inside_source(q: [f32; 3], dims: [u32; 3]) -> bool {
 /// ⌊x⌋, the same value as `f32::floor` for every f32 (NaN and ±∞ included). `f32::floor` is a
 /// libm call on the baseline x86-64 target, which lacks SSE4.1's rounding instruction; the
 /// sampling loops called it for 3.5% of a registration's CPU time. Below 2²³ in magnitude
-/// the truncation is exact and is stepped down for negative fractions; at or above it every f32
-/// is already whole.
+/// adding and taking away 2²³ rounds to a whole number exactly, which is stepped down where it
+/// rounded up; at or above it every f32 is already whole.
 #[inline]
 pub fn floor(x: f32) -> f32 {
-    if x.is_nan() || x.abs() >= 8_388_608.0 {
-        return x;
-    }
-    let t = x as i32 as f32;
-    if t > x {
-        t - 1.0
-    } else if t == x {
-        x // keeps −0's sign
+    // |x| rounded to a whole number by the addition (exact below 2²³), stepped down where that
+    // rounded up; chosen between rather than branched on, with no conversion to an integer,
+    // so that loops over voxels vectorise.
+    const WHOLE_FROM: f32 = 8_388_608.0;
+    let rounded = ((x.abs() + WHOLE_FROM) - WHOLE_FROM).copysign(x);
+    let stepped = if rounded > x { rounded - 1.0 } else { rounded };
+    // At or above 2²³ every f32 is whole; NaN stays NaN.
+    if x.is_nan() || x.abs() >= WHOLE_FROM {
+        x
     } else {
-        t
+        stepped
     }
 }
 
@@ -103,20 +104,48 @@ pub fn nearest(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -> 
 /// [`inside_source`]): [value, d/di, d/dj, d/dk].
 #[inline]
 pub fn trilinear_with_gradient(source: &[f32], q: [f32; 3], dims: [u32; 3]) -> [f32; 4] {
-    let base = q.map(floor);
-    let t = [q[0] - base[0], q[1] - base[1], q[2] - base[2]];
-    let top = dims.map(|d| d as i32 - 1);
-    let i0: [u32; 3] = std::array::from_fn(|a| (base[a] as i32).clamp(0, top[a]) as u32);
-    let i1: [u32; 3] = std::array::from_fn(|a| (base[a] as i32 + 1).clamp(0, top[a]) as u32);
-    let v = |x: u32, y: u32, z: u32| source[voxel_index(x, y, z, dims) as usize];
-    let v000 = v(i0[0], i0[1], i0[2]);
-    let v100 = v(i1[0], i0[1], i0[2]);
-    let v010 = v(i0[0], i1[1], i0[2]);
-    let v110 = v(i1[0], i1[1], i0[2]);
-    let v001 = v(i0[0], i0[1], i1[2]);
-    let v101 = v(i1[0], i0[1], i1[2]);
-    let v011 = v(i0[0], i1[1], i1[2]);
-    let v111 = v(i1[0], i1[1], i1[2]);
+    let (v, t) = corners(source, q, dims);
+    blend_corners(v, t)
+}
+
+/// The 8 voxels of `source` around continuous index q (x fastest: v000, v100, v010, v110,
+/// v001, …; clamped to the volume, so any q may be asked) and q's fraction past the first
+/// corner per axis: what [`blend_corners`] interpolates.
+#[inline]
+pub fn corners(source: &[f32], q: [f32; 3], dims: [u32; 3]) -> ([f32; 8], [f32; 3]) {
+    let axes: [([u32; 2], f32); 3] = std::array::from_fn(|a| axis_corners(q[a], dims[a]));
+    let at = |c: usize| source[corner_index(c, axes.map(|(ends, _)| ends), dims) as usize];
+    (std::array::from_fn(at), axes.map(|(_, t)| t))
+}
+
+/// Along an axis of n voxels: the voxels continuous index q lies between, clamp(⌊q⌋, 0, n − 1)
+/// and clamp(⌊q⌋ + 1, 0, n − 1), and q's fraction past the first.
+#[inline]
+pub fn axis_corners(q: f32, n: u32) -> ([u32; 2], f32) {
+    let base = floor(q);
+    // ⌊q⌋ clamped to [−1, n − 1] first, so that the + 1 cannot overflow. Wrapping arithmetic
+    // here and in corner_index because the checked forms do not vectorise; nothing wraps.
+    let top = (n as i32).wrapping_sub(1);
+    let lower = (base as i32).clamp(-1, top);
+    (
+        [lower.max(0) as u32, lower.wrapping_add(1).min(top) as u32],
+        q - base,
+    )
+}
+
+/// Flat index of corner c (x fastest) of the cell between voxels `ends` (per axis: [i0, i1]);
+/// they lie inside the volume, whose voxel count fits a u32.
+#[inline]
+pub fn corner_index(c: usize, ends: [[u32; 2]; 3], dims: [u32; 3]) -> u32 {
+    let pick = |a: usize| ends[a][c >> a & 1];
+    pick(0).wrapping_add(dims[0].wrapping_mul(pick(1).wrapping_add(dims[1].wrapping_mul(pick(2)))))
+}
+
+/// Value and gradient of the trilinear interpolant of corner values `v` ([`corners`]' order)
+/// at fraction `t`: [value, d/di, d/dj, d/dk].
+#[inline]
+pub fn blend_corners(v: [f32; 8], t: [f32; 3]) -> [f32; 4] {
+    let [v000, v100, v010, v110, v001, v101, v011, v111] = v;
     let c00 = (1.0 - t[0]) * v000 + t[0] * v100;
     let c10 = (1.0 - t[0]) * v010 + t[0] * v110;
     let c01 = (1.0 - t[0]) * v001 + t[0] * v101;

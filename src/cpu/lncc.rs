@@ -2,7 +2,7 @@
 //! shaders/lncc_gradient.wgsl (with shaders/window.wgsl).
 
 use super::common::{dims3, is_covered, voxel_index};
-use super::warp_image::{warped_value_gradient, LatticeTaps};
+use super::warp_image::{LatticeTaps, RowSamples};
 use crate::abi::{LnccParams, LnccTermsParams, LocalMomentsParams, RbfGradParams, LOCAL_MOMENTS};
 use rayon::prelude::*;
 
@@ -162,18 +162,19 @@ pub fn lncc_gradient(
     gradient
         .par_chunks_mut(3 * nx as usize)
         .enumerate()
-        .for_each(|(row, out)| {
+        .for_each_init(RowSamples::default, |samples, (row, out)| {
             let (j, k) = (row as u32 % ny, row as u32 / ny);
             let lattice_row = taps.row(params, lattice, j, k);
+            samples.sample(params, &lattice_row, &taps, moving, [j, k]);
+            let s = &samples.sample;
             for i in 0..nx {
                 let v = voxel_index(i, j, k, d) as usize;
-                let s = warped_value_gradient(params, &lattice_row, &taps, moving, [i, j, k]);
                 let t = fixed[v];
                 let a = &summed[LOCAL_MOMENTS * v..LOCAL_MOMENTS * (v + 1)];
-                let slope = -2.0 * (t * a[0] - a[1] - s[0] * a[2] + a[3]);
-                let o = 3 * i as usize;
+                let i = i as usize;
+                let slope = -2.0 * (t * a[0] - a[1] - s[0][i] * a[2] + a[3]);
                 for axis in 0..3 {
-                    out[o + axis] = slope * s[1 + axis];
+                    out[3 * i + axis] = slope * s[1 + axis][i];
                 }
             }
         });

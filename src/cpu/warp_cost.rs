@@ -1,7 +1,7 @@
 //! CPU twin of shaders/warp_cost.wgsl.
 
 use super::common::{is_covered, voxel_index};
-use super::warp_image::{warped_sample, LatticeTaps};
+use super::warp_image::{LatticeTaps, RowSamples};
 use crate::abi::RbfGradParams;
 use crate::backend::CostImages;
 use rayon::prelude::*;
@@ -22,25 +22,29 @@ pub fn warp_cost(
         .par_chunks_mut(3 * nx as usize)
         .zip(rows.par_iter_mut())
         .enumerate()
-        .for_each(|(row, (out, sum_out))| {
+        .for_each_init(RowSamples::default, |samples, (row, (out, sum_out))| {
             let (j, k) = (row as u32 % ny, row as u32 / ny);
-            let mut sum = 0.0f32;
             let lattice_row = taps.row(params, lattice, j, k);
-            for i in 0..nx {
-                let v = voxel_index(i, j, k, d) as usize;
-                let t = images.fixed[v];
-                let s = warped_sample(params, &lattice_row, &taps, images.moving, [i, j, k], t);
-                let c = if is_covered(images.covered[v]) {
-                    1.0
-                } else {
-                    0.0
-                };
-                let e = s[0] - t;
+            samples.sample(params, &lattice_row, &taps, images.moving, [j, k]);
+            let first = voxel_index(0, j, k, d) as usize;
+            let voxels = first..first + nx as usize;
+            let (fixed, covered) = (&images.fixed[voxels.clone()], &images.covered[voxels]);
+            let [w, g @ ..] = &samples.sample;
+            let mut sum = 0.0f32;
+            for i in 0..nx as usize {
+                let t = fixed[i];
+                let c = if is_covered(covered[i]) { 1.0 } else { 0.0 };
+                // warped_sample in shaders/warp_sample.wgsl: ∂(W − t)²/∂R, zero outside.
+                let residual = 2.0 * (w[i] - t);
+                let e = w[i] - t;
                 sum += c * e * e;
-                let g = [s[1], s[2], s[3]];
-                let o = 3 * i as usize;
                 for a in 0..3 {
-                    out[o + a] = c * g[a];
+                    let s = if samples.inside[i] {
+                        residual * g[a][i]
+                    } else {
+                        0.0
+                    };
+                    out[3 * i + a] = c * s;
                 }
             }
             *sum_out = sum;

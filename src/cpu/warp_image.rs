@@ -3,7 +3,7 @@
 
 use super::common::{linear_row, voxel_index};
 use crate::abi::RbfGradParams;
-use crate::sample::{inside_source, trilinear_with_gradient};
+use crate::sample::{axis_corners, blend_corners, corner_index};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -96,56 +96,105 @@ fn warped_position(
     ]
 }
 
-/// (W, ∂(W − t)²/∂R) at voxel (i, j, k) of `moving` through the warp of `row`, against the
-/// target value `t`; all zero outside (warped_sample in shaders/warp_sample.wgsl).
-#[inline]
-pub fn warped_sample(
-    params: &RbfGradParams,
-    row: &RowTaps,
-    taps: &LatticeTaps,
-    moving: &[f32],
-    ijk: [u32; 3],
-    t: f32,
-) -> [f32; 4] {
-    let d = [params.dims[0], params.dims[1], params.dims[2]];
-    let q = warped_position(params, row, taps, ijk);
-    if !inside_source(q, d) {
-        return [0.0; 4];
-    }
-    let vg = trilinear_with_gradient(moving, q, d);
-    let g = [vg[1], vg[2], vg[3]];
-    let residual = 2.0 * (vg[0] - t);
-    [
-        vg[0],
-        residual * linear_row(params.gradient_to_world[0], g),
-        residual * linear_row(params.gradient_to_world[1], g),
-        residual * linear_row(params.gradient_to_world[2], g),
-    ]
+/// I0 and its gradient at x + R(x) for every voxel x of one row (warped_value_gradient in
+/// shaders/warp_sample.wgsl, a row at a time). The row is done in passes over all its voxels
+/// (warped points, corners per axis, corners' indices, their values, blends) so that every
+/// pass but the gather of values vectorises; each voxel's operations are the shader's, in its
+/// order, so the values are the same bits.
+#[derive(Default)]
+pub struct RowSamples {
+    /// Whether voxel i's warped point lies inside I0 (else its sample is all zero).
+    pub inside: Vec<bool>,
+    /// W, then ∂W/∂x, ∂W/∂y, ∂W/∂z (world mm), each per voxel of the row.
+    pub sample: [Vec<f32>; 4],
+    /// Per voxel: the warped point, [`axis_corners`] per axis, the corners' values.
+    position: [Vec<f32>; 3],
+    fraction: [Vec<f32>; 3],
+    ends: [[Vec<u32>; 2]; 3],
+    at: [Vec<u32>; 8],
+    corners: [Vec<f32>; 8],
 }
 
-/// (W, ∇I0(x + R(x))) at voxel (i, j, k) of `moving` through the warp of `row`, the gradient in
-/// world mm; all zero outside (warped_value_gradient in shaders/warp_sample.wgsl).
-#[inline]
-pub fn warped_value_gradient(
-    params: &RbfGradParams,
-    row: &RowTaps,
-    taps: &LatticeTaps,
-    moving: &[f32],
-    ijk: [u32; 3],
-) -> [f32; 4] {
-    let d = [params.dims[0], params.dims[1], params.dims[2]];
-    let q = warped_position(params, row, taps, ijk);
-    if !inside_source(q, d) {
-        return [0.0; 4];
+impl RowSamples {
+    /// Samples row (j, k) of `moving` through the warp of `row`: the warped points, then
+    /// their corners' indices, the corners' values (the only loop that cannot vectorise) and
+    /// the blends.
+    pub fn sample(
+        &mut self,
+        params: &RbfGradParams,
+        row: &RowTaps,
+        taps: &LatticeTaps,
+        moving: &[f32],
+        [j, k]: [u32; 2],
+    ) {
+        let d = [params.dims[0], params.dims[1], params.dims[2]];
+        let nx = d[0] as usize;
+        self.resize(nx);
+        for i in 0..nx {
+            let q = warped_position(params, row, taps, [i as u32, j, k]);
+            for (a, q) in q.into_iter().enumerate() {
+                self.position[a][i] = q;
+            }
+        }
+        self.inside[..nx].fill(true);
+        for (a, &n) in d.iter().enumerate() {
+            let ([lower, upper], fraction) = (&mut self.ends[a], &mut self.fraction[a][..nx]);
+            let (lower, upper) = (&mut lower[..nx], &mut upper[..nx]);
+            let inside = &mut self.inside[..nx];
+            let top = n as f32 - 0.5;
+            for (i, &q) in self.position[a][..nx].iter().enumerate() {
+                // inside_source, an axis at a time.
+                inside[i] &= q >= -0.5 && q <= top;
+                ([lower[i], upper[i]], fraction[i]) = axis_corners(q, n);
+            }
+        }
+        let ends = self
+            .ends
+            .each_ref()
+            .map(|[lower, upper]| [&lower[..nx], &upper[..nx]]);
+        let mut at = self.at.each_mut().map(|lane| &mut lane[..nx]);
+        for i in 0..nx {
+            let ends = ends.map(|[lower, upper]| [lower[i], upper[i]]);
+            for (c, lane) in at.iter_mut().enumerate() {
+                lane[i] = corner_index(c, ends, d);
+            }
+        }
+        for (at, values) in self.at.iter().zip(&mut self.corners) {
+            for (&at, value) in at[..nx].iter().zip(&mut values[..nx]) {
+                *value = moving[at as usize];
+            }
+        }
+        // Every lane cut to the row's length, so that the loop below has no bounds checks.
+        let corners: [&[f32]; 8] = std::array::from_fn(|c| &self.corners[c][..nx]);
+        let fraction: [&[f32]; 3] = std::array::from_fn(|a| &self.fraction[a][..nx]);
+        let inside = &self.inside[..nx];
+        let [s0, s1, s2, s3] = self.sample.each_mut().map(|lane| &mut lane[..nx]);
+        let to_world = params.gradient_to_world;
+        for i in 0..nx {
+            let vg = blend_corners(
+                std::array::from_fn(|c| corners[c][i]),
+                std::array::from_fn(|a| fraction[a][i]),
+            );
+            let g = [vg[1], vg[2], vg[3]];
+            let keep = |value: f32| if inside[i] { value } else { 0.0 };
+            s0[i] = keep(vg[0]);
+            s1[i] = keep(linear_row(to_world[0], g));
+            s2[i] = keep(linear_row(to_world[1], g));
+            s3[i] = keep(linear_row(to_world[2], g));
+        }
     }
-    let vg = trilinear_with_gradient(moving, q, d);
-    let g = [vg[1], vg[2], vg[3]];
-    [
-        vg[0],
-        linear_row(params.gradient_to_world[0], g),
-        linear_row(params.gradient_to_world[1], g),
-        linear_row(params.gradient_to_world[2], g),
-    ]
+
+    /// Every per-voxel buffer `nx` long.
+    fn resize(&mut self, nx: usize) {
+        self.inside.resize(nx, false);
+        let floats = self.sample.iter_mut().chain(&mut self.position);
+        for lane in floats.chain(&mut self.fraction).chain(&mut self.corners) {
+            lane.resize(nx, 0.0);
+        }
+        for lane in self.ends.iter_mut().flatten().chain(&mut self.at) {
+            lane.resize(nx, 0);
+        }
+    }
 }
 
 /// Fills `warped` (one per voxel) with `moving` seen through the warp `lattice`.
@@ -155,13 +204,17 @@ pub fn warp_image(params: &RbfGradParams, lattice: &[f32], moving: &[f32], warpe
     warped
         .par_chunks_mut((nx * ny) as usize)
         .enumerate()
-        .for_each(|(k, slice)| {
-            for j in 0..ny {
-                let row = taps.row(params, lattice, j, k as u32);
-                for i in 0..nx {
-                    slice[(i + nx * j) as usize] =
-                        warped_sample(params, &row, &taps, moving, [i, j, k as u32], 0.0)[0];
-                }
+        .for_each_init(RowSamples::default, |samples, (k, slice)| {
+            for (j, out) in slice.chunks_exact_mut(nx as usize).enumerate() {
+                let (j, k) = (j as u32, k as u32);
+                samples.sample(
+                    params,
+                    &taps.row(params, lattice, j, k),
+                    &taps,
+                    moving,
+                    [j, k],
+                );
+                out.copy_from_slice(&samples.sample[0]);
             }
         });
 }
