@@ -37,28 +37,32 @@ pub fn lattice_splat(params: &SplatParams, values: &[f32], out: &mut [f32]) {
         .enumerate()
         .for_each(|(zl, slice)| {
             let c = zl as u32;
-            for b in 0..ly {
-                for a in 0..lx {
-                    let (xs, wxs) = &x_reach[a as usize];
-                    let mut sum = [0.0f32; 3];
-                    for k in reach_lo(c, sz)..((c + 1) * sz).min(n[2]) {
-                        let wz = weight(k, c, sz);
-                        for j in reach_lo(b, sy)..((b + 1) * sy).min(n[1]) {
-                            let wy = weight(j, b, sy);
-                            let row = 3 * voxel_index(0, j, k, n) as usize;
+            for (b, sums) in slice.chunks_exact_mut((3 * lx) as usize).enumerate() {
+                let b = b as u32;
+                sums.fill(0.0);
+                // Each node's sum runs over its reach's voxels in the shader's order (z, then
+                // y, then x), but a row of nodes is summed together, a voxel row at a time:
+                // one node's sum is a chain of dependent additions, and taking the row's
+                // nodes in turn gives the processor independent chains to overlap.
+                for k in reach_lo(c, sz)..((c + 1) * sz).min(n[2]) {
+                    let wz = weight(k, c, sz);
+                    for j in reach_lo(b, sy)..((b + 1) * sy).min(n[1]) {
+                        let wy = weight(j, b, sy);
+                        let row = 3 * voxel_index(0, j, k, n) as usize;
+                        for ((xs, wxs), sum) in x_reach.iter().zip(sums.chunks_exact_mut(3)) {
+                            let mut s = [sum[0], sum[1], sum[2]];
                             for (i, wx) in xs.clone().zip(wxs) {
                                 let w = wx * wy * wz;
                                 if w > 0.0 {
                                     let v = row + 3 * i as usize;
                                     for q in 0..3 {
-                                        sum[q] += w * values[v + q];
+                                        s[q] += w * values[v + q];
                                     }
                                 }
                             }
+                            sum.copy_from_slice(&s);
                         }
                     }
-                    let o = 3 * (a + lx * b) as usize;
-                    slice[o..o + 3].copy_from_slice(&sum);
                 }
             }
         });
