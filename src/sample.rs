@@ -55,7 +55,13 @@ pub fn bone_at(params: &BoneLookupParams, labels: &[f32], p: [f32; 3], u: [f32; 
 /// True when q lies within half a voxel of the outer voxel centres on every axis.
 #[inline]
 pub fn inside_source(q: [f32; 3], dims: [u32; 3]) -> bool {
-    (0..3).all(|a| q[a] >= -0.5 && q[a] <= dims[a] as f32 - 0.5)
+    (0..3).all(|a| inside_axis(q[a], dims[a]))
+}
+
+/// [`inside_source`] along one axis of n voxels.
+#[inline]
+pub fn inside_axis(q: f32, n: u32) -> bool {
+    q >= -0.5 && q <= n as f32 - 0.5
 }
 
 /// ⌊x⌋, the same value as `f32::floor` for every f32 (NaN and ±∞ included). `f32::floor` is a

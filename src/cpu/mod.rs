@@ -67,6 +67,19 @@ fn filled<T: Element>(len: usize, twin: impl FnOnce(&mut [T])) -> Result<Arc<Vec
     Ok(Arc::new(out))
 }
 
+/// A kernel's two output buffers.
+type BufferPair<T> = (Arc<Vec<T>>, Arc<Vec<T>>);
+
+/// Two new buffers of `lens[0]` and `lens[1]` values, filled together by `twin`.
+fn filled_pair<T: Element>(
+    lens: [usize; 2],
+    twin: impl FnOnce(&mut [T], &mut [T]),
+) -> Result<BufferPair<T>> {
+    let [mut first, mut second] = lens.map(zeroed);
+    twin(&mut first, &mut second);
+    Ok((Arc::new(first), Arc::new(second)))
+}
+
 /// `len` zeros, written by every thread. Zeroed on one thread (`vec!`), the kernels' output
 /// buffers were 5% of a registration's CPU time on the half phantom, the memset and the first
 /// touch of fresh pages, with the other cores idle.
@@ -275,10 +288,9 @@ impl Backend for CpuBackend {
         weights: &Arc<Vec<f32>>,
         bone_of_voxel: &Arc<Vec<f32>>,
     ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
-        let mut field = zeroed::<f32>(3 * params.voxels());
-        let mut residual = zeroed::<f32>(params.voxels());
-        skin_blend::skin_blend(params, weights, bone_of_voxel, &mut field, &mut residual);
-        Ok((Arc::new(field), Arc::new(residual)))
+        filled_pair([3 * params.voxels(), params.voxels()], |field, residual| {
+            skin_blend::skin_blend(params, weights, bone_of_voxel, field, residual);
+        })
     }
 
     fn warp_image(
@@ -298,10 +310,9 @@ impl Backend for CpuBackend {
         warped: &Arc<Vec<f32>>,
         target: &Arc<Vec<f32>>,
     ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
-        let mut product = zeroed::<f32>(params.voxels());
-        let mut energy = zeroed::<f32>(params.voxels());
-        gain::gain_terms(warped, target, &mut product, &mut energy);
-        Ok((Arc::new(product), Arc::new(energy)))
+        filled_pair([params.voxels(), params.voxels()], |product, energy| {
+            gain::gain_terms(warped, target, product, energy);
+        })
     }
 
     fn gain_ratio(
@@ -359,10 +370,9 @@ impl Backend for CpuBackend {
         params: &InvertParams,
         field: &Arc<Vec<f32>>,
     ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
-        let mut out = zeroed::<f32>(3 * params.voxels());
-        let mut residual = zeroed::<f32>(params.voxels());
-        invert::invert_field(params, field, &mut out, &mut residual);
-        Ok((Arc::new(out), Arc::new(residual)))
+        filled_pair([3 * params.voxels(), params.voxels()], |out, residual| {
+            invert::invert_field(params, field, out, residual);
+        })
     }
 
     fn rbf_lattice(
@@ -382,16 +392,9 @@ impl Backend for CpuBackend {
         lattice: &Arc<Vec<f32>>,
         images: &CostImages<Arc<Vec<f32>>>,
     ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
-        let mut gradient = zeroed::<f32>(3 * params.voxels());
-        let mut rows = zeroed::<f32>(params.rows());
-        warp_cost::warp_cost(
-            params,
-            lattice,
-            &as_slices(images),
-            &mut gradient,
-            &mut rows,
-        );
-        Ok((Arc::new(gradient), Arc::new(rows)))
+        filled_pair([3 * params.voxels(), params.rows()], |gradient, rows| {
+            warp_cost::warp_cost(params, lattice, &as_slices(images), gradient, rows);
+        })
     }
 
     fn lncc_terms(
@@ -400,10 +403,9 @@ impl Backend for CpuBackend {
         sums: &Arc<Vec<f32>>,
         covered: &Arc<Vec<f32>>,
     ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
-        let mut terms = zeroed::<f32>(params.values());
-        let mut rows = zeroed::<f32>(params.rows());
-        lncc::lncc_terms(params, sums, covered, &mut terms, &mut rows);
-        Ok((Arc::new(terms), Arc::new(rows)))
+        filled_pair([params.values(), params.rows()], |terms, rows| {
+            lncc::lncc_terms(params, sums, covered, terms, rows);
+        })
     }
 
     fn lncc_gradient(
@@ -432,10 +434,9 @@ impl Backend for CpuBackend {
         lattice: &Arc<Vec<f32>>,
         splat: &Arc<Vec<f32>>,
     ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
-        let mut gradient = zeroed::<f32>(3 * params.nodes());
-        let mut energy = zeroed::<f32>(params.nodes());
-        lattice_energy::lattice_energy(params, lattice, splat, &mut gradient, &mut energy);
-        Ok((Arc::new(gradient), Arc::new(energy)))
+        filled_pair([3 * params.nodes(), params.nodes()], |gradient, energy| {
+            lattice_energy::lattice_energy(params, lattice, splat, gradient, energy);
+        })
     }
 
     fn rbf_adjoint(

@@ -34,9 +34,9 @@ pub fn warp_cost(
             for i in 0..nx as usize {
                 let t = fixed[i];
                 let c = if is_covered(covered[i]) { 1.0 } else { 0.0 };
-                // warped_sample in shaders/warp_sample.wgsl: ∂(W − t)²/∂R, zero outside.
-                let residual = 2.0 * (w[i] - t);
                 let e = w[i] - t;
+                // warped_sample in shaders/warp_sample.wgsl: ∂(W − t)²/∂R, zero outside.
+                let residual = 2.0 * e;
                 sum += c * e * e;
                 for a in 0..3 {
                     let s = if samples.inside[i] {

@@ -3,7 +3,7 @@
 
 use super::common::{linear_row, voxel_index};
 use crate::abi::RbfGradParams;
-use crate::sample::{axis_corners, blend_corners, corner_index};
+use crate::sample::{axis_corners, blend_corners, corner_index, inside_axis};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -141,10 +141,8 @@ impl RowSamples {
             let ([lower, upper], fraction) = (&mut self.ends[a], &mut self.fraction[a][..nx]);
             let (lower, upper) = (&mut lower[..nx], &mut upper[..nx]);
             let inside = &mut self.inside[..nx];
-            let top = n as f32 - 0.5;
             for (i, &q) in self.position[a][..nx].iter().enumerate() {
-                // inside_source, an axis at a time.
-                inside[i] &= q >= -0.5 && q <= top;
+                inside[i] &= inside_axis(q, n);
                 ([lower[i], upper[i]], fraction[i]) = axis_corners(q, n);
             }
         }
