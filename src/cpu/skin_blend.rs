@@ -1,7 +1,7 @@
 //! CPU twin of shaders/skin_blend.wgsl.
 
 use super::common::{affine_row, det3, solve3, voxel_index};
-use crate::abi::SkinBlendParams;
+use crate::abi::{SkinBlendParams, MAX_SKIN_BONES};
 use crate::sample::{floor, nearest};
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
@@ -43,7 +43,33 @@ fn bone_at(params: &SkinBlendParams, bone_of_voxel: &[f32], x: Vec3) -> u32 {
     }
 }
 
-fn blend(params: &SkinBlendParams, weight: &[f32], bone_of_voxel: &[f32], x: Vec3) -> Blend {
+/// The weights at the eight corners of one weight-grid cell (per bone, in the corners' order),
+/// kept from one blend to the next: a voxel's steps mostly stay in one cell, as do its
+/// neighbours' (the weight grid is 2.5 mm), so the 8 × bones lookups need not be repeated. The
+/// weights are those the lookups give, so the blend is the same; the shader looks them up
+/// each time.
+struct CellWeights {
+    /// Flat index of the cell's first corner; `u32::MAX` before any.
+    first: u32,
+    weights: [[f32; 8]; MAX_SKIN_BONES],
+}
+
+impl CellWeights {
+    fn new() -> Self {
+        CellWeights {
+            first: u32::MAX,
+            weights: [[0.0; 8]; MAX_SKIN_BONES],
+        }
+    }
+}
+
+fn blend(
+    params: &SkinBlendParams,
+    weight: &[f32],
+    bone_of_voxel: &[f32],
+    x: Vec3,
+    cell: &mut CellWeights,
+) -> Blend {
     let n = [
         params.weight_dims[0],
         params.weight_dims[1],
@@ -85,21 +111,27 @@ fn blend(params: &SkinBlendParams, weight: &[f32], bone_of_voxel: &[f32], x: Vec
     let dual_quaternion = params.blend[2] == 1;
     let mut real = Vec4::ZERO;
     let mut dual = Vec4::ZERO;
-    // The corners' first weights (voxel_index · bones), found once for all the bones.
-    let corner = |x: u32, y: u32, z: u32| (voxel_index(x, y, z, n) * bones) as usize;
-    let corners = [
-        corner(i0[0], i0[1], i0[2]),
-        corner(i1[0], i0[1], i0[2]),
-        corner(i0[0], i1[1], i0[2]),
-        corner(i1[0], i1[1], i0[2]),
-        corner(i0[0], i0[1], i1[2]),
-        corner(i1[0], i0[1], i1[2]),
-        corner(i0[0], i1[1], i1[2]),
-        corner(i1[0], i1[1], i1[2]),
-    ];
+    let first = voxel_index(i0[0], i0[1], i0[2], n);
+    if first != cell.first {
+        cell.first = first;
+        // The corners' first weights (voxel_index · bones), found once for all the bones.
+        let corner = |x: u32, y: u32, z: u32| (voxel_index(x, y, z, n) * bones) as usize;
+        let corners = [
+            corner(i0[0], i0[1], i0[2]),
+            corner(i1[0], i0[1], i0[2]),
+            corner(i0[0], i1[1], i0[2]),
+            corner(i1[0], i1[1], i0[2]),
+            corner(i0[0], i0[1], i1[2]),
+            corner(i1[0], i0[1], i1[2]),
+            corner(i0[0], i1[1], i1[2]),
+            corner(i1[0], i1[1], i1[2]),
+        ];
+        for (j, weights) in cell.weights[..bones as usize].iter_mut().enumerate() {
+            *weights = corners.map(|c| weight[c + j]);
+        }
+    }
     for j in 0..bones {
-        let [v000, v100, v010, v110, v001, v101, v011, v111] =
-            corners.map(|c| weight[c + j as usize]);
+        let [v000, v100, v010, v110, v001, v101, v011, v111] = cell.weights[j as usize];
         let c00 = (1.0 - t.x) * v000 + t.x * v100;
         let c10 = (1.0 - t.x) * v010 + t.x * v110;
         let c01 = (1.0 - t.x) * v001 + t.x * v101;
@@ -175,6 +207,7 @@ pub fn skin_blend(
         .zip(residual.par_chunks_mut(slice))
         .enumerate()
         .for_each(|(zl, (field, residual))| {
+            let mut cell = CellWeights::new();
             for j in 0..ny {
                 for i in 0..nx {
                     let v = [i as f32, j as f32, zl as f32];
@@ -194,7 +227,7 @@ pub fn skin_blend(
                             affine_row(inv(1), pa),
                             affine_row(inv(2), pa),
                         );
-                        let at = blend(params, weight, bone_of_voxel, candidate);
+                        let at = blend(params, weight, bone_of_voxel, candidate, &mut cell);
                         let miss = (at.point - p).length();
                         if miss < best {
                             best = miss;
@@ -204,7 +237,7 @@ pub fn skin_blend(
                     }
                     if best == NOT_CHOSEN {
                         // No candidate's miss was finite: step from the blend at p itself.
-                        b = blend(params, weight, bone_of_voxel, x);
+                        b = blend(params, weight, bone_of_voxel, x, &mut cell);
                     }
                     let mut err = best;
                     let mut it = 0;
@@ -221,7 +254,7 @@ pub fn skin_blend(
                         let mut moved = false;
                         for _ in 0..5 {
                             let trial = x - t * step;
-                            let at = blend(params, weight, bone_of_voxel, trial);
+                            let at = blend(params, weight, bone_of_voxel, trial, &mut cell);
                             let miss = (at.point - p).length();
                             if miss < err {
                                 x = trial;
