@@ -78,32 +78,46 @@ pub enum Command {
     Series(series::SeriesArgs),
 }
 
-/// Runs the parsed command line.
+/// Runs the parsed command line on a pool of `--threads` workers (default: every core).
+///
+/// The command runs on one of the pool's workers rather than beside them: the host's serial
+/// steps between kernels otherwise compete for the cores with the idle workers spinning for
+/// work (half phantom 60°, 2 cores: 5.99 → 5.86 s, BENCHMARKS.md, twenty-third session). The
+/// Python module runs its registrations the same way.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
-    let reporter = progress::Reporter::new(cli.quiet);
+    let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(threads) = cli.threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads as usize)
-            .build_global()?;
+        pool = pool.num_threads(threads as usize);
     }
-    let device = &DeviceWanted {
+    let reporter = progress::Reporter::new(cli.quiet);
+    let device = DeviceWanted {
         kind: cli.device,
         adapter: cli.gpu,
     };
-    match cli.command {
-        Command::Apply(args) => apply::run(&args, device, &reporter),
-        Command::ApplyPoints(args) => points::run(&args, &reporter),
+    pool.build()?
+        .install(|| run_command(cli.command, &device, &reporter))
+}
+
+/// Runs one verb.
+fn run_command(
+    command: Command,
+    device: &DeviceWanted,
+    reporter: &progress::Reporter,
+) -> anyhow::Result<()> {
+    match command {
+        Command::Apply(args) => apply::run(&args, device, reporter),
+        Command::ApplyPoints(args) => points::run(&args, reporter),
         Command::Bench(args) => bench::run(&args, device),
-        Command::Bend(args) => bend::run(&args, device, &reporter),
-        Command::Demo(args) => demo::run(&args, device, &reporter),
+        Command::Bend(args) => bend::run(&args, device, reporter),
+        Command::Demo(args) => demo::run(&args, device, reporter),
         Command::Devices => devices::run(),
         Command::Eval(args) => eval::run(&args),
         Command::Info(args) => info::run(&args),
-        Command::Init(args) => init::run(&args, device, &reporter),
+        Command::Init(args) => init::run(&args, device, reporter),
         Command::Phantom(args) => phantom::run(&args),
-        Command::Pose(args) => pose::run(&args, device, &reporter),
-        Command::Register(args) => register::run(&args, device, &reporter),
-        Command::Resample(args) => resample::run(&args, device, &reporter),
-        Command::Series(args) => series::run(&args, device, &reporter),
+        Command::Pose(args) => pose::run(&args, device, reporter),
+        Command::Register(args) => register::run(&args, device, reporter),
+        Command::Resample(args) => resample::run(&args, device, reporter),
+        Command::Series(args) => series::run(&args, device, reporter),
     }
 }
