@@ -1,8 +1,8 @@
 //! CPU twin of shaders/skin_blend.wgsl.
 
-use super::common::{affine_row, det3, solve3, voxel_index};
+use super::common::{affine_row, det3, solve3};
 use crate::abi::{SkinBlendParams, MAX_SKIN_BONES};
-use crate::sample::{floor, nearest};
+use crate::sample::{axis_corners, corner_index, nearest};
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
@@ -98,10 +98,10 @@ fn blend(
         Vec3::ZERO,
         Vec3::new(n[0] as f32 - 1.0, n[1] as f32 - 1.0, n[2] as f32 - 1.0),
     );
-    let base = Vec3::from_array(q.to_array().map(floor));
-    let t = q - base;
-    let i0 = [base.x as u32, base.y as u32, base.z as u32];
-    let i1: [u32; 3] = std::array::from_fn(|a| (i0[a] + 1).min(n[a] - 1));
+    // q is inside the grid, so the corners are ⌊q⌋ and ⌊q⌋ + 1 clamped to it.
+    let axes: [([u32; 2], f32); 3] = std::array::from_fn(|a| axis_corners(q[a], n[a]));
+    let ends = axes.map(|(ends, _)| ends);
+    let t = Vec3::from_array(axes.map(|(_, t)| t));
     let mut b = Blend {
         point: Vec3::ZERO,
         r0: Vec3::ZERO,
@@ -111,21 +111,12 @@ fn blend(
     let dual_quaternion = params.blend[2] == 1;
     let mut real = Vec4::ZERO;
     let mut dual = Vec4::ZERO;
-    let first = voxel_index(i0[0], i0[1], i0[2], n);
+    let first = corner_index(0, ends, n);
     if first != cell.first {
         cell.first = first;
-        // The corners' first weights (voxel_index · bones), found once for all the bones.
-        let corner = |x: u32, y: u32, z: u32| (voxel_index(x, y, z, n) * bones) as usize;
-        let corners = [
-            corner(i0[0], i0[1], i0[2]),
-            corner(i1[0], i0[1], i0[2]),
-            corner(i0[0], i1[1], i0[2]),
-            corner(i1[0], i1[1], i0[2]),
-            corner(i0[0], i0[1], i1[2]),
-            corner(i1[0], i0[1], i1[2]),
-            corner(i0[0], i1[1], i1[2]),
-            corner(i1[0], i1[1], i1[2]),
-        ];
+        // The corners' first weights (voxel index · bones), found once for all the bones.
+        let corners: [usize; 8] =
+            std::array::from_fn(|c| (corner_index(c, ends, n) * bones) as usize);
         for (j, weights) in cell.weights[..bones as usize].iter_mut().enumerate() {
             *weights = corners.map(|c| weight[c + j]);
         }
