@@ -43,23 +43,41 @@ fn bone_at(params: &SkinBlendParams, bone_of_voxel: &[f32], x: Vec3) -> u32 {
     }
 }
 
-/// The weights at the eight corners of one weight-grid cell (per bone, in the corners' order),
-/// kept from one blend to the next: a voxel's steps mostly stay in one cell, as do its
-/// neighbours' (the weight grid is 2.5 mm), so the 8 × bones lookups need not be repeated. The
-/// weights are those the lookups give, so the blend is the same; the shader looks them up
-/// each time.
+/// The weights at the eight corners of one weight-grid cell (per corner, one lane per bone),
+/// kept from one blend to the next: a voxel's steps mostly stay in one cell, so the 8 × bones
+/// lookups need not be repeated. A corner's bones lie together in the weight grid, so each
+/// corner is one copy; and the bones' weights are interpolated lane by lane, each lane with the
+/// shader's operations in its order. The weights are those the lookups give, so the blend is
+/// the same; the shader looks them up each time.
 struct CellWeights {
     /// Flat index of the cell's first corner; `u32::MAX` before any.
     first: u32,
-    weights: [[f32; 8]; MAX_SKIN_BONES],
+    /// Per corner (x fastest), the weight of each bone (lanes past the bone count unused).
+    corners: [[f32; MAX_SKIN_BONES]; 8],
 }
 
 impl CellWeights {
     fn new() -> Self {
         CellWeights {
             first: u32::MAX,
-            weights: [[0.0; 8]; MAX_SKIN_BONES],
+            corners: [[0.0; MAX_SKIN_BONES]; 8],
         }
+    }
+
+    /// Every bone's weight at fraction `t` of the cell, in lanes (the shader's trilinear
+    /// blend of each bone's eight corners, lane by lane).
+    fn at(&self, t: Vec3) -> [f32; MAX_SKIN_BONES] {
+        let [v000, v100, v010, v110, v001, v101, v011, v111] = &self.corners;
+        let lerp = |a: &[f32; MAX_SKIN_BONES], b: &[f32; MAX_SKIN_BONES], t: f32| {
+            std::array::from_fn(|j| (1.0 - t) * a[j] + t * b[j])
+        };
+        let c00 = lerp(v000, v100, t.x);
+        let c10 = lerp(v010, v110, t.x);
+        let c01 = lerp(v001, v101, t.x);
+        let c11 = lerp(v011, v111, t.x);
+        let c0 = lerp(&c00, &c10, t.y);
+        let c1 = lerp(&c01, &c11, t.y);
+        lerp(&c0, &c1, t.z)
     }
 }
 
@@ -114,22 +132,15 @@ fn blend(
     let first = corner_index(0, ends, n);
     if first != cell.first {
         cell.first = first;
-        // The corners' first weights (voxel index · bones), found once for all the bones.
-        let corners: [usize; 8] =
-            std::array::from_fn(|c| (corner_index(c, ends, n) * bones) as usize);
-        for (j, weights) in cell.weights[..bones as usize].iter_mut().enumerate() {
-            *weights = corners.map(|c| weight[c + j]);
+        let bones = bones as usize;
+        for (c, lanes) in cell.corners.iter_mut().enumerate() {
+            let at = (corner_index(c, ends, n) as usize) * bones;
+            lanes[..bones].copy_from_slice(&weight[at..at + bones]);
         }
     }
+    let weights = cell.at(t);
     for j in 0..bones {
-        let [v000, v100, v010, v110, v001, v101, v011, v111] = cell.weights[j as usize];
-        let c00 = (1.0 - t.x) * v000 + t.x * v100;
-        let c10 = (1.0 - t.x) * v010 + t.x * v110;
-        let c01 = (1.0 - t.x) * v001 + t.x * v101;
-        let c11 = (1.0 - t.x) * v011 + t.x * v111;
-        let c0 = (1.0 - t.y) * c00 + t.y * c10;
-        let c1 = (1.0 - t.y) * c01 + t.y * c11;
-        let w = (1.0 - t.z) * c0 + t.z * c1;
+        let w = weights[j as usize];
         if dual_quaternion {
             real += w * Vec4::from_array(params.dual[(2 * j) as usize]);
             dual += w * Vec4::from_array(params.dual[(2 * j + 1) as usize]);
