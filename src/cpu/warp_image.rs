@@ -81,7 +81,7 @@ pub fn warp_at(params: &RbfGradParams, lattice: &[f32], taps: &LatticeTaps, c: [
 
 /// Where voxel (i, j, k) samples I0 through the warp of `row`, in I0's index space: x + R(x)
 /// (warped_position in shaders/warp_sample.wgsl).
-#[inline]
+#[inline(always)]
 fn warped_position(
     params: &RbfGradParams,
     row: &RowTaps,
@@ -116,70 +116,16 @@ pub struct RowSamples {
 }
 
 impl RowSamples {
-    /// Samples row (j, k) of `moving` through the warp of `row`: the warped points, then
-    /// their corners' indices, the corners' values (the only loop that cannot vectorise) and
-    /// the blends.
+    /// Samples row (j, k) of `moving` through the warp of `row` ([`sample_row`]).
     pub fn sample(
         &mut self,
         params: &RbfGradParams,
         row: &RowTaps,
         taps: &LatticeTaps,
         moving: &[f32],
-        [j, k]: [u32; 2],
+        jk: [u32; 2],
     ) {
-        let d = [params.dims[0], params.dims[1], params.dims[2]];
-        let nx = d[0] as usize;
-        self.resize(nx);
-        for i in 0..nx {
-            let q = warped_position(params, row, taps, [i as u32, j, k]);
-            for (a, q) in q.into_iter().enumerate() {
-                self.position[a][i] = q;
-            }
-        }
-        self.inside[..nx].fill(true);
-        for (a, &n) in d.iter().enumerate() {
-            let ([lower, upper], fraction) = (&mut self.ends[a], &mut self.fraction[a][..nx]);
-            let (lower, upper) = (&mut lower[..nx], &mut upper[..nx]);
-            let inside = &mut self.inside[..nx];
-            for (i, &q) in self.position[a][..nx].iter().enumerate() {
-                inside[i] &= inside_axis(q, n);
-                ([lower[i], upper[i]], fraction[i]) = axis_corners(q, n);
-            }
-        }
-        let ends = self
-            .ends
-            .each_ref()
-            .map(|[lower, upper]| [&lower[..nx], &upper[..nx]]);
-        let mut at = self.at.each_mut().map(|lane| &mut lane[..nx]);
-        for i in 0..nx {
-            let ends = ends.map(|[lower, upper]| [lower[i], upper[i]]);
-            for (c, lane) in at.iter_mut().enumerate() {
-                lane[i] = corner_index(c, ends, d);
-            }
-        }
-        for (at, values) in self.at.iter().zip(&mut self.corners) {
-            for (&at, value) in at[..nx].iter().zip(&mut values[..nx]) {
-                *value = moving[at as usize];
-            }
-        }
-        // Every lane cut to the row's length, so that the loop below has no bounds checks.
-        let corners: [&[f32]; 8] = std::array::from_fn(|c| &self.corners[c][..nx]);
-        let fraction: [&[f32]; 3] = std::array::from_fn(|a| &self.fraction[a][..nx]);
-        let inside = &self.inside[..nx];
-        let [s0, s1, s2, s3] = self.sample.each_mut().map(|lane| &mut lane[..nx]);
-        let to_world = params.gradient_to_world;
-        for i in 0..nx {
-            let vg = blend_corners(
-                std::array::from_fn(|c| corners[c][i]),
-                std::array::from_fn(|a| fraction[a][i]),
-            );
-            let g = [vg[1], vg[2], vg[3]];
-            let keep = |value: f32| if inside[i] { value } else { 0.0 };
-            s0[i] = keep(vg[0]);
-            s1[i] = keep(linear_row(to_world[0], g));
-            s2[i] = keep(linear_row(to_world[1], g));
-            s3[i] = keep(linear_row(to_world[2], g));
-        }
+        sample_row(self, params, row, taps, moving, jk);
     }
 
     /// Every per-voxel buffer `nx` long.
@@ -192,6 +138,74 @@ impl RowSamples {
         for lane in self.ends.iter_mut().flatten().chain(&mut self.at) {
             lane.resize(nx, 0);
         }
+    }
+}
+
+/// Samples row (j, k) of `moving` through the warp of `row`: the warped points, then
+/// their corners' indices, the corners' values (the only loop that cannot vectorise) and
+/// the blends. Compiled also for AVX2 and chosen at run time: wider lanes, the same
+/// operations in the same order, so the same bits.
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn sample_row(
+    samples: &mut RowSamples,
+    params: &RbfGradParams,
+    row: &RowTaps,
+    taps: &LatticeTaps,
+    moving: &[f32],
+    [j, k]: [u32; 2],
+) {
+    let d = [params.dims[0], params.dims[1], params.dims[2]];
+    let nx = d[0] as usize;
+    samples.resize(nx);
+    for i in 0..nx {
+        let q = warped_position(params, row, taps, [i as u32, j, k]);
+        for (a, q) in q.into_iter().enumerate() {
+            samples.position[a][i] = q;
+        }
+    }
+    samples.inside[..nx].fill(true);
+    for (a, &n) in d.iter().enumerate() {
+        let ([lower, upper], fraction) = (&mut samples.ends[a], &mut samples.fraction[a][..nx]);
+        let (lower, upper) = (&mut lower[..nx], &mut upper[..nx]);
+        let inside = &mut samples.inside[..nx];
+        for (i, &q) in samples.position[a][..nx].iter().enumerate() {
+            inside[i] &= inside_axis(q, n);
+            ([lower[i], upper[i]], fraction[i]) = axis_corners(q, n);
+        }
+    }
+    let ends = samples
+        .ends
+        .each_ref()
+        .map(|[lower, upper]| [&lower[..nx], &upper[..nx]]);
+    let mut at = samples.at.each_mut().map(|lane| &mut lane[..nx]);
+    for i in 0..nx {
+        let ends = ends.map(|[lower, upper]| [lower[i], upper[i]]);
+        for (c, lane) in at.iter_mut().enumerate() {
+            lane[i] = corner_index(c, ends, d);
+        }
+    }
+    for (at, values) in samples.at.iter().zip(&mut samples.corners) {
+        for (&at, value) in at[..nx].iter().zip(&mut values[..nx]) {
+            *value = moving[at as usize];
+        }
+    }
+    // Every lane cut to the row's length, so that the loop below has no bounds checks.
+    let corners: [&[f32]; 8] = std::array::from_fn(|c| &samples.corners[c][..nx]);
+    let fraction: [&[f32]; 3] = std::array::from_fn(|a| &samples.fraction[a][..nx]);
+    let inside = &samples.inside[..nx];
+    let [s0, s1, s2, s3] = samples.sample.each_mut().map(|lane| &mut lane[..nx]);
+    let to_world = params.gradient_to_world;
+    for i in 0..nx {
+        let vg = blend_corners(
+            std::array::from_fn(|c| corners[c][i]),
+            std::array::from_fn(|a| fraction[a][i]),
+        );
+        let g = [vg[1], vg[2], vg[3]];
+        let keep = |value: f32| if inside[i] { value } else { 0.0 };
+        s0[i] = keep(vg[0]);
+        s1[i] = keep(linear_row(to_world[0], g));
+        s2[i] = keep(linear_row(to_world[1], g));
+        s3[i] = keep(linear_row(to_world[2], g));
     }
 }
 
