@@ -26,6 +26,7 @@ struct Components<'a> {
 }
 
 impl Components<'_> {
+    #[inline(always)]
     fn local(&self, q: Vec3) -> Local {
         let d = dims3(self.params.field_dims);
         let top = Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32) - Vec3::ONE;
@@ -65,6 +66,7 @@ impl Components<'_> {
     }
 
     /// w and the residual (−1: no preimage) at output voxel p.
+    #[inline(always)]
     fn invert_at(&self, p: [f32; 3]) -> (Vec3, f32) {
         let t = self.params.index_to_field;
         let qy = Vec3::new(
@@ -126,14 +128,19 @@ pub fn invert_field(params: &InvertParams, field: &[f32], out: &mut [f32], resid
     out.par_chunks_mut(3 * plane)
         .zip(residual.par_chunks_mut(plane))
         .enumerate()
-        .for_each(|(k, (slice, res))| {
-            for j in 0..ny {
-                for i in 0..nx {
-                    let o = (i + nx * j) as usize;
-                    let (w, r) = components.invert_at([i as f32, j as f32, k as f32]);
-                    slice[3 * o..3 * o + 3].copy_from_slice(&w.to_array());
-                    res[o] = r;
-                }
-            }
-        });
+        .for_each(|(k, (slice, res))| invert_slice(&components, k as u32, slice, res));
+}
+
+/// Output z-slice k of [`invert_field`]; also compiled for AVX2 (crate::cpu's notes).
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn invert_slice(components: &Components, k: u32, slice: &mut [f32], res: &mut [f32]) {
+    let [nx, ny, _] = dims3(components.params.out_dims);
+    for j in 0..ny {
+        for i in 0..nx {
+            let o = (i + nx * j) as usize;
+            let (w, r) = components.invert_at([i as f32, j as f32, k as f32]);
+            slice[3 * o..3 * o + 3].copy_from_slice(&w.to_array());
+            res[o] = r;
+        }
+    }
 }

@@ -1,6 +1,13 @@
 //! The CPU backend: each kernel's twin, written to read like its shader, parallel over slices
 //! with rayon. It is a full backend (machines without a GPU use it) and the reference the GPU
 //! path is tested against.
+//!
+//! The hottest loops (a row, slice or block of a kernel) are `#[multiversion]` functions:
+//! compiled also for AVX2 and chosen at run time, so a machine that has it runs them in wider
+//! lanes, and one that has not still runs them. Both versions perform the same IEEE operations
+//! in the same order (Rust never fuses a multiply and an add on its own), so they give the same
+//! bits; a function they call must be inlined into them (`#[inline(always)]` where the
+//! compiler declines) to be compiled for AVX2 too.
 
 pub mod common;
 pub mod compose;

@@ -56,8 +56,8 @@ pub fn rbf_adjoint(
 }
 
 /// One chunk's sums for output rows block · BLOCK .. (as many as `out` holds), from the chunk's
-/// node `positions` and `gradient` (3 floats per node). Compiled also for AVX2 and chosen at
-/// run time: twice the lanes, the same operations in the same order, so the same bits.
+/// node `positions` and `gradient` (3 floats per node); also compiled for AVX2 (crate::cpu's
+/// notes).
 #[multiversion::multiversion(targets("x86_64+avx2"))]
 fn sum_block(
     params: &RbfLatticeParams,

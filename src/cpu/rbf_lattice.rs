@@ -42,8 +42,8 @@ pub fn rbf_lattice(
         .for_each(|(task, out)| nodes_run(params, geometry, spline, task * NODES_PER_TASK, out));
 }
 
-/// R at the nodes first .. first + out.len() / 3. Compiled also for AVX2 and chosen at run
-/// time: twice the lanes, the same operations in the same order, so the same bits.
+/// R at the nodes first .. first + out.len() / 3; also compiled for AVX2 (crate::cpu's
+/// notes).
 #[multiversion::multiversion(targets("x86_64+avx2"))]
 fn nodes_run(
     params: &RbfLatticeParams,

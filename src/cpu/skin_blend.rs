@@ -26,6 +26,7 @@ fn row(r: [f32; 4]) -> Vec3 {
     Vec3::new(r[0], r[1], r[2])
 }
 
+#[inline(always)]
 fn bone_at(params: &SkinBlendParams, bone_of_voxel: &[f32], x: Vec3) -> u32 {
     let bones = params.blend[0];
     let n = [
@@ -66,6 +67,7 @@ impl CellWeights {
 
     /// Every bone's weight at fraction `t` of the cell, in lanes (the shader's trilinear
     /// blend of each bone's eight corners, lane by lane).
+    #[inline(always)]
     fn at(&self, t: Vec3) -> [f32; MAX_SKIN_BONES] {
         let [v000, v100, v010, v110, v001, v101, v011, v111] = &self.corners;
         let lerp = |a: &[f32; MAX_SKIN_BONES], b: &[f32; MAX_SKIN_BONES], t: f32| {
@@ -81,6 +83,7 @@ impl CellWeights {
     }
 }
 
+#[inline(always)]
 fn blend(
     params: &SkinBlendParams,
     weight: &[f32],
@@ -164,6 +167,7 @@ fn blend(
 
 /// The rigid motion of the blended dual quaternion (real, dual), applied to x: normalised by
 /// the real part's length, rotation from the real part, translation 2 (dual · conj(real)).
+#[inline(always)]
 fn dual_quaternion_motion(real_sum: Vec4, dual_sum: Vec4, x: Vec3) -> Blend {
     let norm = real_sum.length();
     let r = real_sum / norm;
@@ -202,79 +206,109 @@ pub fn skin_blend(
     residual: &mut [f32],
 ) {
     let [nx, ny, _, _] = params.dims;
-    let bones = params.blend[0];
     let slice = (nx * ny) as usize;
     field
         .par_chunks_mut(3 * slice)
         .zip(residual.par_chunks_mut(slice))
         .enumerate()
-        .for_each(|(zl, (field, residual))| {
-            let mut cell = CellWeights::new();
-            for j in 0..ny {
-                for i in 0..nx {
-                    let v = [i as f32, j as f32, zl as f32];
-                    let p = Vec3::from_array(std::array::from_fn(|r| {
-                        affine_row(params.target_to_world[r], v)
-                    }));
-                    let pa = p.to_array();
-                    let mut x = p;
-                    let mut best = NOT_CHOSEN;
-                    // The blend at x, kept from where x was chosen: each step reuses it
-                    // instead of blending again at the same point.
-                    let mut b = Blend::default();
-                    for j in 0..bones {
-                        let inv = |r: u32| params.inverse[(3 * j + r) as usize];
-                        let candidate = Vec3::new(
-                            affine_row(inv(0), pa),
-                            affine_row(inv(1), pa),
-                            affine_row(inv(2), pa),
-                        );
-                        let at = blend(params, weight, bone_of_voxel, candidate, &mut cell);
-                        let miss = (at.point - p).length();
-                        if miss < best {
-                            best = miss;
-                            x = candidate;
-                            b = at;
-                        }
-                    }
-                    if best == NOT_CHOSEN {
-                        // No candidate's miss was finite: step from the blend at p itself.
-                        b = blend(params, weight, bone_of_voxel, x, &mut cell);
-                    }
-                    let mut err = best;
-                    let mut it = 0;
-                    while it < params.blend[1] && err > CONVERGED_MM {
-                        it += 1;
-                        let e = b.point - p;
-                        let det = det3(b.r0, b.r1, b.r2);
-                        let step = if det.abs() > 1e-6 {
-                            solve3(b.r0, b.r1, b.r2, det, e)
-                        } else {
-                            e
-                        };
-                        let mut t = 1.0f32;
-                        let mut moved = false;
-                        for _ in 0..5 {
-                            let trial = x - t * step;
-                            let at = blend(params, weight, bone_of_voxel, trial, &mut cell);
-                            let miss = (at.point - p).length();
-                            if miss < err {
-                                x = trial;
-                                err = miss;
-                                b = at;
-                                moved = true;
-                                break;
-                            }
-                            t *= 0.5;
-                        }
-                        if !moved {
-                            break;
-                        }
-                    }
-                    let v = (i + nx * j) as usize;
-                    field[3 * v..3 * v + 3].copy_from_slice(&[x.x - p.x, x.y - p.y, x.z - p.z]);
-                    residual[v] = err;
-                }
-            }
+        .for_each(|(k, (field, residual))| {
+            blend_slice(params, weight, bone_of_voxel, k as u32, field, residual)
         });
+}
+
+/// Target z-slice k of [`skin_blend`]'s field and residual; also compiled for AVX2
+/// (crate::cpu's notes).
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn blend_slice(
+    params: &SkinBlendParams,
+    weight: &[f32],
+    bone_of_voxel: &[f32],
+    k: u32,
+    field: &mut [f32],
+    residual: &mut [f32],
+) {
+    let [nx, ny, _, _] = params.dims;
+    let mut cell = CellWeights::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            let v = [i as f32, j as f32, k as f32];
+            let p = Vec3::from_array(std::array::from_fn(|r| {
+                affine_row(params.target_to_world[r], v)
+            }));
+            let (x, err) = preimage(params, weight, bone_of_voxel, p, &mut cell);
+            let v = (i + nx * j) as usize;
+            field[3 * v..3 * v + 3].copy_from_slice(&[x.x - p.x, x.y - p.y, x.z - p.z]);
+            residual[v] = err;
+        }
+    }
+}
+
+/// The point x whose blend lands on target point p, and the miss |blend(x) − p| (mm): from
+/// the best of each bone's inverse motion of p, damped steps with the blended linear part as
+/// the Jacobian.
+#[inline(always)]
+fn preimage(
+    params: &SkinBlendParams,
+    weight: &[f32],
+    bone_of_voxel: &[f32],
+    p: Vec3,
+    cell: &mut CellWeights,
+) -> (Vec3, f32) {
+    let bones = params.blend[0];
+    let pa = p.to_array();
+    let mut x = p;
+    let mut best = NOT_CHOSEN;
+    // The blend at x, kept from where x was chosen: each step reuses it instead of blending
+    // again at the same point.
+    let mut b = Blend::default();
+    for j in 0..bones {
+        let inv = |r: u32| params.inverse[(3 * j + r) as usize];
+        let candidate = Vec3::new(
+            affine_row(inv(0), pa),
+            affine_row(inv(1), pa),
+            affine_row(inv(2), pa),
+        );
+        let at = blend(params, weight, bone_of_voxel, candidate, cell);
+        let miss = (at.point - p).length();
+        if miss < best {
+            best = miss;
+            x = candidate;
+            b = at;
+        }
+    }
+    if best == NOT_CHOSEN {
+        // No candidate's miss was finite: step from the blend at p itself.
+        b = blend(params, weight, bone_of_voxel, x, cell);
+    }
+    let mut err = best;
+    let mut it = 0;
+    while it < params.blend[1] && err > CONVERGED_MM {
+        it += 1;
+        let e = b.point - p;
+        let det = det3(b.r0, b.r1, b.r2);
+        let step = if det.abs() > 1e-6 {
+            solve3(b.r0, b.r1, b.r2, det, e)
+        } else {
+            e
+        };
+        let mut t = 1.0f32;
+        let mut moved = false;
+        for _ in 0..5 {
+            let trial = x - t * step;
+            let at = blend(params, weight, bone_of_voxel, trial, cell);
+            let miss = (at.point - p).length();
+            if miss < err {
+                x = trial;
+                err = miss;
+                b = at;
+                moved = true;
+                break;
+            }
+            t *= 0.5;
+        }
+        if !moved {
+            break;
+        }
+    }
+    (x, err)
 }

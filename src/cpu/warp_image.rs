@@ -116,7 +116,7 @@ pub struct RowSamples {
 }
 
 impl RowSamples {
-    /// Samples row (j, k) of `moving` through the warp of `row` ([`sample_row`]).
+    /// Samples row (j, k) of `moving` through the warp of `row` (sample_row below).
     pub fn sample(
         &mut self,
         params: &RbfGradParams,
@@ -143,8 +143,7 @@ impl RowSamples {
 
 /// Samples row (j, k) of `moving` through the warp of `row`: the warped points, then
 /// their corners' indices, the corners' values (the only loop that cannot vectorise) and
-/// the blends. Compiled also for AVX2 and chosen at run time: wider lanes, the same
-/// operations in the same order, so the same bits.
+/// the blends. Also compiled for AVX2 (crate::cpu's notes).
 #[multiversion::multiversion(targets("x86_64+avx2"))]
 fn sample_row(
     samples: &mut RowSamples,
