@@ -138,7 +138,13 @@ fn blend(
         let bones = bones as usize;
         for (c, lanes) in cell.corners.iter_mut().enumerate() {
             let at = (corner_index(c, ends, n) as usize) * bones;
-            lanes[..bones].copy_from_slice(&weight[at..at + bones]);
+            // A whole lane-width copy where the grid reaches that far (the lanes past the
+            // bone count then hold the next voxels' weights, unused): a fixed-size copy, where
+            // one of `bones` floats is a call to memmove.
+            *lanes = match weight.get(at..at + MAX_SKIN_BONES) {
+                Some(window) => window.try_into().expect("MAX_SKIN_BONES floats"),
+                None => std::array::from_fn(|j| weight.get(at + j).copied().unwrap_or(0.0)),
+            };
         }
     }
     let weights = cell.at(t);
