@@ -164,8 +164,7 @@ pub fn lncc_gradient(
         .enumerate()
         .for_each_init(RowSamples::default, |samples, (row, out)| {
             let (j, k) = (row as u32 % ny, row as u32 / ny);
-            let lattice_row = taps.row(params, lattice, j, k);
-            samples.sample(params, &lattice_row, &taps, moving, [j, k]);
+            samples.sample(params, &taps, lattice, moving, [j, k]);
             let s = &samples.sample;
             for i in 0..nx {
                 let v = voxel_index(i, j, k, d) as usize;

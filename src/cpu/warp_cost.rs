@@ -24,8 +24,7 @@ pub fn warp_cost(
         .enumerate()
         .for_each_init(RowSamples::default, |samples, (row, (out, sum_out))| {
             let (j, k) = (row as u32 % ny, row as u32 / ny);
-            let lattice_row = taps.row(params, lattice, j, k);
-            samples.sample(params, &lattice_row, &taps, images.moving, [j, k]);
+            samples.sample(params, &taps, lattice, images.moving, [j, k]);
             let first = voxel_index(0, j, k, d) as usize;
             let voxels = first..first + nx as usize;
             *sum_out = row_cost(

@@ -34,8 +34,21 @@ impl LatticeTaps {
 
     /// The lattice columns voxel row (j, k) (along x) interpolates between, blended along y
     /// and z once for the whole row.
-    #[inline]
     pub fn row(&self, params: &RbfGradParams, lattice: &[f32], j: u32, k: u32) -> RowTaps {
+        let mut row = RowTaps::default();
+        self.fill_row(params, lattice, [j, k], &mut row);
+        row
+    }
+
+    /// [`LatticeTaps::row`] into `row`, whose buffer is reused.
+    #[inline(always)]
+    fn fill_row(
+        &self,
+        params: &RbfGradParams,
+        lattice: &[f32],
+        [j, k]: [u32; 2],
+        row: &mut RowTaps,
+    ) {
         let ([y0, y1], ty) = self.axes[1][j as usize];
         let ([z0, z1], tz) = self.axes[2][k as usize];
         let l = [
@@ -48,26 +61,25 @@ impl LatticeTaps {
             Vec3::from_slice(&lattice[n..n + 3])
         };
         // shaders/lattice_warp.wgsl's column(), for every x node.
-        let columns = (0..l[0])
-            .map(|x| {
-                let c0 = (1.0 - ty) * node(x, y0, z0) + ty * node(x, y1, z0);
-                let c1 = (1.0 - ty) * node(x, y0, z1) + ty * node(x, y1, z1);
-                (1.0 - tz) * c0 + tz * c1
-            })
-            .collect();
-        RowTaps { columns }
+        row.columns.clear();
+        row.columns.extend((0..l[0]).map(|x| {
+            let c0 = (1.0 - ty) * node(x, y0, z0) + ty * node(x, y1, z0);
+            let c1 = (1.0 - ty) * node(x, y0, z1) + ty * node(x, y1, z1);
+            (1.0 - tz) * c0 + tz * c1
+        }));
     }
 }
 
 /// The lattice of one voxel row blended along y and z (one column per x node): the node
 /// lookups and the y and z interpolation of a row, done once.
+#[derive(Default)]
 pub struct RowTaps {
     columns: Vec<Vec3>,
 }
 
 impl RowTaps {
     /// Trilinear interpolation of the lattice at voxel i of the row, in the shader's order.
-    #[inline]
+    #[inline(always)]
     pub fn warp_at(&self, taps: &LatticeTaps, i: u32) -> Vec3 {
         let ([x0, x1], tx) = taps.axes[0][i as usize];
         (1.0 - tx) * self.columns[x0 as usize] + tx * self.columns[x1 as usize]
@@ -98,7 +110,7 @@ fn warped_position(
 
 /// I0 and its gradient at x + R(x) for every voxel x of one row (warped_value_gradient in
 /// shaders/warp_sample.wgsl, a row at a time). The row is done in passes over all its voxels
-/// (warped points, corners per axis, corners' indices, their values, blends) so that every
+/// (the row's lattice columns, warped points, corners per axis, corners' indices, their values, blends) so that every
 /// pass but the gather of values vectorises; each voxel's operations are the shader's, in its
 /// order, so the values are the same bits.
 #[derive(Default)]
@@ -107,7 +119,9 @@ pub struct RowSamples {
     pub inside: Vec<bool>,
     /// W, then ∂W/∂x, ∂W/∂y, ∂W/∂z (world mm), each per voxel of the row.
     pub sample: [Vec<f32>; 4],
-    /// Per voxel: the warped point, [`axis_corners`] per axis, the corners' values.
+    /// The row's lattice columns, then per voxel: the warped point, [`axis_corners`] per
+    /// axis, the corners' values.
+    row: RowTaps,
     position: [Vec<f32>; 3],
     fraction: [Vec<f32>; 3],
     ends: [[Vec<u32>; 2]; 3],
@@ -116,16 +130,16 @@ pub struct RowSamples {
 }
 
 impl RowSamples {
-    /// Samples row (j, k) of `moving` through the warp of `row` (sample_row below).
+    /// Samples row (j, k) of `moving` through the warp `lattice` (sample_row below).
     pub fn sample(
         &mut self,
         params: &RbfGradParams,
-        row: &RowTaps,
         taps: &LatticeTaps,
+        lattice: &[f32],
         moving: &[f32],
         jk: [u32; 2],
     ) {
-        sample_row(self, params, row, taps, moving, jk);
+        sample_row(self, params, taps, lattice, moving, jk);
     }
 
     /// Every per-voxel buffer `nx` long.
@@ -148,16 +162,17 @@ impl RowSamples {
 fn sample_row(
     samples: &mut RowSamples,
     params: &RbfGradParams,
-    row: &RowTaps,
     taps: &LatticeTaps,
+    lattice: &[f32],
     moving: &[f32],
     [j, k]: [u32; 2],
 ) {
     let d = [params.dims[0], params.dims[1], params.dims[2]];
     let nx = d[0] as usize;
     samples.resize(nx);
+    taps.fill_row(params, lattice, [j, k], &mut samples.row);
     for i in 0..nx {
-        let q = warped_position(params, row, taps, [i as u32, j, k]);
+        let q = warped_position(params, &samples.row, taps, [i as u32, j, k]);
         for (a, q) in q.into_iter().enumerate() {
             samples.position[a][i] = q;
         }
@@ -218,13 +233,7 @@ pub fn warp_image(params: &RbfGradParams, lattice: &[f32], moving: &[f32], warpe
         .for_each_init(RowSamples::default, |samples, (k, slice)| {
             for (j, out) in slice.chunks_exact_mut(nx as usize).enumerate() {
                 let (j, k) = (j as u32, k as u32);
-                samples.sample(
-                    params,
-                    &taps.row(params, lattice, j, k),
-                    &taps,
-                    moving,
-                    [j, k],
-                );
+                samples.sample(params, &taps, lattice, moving, [j, k]);
                 out.copy_from_slice(&samples.sample[0]);
             }
         });
