@@ -250,8 +250,8 @@ fn blend_slice(
 }
 
 /// The point x whose blend lands on target point p, and the miss |blend(x) − p| (mm): from
-/// the best of each bone's inverse motion of p, damped steps with the blended linear part as
-/// the Jacobian.
+/// the best of each bone's inverse motion of p ([`best_candidate`]), damped steps with the
+/// blended linear part as the Jacobian.
 #[inline(always)]
 fn preimage(
     params: &SkinBlendParams,
@@ -260,33 +260,7 @@ fn preimage(
     p: Vec3,
     cell: &mut CellWeights,
 ) -> (Vec3, f32) {
-    let bones = params.blend[0];
-    let pa = p.to_array();
-    let mut x = p;
-    let mut best = NOT_CHOSEN;
-    // The blend at x, kept from where x was chosen: each step reuses it instead of blending
-    // again at the same point.
-    let mut b = Blend::default();
-    for j in 0..bones {
-        let inv = |r: u32| params.inverse[(3 * j + r) as usize];
-        let candidate = Vec3::new(
-            affine_row(inv(0), pa),
-            affine_row(inv(1), pa),
-            affine_row(inv(2), pa),
-        );
-        let at = blend(params, weight, bone_of_voxel, candidate, cell);
-        let miss = (at.point - p).length();
-        if miss < best {
-            best = miss;
-            x = candidate;
-            b = at;
-        }
-    }
-    if best == NOT_CHOSEN {
-        // No candidate's miss was finite: step from the blend at p itself.
-        b = blend(params, weight, bone_of_voxel, x, cell);
-    }
-    let mut err = best;
+    let (mut x, mut err, mut b) = best_candidate(params, weight, bone_of_voxel, p, cell);
     let mut it = 0;
     while it < params.blend[1] && err > CONVERGED_MM {
         it += 1;
@@ -317,4 +291,40 @@ fn preimage(
         }
     }
     (x, err)
+}
+
+/// Of each bone's inverse motion of p, the one whose blend lands nearest to p: that point, its
+/// miss (mm) and its blend, which the first step reuses. Where no miss is finite, p itself, the
+/// miss [`NOT_CHOSEN`] and the blend at p.
+#[inline(always)]
+fn best_candidate(
+    params: &SkinBlendParams,
+    weight: &[f32],
+    bone_of_voxel: &[f32],
+    p: Vec3,
+    cell: &mut CellWeights,
+) -> (Vec3, f32, Blend) {
+    let pa = p.to_array();
+    let mut x = p;
+    let mut best = NOT_CHOSEN;
+    let mut b = Blend::default();
+    for j in 0..params.blend[0] {
+        let inv = |r: u32| params.inverse[(3 * j + r) as usize];
+        let candidate = Vec3::new(
+            affine_row(inv(0), pa),
+            affine_row(inv(1), pa),
+            affine_row(inv(2), pa),
+        );
+        let at = blend(params, weight, bone_of_voxel, candidate, cell);
+        let miss = (at.point - p).length();
+        if miss < best {
+            best = miss;
+            x = candidate;
+            b = at;
+        }
+    }
+    if best == NOT_CHOSEN {
+        b = blend(params, weight, bone_of_voxel, x, cell);
+    }
+    (x, best, b)
 }
