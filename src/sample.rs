@@ -119,9 +119,21 @@ pub fn trilinear_with_gradient(source: &[f32], q: [f32; 3], dims: [u32; 3]) -> [
 /// corner per axis: what [`blend_corners`] interpolates.
 #[inline]
 pub fn corners(source: &[f32], q: [f32; 3], dims: [u32; 3]) -> ([f32; 8], [f32; 3]) {
+    let (at, t) = corner_indices(q, dims);
+    (at.map(|n| source[n as usize]), t)
+}
+
+/// The flat indices of the 8 voxels around continuous index q, in [`corners`]' order (clamped
+/// to the volume), and q's fraction past the first corner per axis: for sampling several
+/// volumes on one grid at q.
+#[inline]
+pub fn corner_indices(q: [f32; 3], dims: [u32; 3]) -> ([u32; 8], [f32; 3]) {
     let axes: [([u32; 2], f32); 3] = std::array::from_fn(|a| axis_corners(q[a], dims[a]));
-    let at = |c: usize| source[corner_index(c, axes.map(|(ends, _)| ends), dims) as usize];
-    (std::array::from_fn(at), axes.map(|(_, t)| t))
+    let ends = axes.map(|(ends, _)| ends);
+    (
+        std::array::from_fn(|c| corner_index(c, ends, dims)),
+        axes.map(|(_, t)| t),
+    )
 }
 
 /// Along an axis of n voxels: the voxels continuous index q lies between, clamp(⌊q⌋, 0, n − 1)

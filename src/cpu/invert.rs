@@ -3,7 +3,7 @@
 
 use super::common::{det3, dims3, solve3};
 use crate::abi::InvertParams;
-use crate::sample::{affine_row, inside_source, linear_row, trilinear_with_gradient};
+use crate::sample::{affine_row, blend_corners, corner_indices, inside_source, linear_row};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -22,7 +22,7 @@ struct Local {
 /// The field's three components as volumes (the shader reads one at a time).
 struct Components<'a> {
     params: &'a InvertParams,
-    each: Vec<Vec<f32>>,
+    each: [Vec<f32>; 3],
 }
 
 impl Components<'_> {
@@ -31,8 +31,12 @@ impl Components<'_> {
         let d = dims3(self.params.field_dims);
         let top = Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32) - Vec3::ONE;
         let qc = q.clamp(Vec3::ZERO, top).to_array();
-        let s: [[f32; 4]; 3] =
-            std::array::from_fn(|c| trilinear_with_gradient(&self.each[c], qc, d));
+        // The shader samples each component in turn; their corners are the same voxels.
+        let (at, t) = corner_indices(qc, d);
+        let s = self
+            .each
+            .each_ref()
+            .map(|component| blend_corners(at.map(|n| component[n as usize]), t));
         Local {
             u: Vec3::new(s[0][0], s[1][0], s[2][0]),
             g: s.map(|v| Vec3::new(v[1], v[2], v[3])),
@@ -119,9 +123,7 @@ impl Components<'_> {
 pub fn invert_field(params: &InvertParams, field: &[f32], out: &mut [f32], residual: &mut [f32]) {
     let components = Components {
         params,
-        each: (0..3)
-            .map(|c| field.iter().skip(c).step_by(3).copied().collect())
-            .collect(),
+        each: std::array::from_fn(|c| field.iter().skip(c).step_by(3).copied().collect()),
     };
     let [nx, ny, _] = dims3(params.out_dims);
     let plane = (nx * ny) as usize;
