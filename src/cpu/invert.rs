@@ -123,7 +123,7 @@ impl Components<'_> {
 pub fn invert_field(params: &InvertParams, field: &[f32], out: &mut [f32], residual: &mut [f32]) {
     let components = Components {
         params,
-        each: std::array::from_fn(|c| field.iter().skip(c).step_by(3).copied().collect()),
+        each: std::array::from_fn(|c| field.par_chunks_exact(3).map(|u| u[c]).collect()),
     };
     let [nx, ny, _] = dims3(params.out_dims);
     let plane = (nx * ny) as usize;
