@@ -126,23 +126,23 @@ pub fn invert_field(params: &InvertParams, field: &[f32], out: &mut [f32], resid
         each: std::array::from_fn(|c| field.par_chunks_exact(3).map(|u| u[c]).collect()),
     };
     let [nx, ny, _] = dims3(params.out_dims);
-    let plane = (nx * ny) as usize;
-    out.par_chunks_mut(3 * plane)
-        .zip(residual.par_chunks_mut(plane))
+    // By rows, not slices: Newton takes many more steps where the field folds or compresses
+    // sharply, and a slice across such a region kept a core idle.
+    out.par_chunks_mut(3 * nx as usize)
+        .zip(residual.par_chunks_mut(nx as usize))
         .enumerate()
-        .for_each(|(k, (slice, res))| invert_slice(&components, k as u32, slice, res));
+        .for_each(|(row, (out, res))| {
+            let (j, k) = (row as u32 % ny, row as u32 / ny);
+            invert_row(&components, [j, k], out, res)
+        });
 }
 
-/// Output z-slice k of [`invert_field`]; also compiled for AVX2 (crate::cpu's notes).
+/// Output row (j, k) of [`invert_field`]; also compiled for AVX2 (crate::cpu's notes).
 #[multiversion::multiversion(targets("x86_64+avx2"))]
-fn invert_slice(components: &Components, k: u32, slice: &mut [f32], res: &mut [f32]) {
-    let [nx, ny, _] = dims3(components.params.out_dims);
-    for j in 0..ny {
-        for i in 0..nx {
-            let o = (i + nx * j) as usize;
-            let (w, r) = components.invert_at([i as f32, j as f32, k as f32]);
-            slice[3 * o..3 * o + 3].copy_from_slice(&w.to_array());
-            res[o] = r;
-        }
+fn invert_row(components: &Components, [j, k]: [u32; 2], out: &mut [f32], res: &mut [f32]) {
+    for (i, res) in res.iter_mut().enumerate() {
+        let (w, r) = components.invert_at([i as f32, j as f32, k as f32]);
+        out[3 * i..3 * i + 3].copy_from_slice(&w.to_array());
+        *res = r;
     }
 }
