@@ -96,14 +96,13 @@ pub fn trilinear(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -
 }
 
 /// The value of the voxel whose centre is nearest to q (ties round up); `background` outside.
-#[inline]
+#[inline(always)]
 pub fn nearest(source: &[f32], q: [f32; 3], dims: [u32; 3], background: f32) -> f32 {
     if !inside_source(q, dims) {
         return background;
     }
-    let i: [u32; 3] =
-        std::array::from_fn(|a| (floor(q[a] + 0.5) as i32).clamp(0, dims[a] as i32 - 1) as u32);
-    source[voxel_index(i[0], i[1], i[2], dims) as usize]
+    let at = |a: usize| (floor(q[a] + 0.5) as i32).clamp(0, dims[a] as i32 - 1) as u32;
+    source[voxel_index(at(0), at(1), at(2), dims) as usize]
 }
 
 /// Value and index-space gradient of the trilinear interpolant at q (caller checks

@@ -1,9 +1,16 @@
 //! CPU twin of shaders/skin_blend.wgsl.
+//!
+//! The shader inverts one voxel per invocation; the twin inverts [`LANES`] neighbouring voxels
+//! of a row side by side, each quantity held for all of them in one array ([`Lanes`]), so that
+//! the arithmetic runs in vector lanes. Each voxel takes the shader's candidates, steps and
+//! trials with the shader's operations in its order (glam's where the shader's vector types
+//! were glam's before), so the bits are those of a one-voxel loop; only the lookups into the
+//! label and weight grids go voxel by voxel.
 
 use super::common::{affine_row, det3, solve3};
 use crate::abi::{SkinBlendParams, MAX_SKIN_BONES};
 use crate::sample::{axis_corners, corner_index, nearest};
-use glam::{Vec3, Vec4};
+use glam::Vec3;
 use rayon::prelude::*;
 
 /// A voxel whose blend lands within this of its target point needs no more steps (mm): a
@@ -13,192 +20,321 @@ use rayon::prelude::*;
 const CONVERGED_MM: f32 = 1e-3;
 /// The miss before any candidate is chosen (the shader's literal).
 const NOT_CHOSEN: f32 = 3.4e38;
+/// Trials per step, the step's length halved after each.
+const TRIALS: u32 = 5;
 
-#[derive(Clone, Copy, Default)]
-struct Blend {
-    point: Vec3,
-    r0: Vec3,
-    r1: Vec3,
-    r2: Vec3,
-}
+/// Voxels inverted side by side: eight, the f32 lanes of an AVX2 register.
+const LANES: usize = 8;
 
-fn row(r: [f32; 4]) -> Vec3 {
-    Vec3::new(r[0], r[1], r[2])
+/// One quantity for each of [`LANES`] voxels.
+type Lanes = [f32; LANES];
+/// One flag for each of [`LANES`] voxels.
+type Mask = [bool; LANES];
+
+/// `[f(0), f(1), …]`: `std::array::from_fn`, whose closure the compiler leaves uninlined
+/// behind a call here (and so out of the vector lanes).
+#[inline(always)]
+fn each<T: Copy + Default, const N: usize>(mut f: impl FnMut(usize) -> T) -> [T; N] {
+    let mut out = [T::default(); N];
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = f(i);
+    }
+    out
 }
 
 #[inline(always)]
-fn bone_at(params: &SkinBlendParams, bone_of_voxel: &[f32], x: Vec3) -> u32 {
+fn lanes(f: impl FnMut(usize) -> f32) -> Lanes {
+    each(f)
+}
+
+#[inline(always)]
+fn mask(f: impl FnMut(usize) -> bool) -> Mask {
+    each(f)
+}
+
+/// `a` where `pick`, else `b`, lane by lane.
+#[inline(always)]
+fn select(pick: &Mask, a: &Lanes, b: &Lanes) -> Lanes {
+    lanes(|l| if pick[l] { a[l] } else { b[l] })
+}
+
+/// [`LANES`] points or vectors, one array per component.
+#[derive(Clone, Copy, Default)]
+struct Points([Lanes; 3]);
+
+impl Points {
+    #[inline(always)]
+    fn at(&self, l: usize) -> Vec3 {
+        Vec3::new(self.0[0][l], self.0[1][l], self.0[2][l])
+    }
+
+    /// Each lane's point through the 3 × 4 affine `rows` (affine_row's order).
+    #[inline(always)]
+    fn affine(rows: &[[f32; 4]], p: &Points) -> Points {
+        let [x, y, z] = &p.0;
+        Points(each(|r| {
+            let m = rows[r];
+            lanes(|l| m[0] * x[l] + m[1] * y[l] + m[2] * z[l] + m[3])
+        }))
+    }
+
+    #[inline(always)]
+    fn minus(&self, other: &Points) -> Points {
+        Points(each(|a| lanes(|l| self.0[a][l] - other.0[a][l])))
+    }
+
+    /// glam's Vec3::length: √((x² + y²) + z²).
+    #[inline(always)]
+    fn length(&self) -> Lanes {
+        let [x, y, z] = &self.0;
+        lanes(|l| (x[l] * x[l] + y[l] * y[l] + z[l] * z[l]).sqrt())
+    }
+
+    /// glam's Vec3::dot with `other`.
+    #[inline(always)]
+    fn dot(&self, other: &Points) -> Lanes {
+        let ([x, y, z], [u, v, w]) = (&self.0, &other.0);
+        lanes(|l| x[l] * u[l] + y[l] * v[l] + z[l] * w[l])
+    }
+
+    #[inline(always)]
+    fn select(pick: &Mask, a: &Points, b: &Points) -> Points {
+        Points(each(|c| select(pick, &a.0[c], &b.0[c])))
+    }
+}
+
+/// The blended motion at [`LANES`] points: where it takes each point, and its linear part's
+/// rows.
+#[derive(Clone, Copy, Default)]
+struct Blend {
+    point: Points,
+    r: [Points; 3],
+}
+
+impl Blend {
+    #[inline(always)]
+    fn select(pick: &Mask, a: &Blend, b: &Blend) -> Blend {
+        Blend {
+            point: Points::select(pick, &a.point, &b.point),
+            r: each(|i| Points::select(pick, &a.r[i], &b.r[i])),
+        }
+    }
+
+    /// Lane `l`'s linear part, row by row.
+    #[inline(always)]
+    fn rows(&self, l: usize) -> [Vec3; 3] {
+        [self.r[0].at(l), self.r[1].at(l), self.r[2].at(l)]
+    }
+}
+
+/// What a blend reads.
+struct Images<'a> {
+    params: &'a SkinBlendParams,
+    weight: &'a [f32],
+    bone_of_voxel: &'a [f32],
+}
+
+/// The bone whose labelled voxel holds each wanted lane's point x (the bone count for soft
+/// tissue, and in the lanes not wanted).
+#[inline(always)]
+fn bones_at(images: &Images, x: &Points, wanted: &Mask) -> [u32; LANES] {
+    let params = images.params;
     let bones = params.blend[0];
     let n = [
         params.label_dims[0],
         params.label_dims[1],
         params.label_dims[2],
     ];
-    let xa = x.to_array();
-    let q: [f32; 3] = std::array::from_fn(|r| affine_row(params.world_to_label[r], xa));
-    let b = nearest(bone_of_voxel, q, n, 0.0) as u32;
-    if b > 0 {
-        b - 1
-    } else {
-        bones
+    let q = Points::affine(&params.world_to_label, x);
+    let mut inside = [bones; LANES];
+    for l in (0..LANES).filter(|&l| wanted[l]) {
+        let b = nearest(images.bone_of_voxel, q.at(l).to_array(), n, 0.0) as u32;
+        if b > 0 {
+            inside[l] = b - 1;
+        }
     }
+    inside
 }
 
-/// The weights at the eight corners of one weight-grid cell (per corner, one lane per bone),
-/// kept from one blend to the next: a voxel's steps mostly stay in one cell, so the 8 × bones
-/// lookups need not be repeated. A corner's bones lie together in the weight grid, so each
-/// corner is one copy; and the bones' weights are interpolated lane by lane, each lane with the
-/// shader's operations in its order. The weights are those the lookups give, so the blend is
-/// the same; the shader looks them up each time.
-struct CellWeights {
-    /// Flat index of the cell's first corner; `u32::MAX` before any.
-    first: u32,
-    /// Per corner (x fastest), the weight of each bone (lanes past the bone count unused).
-    corners: [[f32; MAX_SKIN_BONES]; 8],
+/// Each lane's weight-grid cell, kept from one blend to the next: a voxel's steps mostly stay
+/// in one cell, so its 8 × bones lookups need not be repeated. The weights are those the
+/// lookups give, so the blend is the same; the shader looks them up each time.
+struct Cells {
+    /// Per lane, the flat index of the cell's first corner; `u32::MAX` before any.
+    first: [u32; LANES],
+    /// Per bone and corner (x fastest), the weight in each lane's cell.
+    weights: [[Lanes; 8]; MAX_SKIN_BONES],
 }
 
-impl CellWeights {
+impl Cells {
     fn new() -> Self {
-        CellWeights {
-            first: u32::MAX,
-            corners: [[0.0; MAX_SKIN_BONES]; 8],
+        Cells {
+            first: [u32::MAX; LANES],
+            weights: [[[0.0; LANES]; 8]; MAX_SKIN_BONES],
         }
     }
 
-    /// Every bone's weight at fraction `t` of the cell, in lanes (the shader's trilinear
-    /// blend of each bone's eight corners, lane by lane).
+    /// Lane `l`'s cell made the one between voxels `ends` of a weight grid of `n` voxels.
     #[inline(always)]
-    fn at(&self, t: Vec3) -> [f32; MAX_SKIN_BONES] {
-        let [v000, v100, v010, v110, v001, v101, v011, v111] = &self.corners;
-        let lerp = |a: &[f32; MAX_SKIN_BONES], b: &[f32; MAX_SKIN_BONES], t: f32| {
-            std::array::from_fn(|j| (1.0 - t) * a[j] + t * b[j])
-        };
-        let c00 = lerp(v000, v100, t.x);
-        let c10 = lerp(v010, v110, t.x);
-        let c01 = lerp(v001, v101, t.x);
-        let c11 = lerp(v011, v111, t.x);
-        let c0 = lerp(&c00, &c10, t.y);
-        let c1 = lerp(&c01, &c11, t.y);
-        lerp(&c0, &c1, t.z)
+    fn hold(&mut self, images: &Images, l: usize, ends: [[u32; 2]; 3], n: [u32; 3]) {
+        let first = corner_index(0, ends, n);
+        if first == self.first[l] {
+            return;
+        }
+        self.first[l] = first;
+        let bones = images.params.blend[0] as usize;
+        for c in 0..8 {
+            let at = corner_index(c, ends, n) as usize * bones;
+            // A whole lane-width read where the grid reaches that far (the values past the
+            // bone count are the next voxels' weights, unused): one load, not one per bone.
+            let corner: [f32; MAX_SKIN_BONES] = match images.weight.get(at..at + MAX_SKIN_BONES) {
+                Some(window) => window.try_into().expect("MAX_SKIN_BONES floats"),
+                None => each(|j| images.weight.get(at + j).copied().unwrap_or(0.0)),
+            };
+            for (bone, corners) in self.weights[..bones].iter_mut().enumerate() {
+                corners[c][l] = corner[bone];
+            }
+        }
+    }
+
+    /// Bone `bone`'s weight at fraction `t` of each lane's cell (the shader's trilinear blend).
+    #[inline(always)]
+    fn weight(&self, bone: usize, t: &Points) -> Lanes {
+        let [v000, v100, v010, v110, v001, v101, v011, v111] = &self.weights[bone];
+        let [tx, ty, tz] = &t.0;
+        let lerp = |a: &Lanes, b: &Lanes, t: &Lanes| lanes(|l| (1.0 - t[l]) * a[l] + t[l] * b[l]);
+        let c00 = lerp(v000, v100, tx);
+        let c10 = lerp(v010, v110, tx);
+        let c01 = lerp(v001, v101, tx);
+        let c11 = lerp(v011, v111, tx);
+        let c0 = lerp(&c00, &c10, ty);
+        let c1 = lerp(&c01, &c11, ty);
+        lerp(&c0, &c1, tz)
     }
 }
 
+/// The blend at each lane's point x, for the lanes `wanted` (the others' values are left to
+/// chance): inside a bone's label its own motion, elsewhere the bones' motions blended by the
+/// weights.
 #[inline(always)]
-fn blend(
-    params: &SkinBlendParams,
-    weight: &[f32],
-    bone_of_voxel: &[f32],
-    x: Vec3,
-    cell: &mut CellWeights,
-) -> Blend {
+fn blend(images: &Images, x: &Points, wanted: &Mask, cells: &mut Cells) -> Blend {
+    let params = images.params;
+    let bones = params.blend[0];
     let n = [
         params.weight_dims[0],
         params.weight_dims[1],
         params.weight_dims[2],
     ];
-    let bones = params.blend[0];
-    let xa = x.to_array();
-    let inside = bone_at(params, bone_of_voxel, x);
-    if inside < bones {
-        let m = [0, 1, 2].map(|r| params.forward[(3 * inside + r) as usize]);
-        return Blend {
-            point: Vec3::new(
-                affine_row(m[0], xa),
-                affine_row(m[1], xa),
-                affine_row(m[2], xa),
-            ),
-            r0: row(m[0]),
-            r1: row(m[1]),
-            r2: row(m[2]),
-        };
-    }
-    let s = Vec3::from_array(std::array::from_fn(|r| {
-        affine_row(params.world_to_weight[r], xa)
+    let inside = bones_at(images, x, wanted);
+    let s = Points::affine(&params.world_to_weight, x);
+    let q = Points(each(|a| {
+        let top = n[a] as f32 - 1.0;
+        lanes(|l| s.0[a][l].max(0.0).min(top))
     }));
-    let q = s.clamp(
-        Vec3::ZERO,
-        Vec3::new(n[0] as f32 - 1.0, n[1] as f32 - 1.0, n[2] as f32 - 1.0),
-    );
     // q is inside the grid, so the corners are ⌊q⌋ and ⌊q⌋ + 1 clamped to it.
-    let axes: [([u32; 2], f32); 3] = std::array::from_fn(|a| axis_corners(q[a], n[a]));
-    let ends = axes.map(|(ends, _)| ends);
-    let t = Vec3::from_array(axes.map(|(_, t)| t));
-    let mut b = Blend {
-        point: Vec3::ZERO,
-        r0: Vec3::ZERO,
-        r1: Vec3::ZERO,
-        r2: Vec3::ZERO,
+    let mut t = Points::default();
+    for l in 0..LANES {
+        let mut ends = [[0; 2]; 3];
+        for a in 0..3 {
+            (ends[a], t.0[a][l]) = axis_corners(q.0[a][l], n[a]);
+        }
+        if wanted[l] && inside[l] == bones {
+            cells.hold(images, l, ends, n);
+        }
+    }
+    let mut b = match params.blend[2] == 1 {
+        true => dual_quaternion_blend(params, cells, &t, x),
+        false => linear_blend(params, cells, &t, x),
     };
-    let dual_quaternion = params.blend[2] == 1;
-    let mut real = Vec4::ZERO;
-    let mut dual = Vec4::ZERO;
-    let first = corner_index(0, ends, n);
-    if first != cell.first {
-        cell.first = first;
-        let bones = bones as usize;
-        for (c, lanes) in cell.corners.iter_mut().enumerate() {
-            let at = (corner_index(c, ends, n) as usize) * bones;
-            // A whole lane-width copy where the grid reaches that far (the lanes past the
-            // bone count then hold the next voxels' weights, unused): a fixed-size copy, where
-            // one of `bones` floats is a call to memmove.
-            *lanes = match weight.get(at..at + MAX_SKIN_BONES) {
-                Some(window) => window.try_into().expect("MAX_SKIN_BONES floats"),
-                None => std::array::from_fn(|j| weight.get(at + j).copied().unwrap_or(0.0)),
-            };
-        }
-    }
-    let weights = cell.at(t);
-    for j in 0..bones {
-        let w = weights[j as usize];
-        if dual_quaternion {
-            real += w * Vec4::from_array(params.dual[(2 * j) as usize]);
-            dual += w * Vec4::from_array(params.dual[(2 * j + 1) as usize]);
-        } else {
-            let m = [0, 1, 2].map(|r| params.forward[(3 * j + r) as usize]);
-            b.point += w * Vec3::new(
-                affine_row(m[0], xa),
-                affine_row(m[1], xa),
-                affine_row(m[2], xa),
-            );
-            b.r0 += w * row(m[0]);
-            b.r1 += w * row(m[1]);
-            b.r2 += w * row(m[2]);
-        }
-    }
-    if dual_quaternion {
-        return dual_quaternion_motion(real, dual, x);
+    for (l, &bone) in inside.iter().enumerate().filter(|(_, &bone)| bone < bones) {
+        rigid_in_lane(params, bone, x.at(l), l, &mut b);
     }
     b
 }
 
-/// The rigid motion of the blended dual quaternion (real, dual), applied to x: normalised by
-/// the real part's length, rotation from the real part, translation 2 (dual · conj(real)).
+/// Lane `l` of `b` made `bone`'s own motion at x.
 #[inline(always)]
-fn dual_quaternion_motion(real_sum: Vec4, dual_sum: Vec4, x: Vec3) -> Blend {
-    let norm = real_sum.length();
-    let r = real_sum / norm;
-    let d = dual_sum / norm;
-    let t = 2.0 * (r.w * d.truncate() - d.w * r.truncate() + r.truncate().cross(d.truncate()));
-    let r0 = Vec3::new(
-        1.0 - 2.0 * (r.y * r.y + r.z * r.z),
-        2.0 * (r.x * r.y - r.z * r.w),
-        2.0 * (r.x * r.z + r.y * r.w),
-    );
-    let r1 = Vec3::new(
-        2.0 * (r.x * r.y + r.z * r.w),
-        1.0 - 2.0 * (r.x * r.x + r.z * r.z),
-        2.0 * (r.y * r.z - r.x * r.w),
-    );
-    let r2 = Vec3::new(
-        2.0 * (r.x * r.z - r.y * r.w),
-        2.0 * (r.y * r.z + r.x * r.w),
-        1.0 - 2.0 * (r.x * r.x + r.y * r.y),
-    );
+fn rigid_in_lane(params: &SkinBlendParams, bone: u32, x: Vec3, l: usize, b: &mut Blend) {
+    let xa = x.to_array();
+    let rows = &params.forward[3 * bone as usize..3 * bone as usize + 3];
+    for (r, m) in rows.iter().enumerate() {
+        b.point.0[r][l] = affine_row(*m, xa);
+        for (lanes, &value) in b.r[r].0.iter_mut().zip(m) {
+            lanes[l] = value;
+        }
+    }
+}
+
+/// The bones' affine motions blended by their weights (the paper's blend).
+#[inline(always)]
+fn linear_blend(params: &SkinBlendParams, cells: &Cells, t: &Points, x: &Points) -> Blend {
+    let mut b = Blend::default();
+    for j in 0..params.blend[0] as usize {
+        let w = cells.weight(j, t);
+        let m = &params.forward[3 * j..3 * j + 3];
+        let moved = Points::affine(m, x);
+        for (r, row) in m.iter().enumerate() {
+            b.point.0[r] = lanes(|l| b.point.0[r][l] + w[l] * moved.0[r][l]);
+            for (sum, &value) in b.r[r].0.iter_mut().zip(row) {
+                *sum = lanes(|l| sum[l] + w[l] * value);
+            }
+        }
+    }
+    b
+}
+
+/// The bones' dual quaternions blended by their weights, as the rigid motion they make:
+/// normalised by the real part's length, rotation from the real part, translation
+/// 2 (dual · conj(real)).
+#[inline(always)]
+fn dual_quaternion_blend(params: &SkinBlendParams, cells: &Cells, t: &Points, x: &Points) -> Blend {
+    let mut real = [[0.0f32; LANES]; 4];
+    let mut dual = [[0.0f32; LANES]; 4];
+    for j in 0..params.blend[0] as usize {
+        let w = cells.weight(j, t);
+        let (qr, qd) = (params.dual[2 * j], params.dual[2 * j + 1]);
+        for c in 0..4 {
+            real[c] = lanes(|l| real[c][l] + w[l] * qr[c]);
+            dual[c] = lanes(|l| dual[c][l] + w[l] * qd[c]);
+        }
+    }
+    // glam's Vec4::length: √((x² + z²) + (y² + w²)).
+    let norm = lanes(|l| {
+        let [x, y, z, w] = [real[0][l], real[1][l], real[2][l], real[3][l]];
+        ((x * x + z * z) + (y * y + w * w)).sqrt()
+    });
+    let r: [Lanes; 4] = each(|c| lanes(|l| real[c][l] / norm[l]));
+    let d: [Lanes; 4] = each(|c| lanes(|l| dual[c][l] / norm[l]));
+    let [rx, ry, rz, rw] = &r;
+    let [dx, dy, dz, dw] = &d;
+    // 2 (r.w d − d.w r + r × d), each term glam's Vec3 operation.
+    let translation = |a: &Lanes, b: &Lanes, cross: &dyn Fn(usize) -> f32| {
+        lanes(|l| 2.0 * ((rw[l] * a[l] - dw[l] * b[l]) + cross(l)))
+    };
+    let t = Points([
+        translation(dx, rx, &|l| ry[l] * dz[l] - dy[l] * rz[l]),
+        translation(dy, ry, &|l| rz[l] * dx[l] - dz[l] * rx[l]),
+        translation(dz, rz, &|l| rx[l] * dy[l] - dx[l] * ry[l]),
+    ]);
+    let r0 = Points([
+        lanes(|l| 1.0 - 2.0 * (ry[l] * ry[l] + rz[l] * rz[l])),
+        lanes(|l| 2.0 * (rx[l] * ry[l] - rz[l] * rw[l])),
+        lanes(|l| 2.0 * (rx[l] * rz[l] + ry[l] * rw[l])),
+    ]);
+    let r1 = Points([
+        lanes(|l| 2.0 * (rx[l] * ry[l] + rz[l] * rw[l])),
+        lanes(|l| 1.0 - 2.0 * (rx[l] * rx[l] + rz[l] * rz[l])),
+        lanes(|l| 2.0 * (ry[l] * rz[l] - rx[l] * rw[l])),
+    ]);
+    let r2 = Points([
+        lanes(|l| 2.0 * (rx[l] * rz[l] - ry[l] * rw[l])),
+        lanes(|l| 2.0 * (ry[l] * rz[l] + rx[l] * rw[l])),
+        lanes(|l| 1.0 - 2.0 * (rx[l] * rx[l] + ry[l] * ry[l])),
+    ]);
+    let turned = [r0.dot(x), r1.dot(x), r2.dot(x)];
     Blend {
-        point: Vec3::new(r0.dot(x), r1.dot(x), r2.dot(x)) + t,
-        r0,
-        r1,
-        r2,
+        point: Points(each(|a| lanes(|l| turned[a][l] + t.0[a][l]))),
+        r: [r0, r1, r2],
     }
 }
 
@@ -212,6 +348,11 @@ pub fn skin_blend(
     residual: &mut [f32],
 ) {
     let [nx, ny, _, _] = params.dims;
+    let images = Images {
+        params,
+        weight,
+        bone_of_voxel,
+    };
     // By rows, not slices: a slice across the joint takes many times longer than one away
     // from it, and the last such slice kept one core idle (half phantom 60°: 36 ms).
     field
@@ -220,109 +361,126 @@ pub fn skin_blend(
         .enumerate()
         .for_each(|(row, (field, residual))| {
             let (j, k) = (row as u32 % ny, row as u32 / ny);
-            blend_row(params, weight, bone_of_voxel, [j, k], field, residual)
+            blend_row(&images, [j, k], field, residual)
         });
 }
 
-/// Target row (j, k) of [`skin_blend`]'s field and residual; also compiled for AVX2
-/// (crate::cpu's notes).
+/// Target row (j, k) of [`skin_blend`]'s field and residual, [`LANES`] voxels at a time; also
+/// compiled for AVX2 (crate::cpu's notes).
 #[multiversion::multiversion(targets("x86_64+avx2"))]
-fn blend_row(
-    params: &SkinBlendParams,
-    weight: &[f32],
-    bone_of_voxel: &[f32],
-    [j, k]: [u32; 2],
-    field: &mut [f32],
-    residual: &mut [f32],
-) {
-    let mut cell = CellWeights::new();
-    for (i, residual) in residual.iter_mut().enumerate() {
-        let v = [i as f32, j as f32, k as f32];
-        let p = Vec3::from_array(std::array::from_fn(|r| {
-            affine_row(params.target_to_world[r], v)
-        }));
-        let (x, err) = preimage(params, weight, bone_of_voxel, p, &mut cell);
-        field[3 * i..3 * i + 3].copy_from_slice(&[x.x - p.x, x.y - p.y, x.z - p.z]);
-        *residual = err;
+fn blend_row(images: &Images, [j, k]: [u32; 2], field: &mut [f32], residual: &mut [f32]) {
+    let nx = residual.len();
+    let mut cells = Cells::new();
+    for first in (0..nx).step_by(LANES) {
+        // The row's last voxel fills the lanes past its end.
+        let i = |l: usize| (first + l).min(nx - 1) as f32;
+        let v = Points([lanes(i), [j as f32; LANES], [k as f32; LANES]]);
+        let p = Points::affine(&images.params.target_to_world, &v);
+        let (x, err) = preimage(images, &p, &mut cells);
+        let voxels = first..nx.min(first + LANES);
+        for (l, (u, residual)) in field[3 * voxels.start..3 * voxels.end]
+            .chunks_exact_mut(3)
+            .zip(&mut residual[voxels])
+            .enumerate()
+        {
+            u.copy_from_slice(&(x.at(l) - p.at(l)).to_array());
+            *residual = err[l];
+        }
     }
 }
 
-/// The point x whose blend lands on target point p, and the miss |blend(x) − p| (mm): from
-/// the best of each bone's inverse motion of p ([`best_candidate`]), damped steps with the
-/// blended linear part as the Jacobian.
+/// For each lane's target point p, the point x whose blend lands on p and the miss
+/// |blend(x) − p| (mm): from the best of each bone's inverse motion of p
+/// ([`best_candidate`]), damped steps with the blended linear part as the Jacobian, each tried
+/// at lengths 1, ½, … until the miss falls. The lanes step together, each its own steps.
 #[inline(always)]
-fn preimage(
-    params: &SkinBlendParams,
-    weight: &[f32],
-    bone_of_voxel: &[f32],
-    p: Vec3,
-    cell: &mut CellWeights,
-) -> (Vec3, f32) {
-    let (mut x, mut err, mut b) = best_candidate(params, weight, bone_of_voxel, p, cell);
-    let mut it = 0;
-    while it < params.blend[1] && err > CONVERGED_MM {
-        it += 1;
-        let e = b.point - p;
-        let det = det3(b.r0, b.r1, b.r2);
-        let step = if det.abs() > 1e-6 {
-            solve3(b.r0, b.r1, b.r2, det, e)
-        } else {
-            e
-        };
-        let mut t = 1.0f32;
-        let mut moved = false;
-        for _ in 0..5 {
-            let trial = x - t * step;
-            let at = blend(params, weight, bone_of_voxel, trial, cell);
-            let miss = (at.point - p).length();
-            if miss < err {
-                x = trial;
-                err = miss;
-                b = at;
-                moved = true;
-                break;
+fn preimage(images: &Images, p: &Points, cells: &mut Cells) -> (Points, Lanes) {
+    let max_steps = images.params.blend[1];
+    let (mut x, mut err, mut b) = best_candidate(images, p, cells);
+    let mut steps = [0u32; LANES];
+    let mut step = Points::default();
+    let mut length = [1.0f32; LANES];
+    let mut trials = [0u32; LANES];
+    let mut active = [true; LANES];
+    begin_steps(&mut active, (&mut steps, max_steps), &err, p, &b, &mut step);
+    while active.contains(&true) {
+        let trial = Points(each(|a| lanes(|l| x.0[a][l] - length[l] * step.0[a][l])));
+        let at = blend(images, &trial, &active, cells);
+        let miss = at.point.minus(p).length();
+        let taken = mask(|l| active[l] && miss[l] < err[l]);
+        x = Points::select(&taken, &trial, &x);
+        err = select(&taken, &miss, &err);
+        b = Blend::select(&taken, &at, &b);
+        for l in 0..LANES {
+            if active[l] && !taken[l] {
+                length[l] *= 0.5;
+                trials[l] += 1;
+                active[l] = trials[l] < TRIALS;
             }
-            t *= 0.5;
         }
-        if !moved {
-            break;
+        let mut next = taken;
+        begin_steps(&mut next, (&mut steps, max_steps), &err, p, &b, &mut step);
+        for l in (0..LANES).filter(|&l| taken[l]) {
+            active[l] = next[l];
+            (length[l], trials[l]) = (1.0, 0);
         }
     }
     (x, err)
 }
 
-/// Of each bone's inverse motion of p, the one whose blend lands nearest to p: that point, its
-/// miss (mm) and its blend, which the first step reuses. Where no miss is finite, p itself, the
-/// miss [`NOT_CHOSEN`] and the blend at p.
+/// Begins the next step in each lane of `lanes` unless its `steps` have reached the most
+/// allowed or its miss `err` has converged (then clears the lane).
 #[inline(always)]
-fn best_candidate(
-    params: &SkinBlendParams,
-    weight: &[f32],
-    bone_of_voxel: &[f32],
-    p: Vec3,
-    cell: &mut CellWeights,
-) -> (Vec3, f32, Blend) {
-    let pa = p.to_array();
-    let mut x = p;
-    let mut best = NOT_CHOSEN;
-    let mut b = Blend::default();
-    for j in 0..params.blend[0] {
-        let inv = |r: u32| params.inverse[(3 * j + r) as usize];
-        let candidate = Vec3::new(
-            affine_row(inv(0), pa),
-            affine_row(inv(1), pa),
-            affine_row(inv(2), pa),
-        );
-        let at = blend(params, weight, bone_of_voxel, candidate, cell);
-        let miss = (at.point - p).length();
-        if miss < best {
-            best = miss;
-            x = candidate;
-            b = at;
+fn begin_steps(
+    lanes: &mut Mask,
+    (steps, max_steps): (&mut [u32; LANES], u32),
+    err: &Lanes,
+    p: &Points,
+    b: &Blend,
+    step: &mut Points,
+) {
+    for l in 0..LANES {
+        let going_on = steps[l] < max_steps && err[l] > CONVERGED_MM;
+        lanes[l] &= going_on;
+        if !lanes[l] {
+            continue;
+        }
+        steps[l] += 1;
+        let [r0, r1, r2] = b.rows(l);
+        let e = b.point.at(l) - p.at(l);
+        let det = det3(r0, r1, r2);
+        let s = if det.abs() > 1e-6 {
+            solve3(r0, r1, r2, det, e)
+        } else {
+            e
+        };
+        for a in 0..3 {
+            step.0[a][l] = s[a];
         }
     }
-    if best == NOT_CHOSEN {
-        b = blend(params, weight, bone_of_voxel, x, cell);
+}
+
+/// Of each bone's inverse motion of each lane's p, the one whose blend lands nearest to p:
+/// that point, its miss (mm) and its blend, which the first step reuses. Where no miss is
+/// finite, p itself, the miss [`NOT_CHOSEN`] and the blend at p.
+#[inline(always)]
+fn best_candidate(images: &Images, p: &Points, cells: &mut Cells) -> (Points, Lanes, Blend) {
+    let params = images.params;
+    let mut x = *p;
+    let mut best = [NOT_CHOSEN; LANES];
+    let mut b = Blend::default();
+    for j in 0..params.blend[0] as usize {
+        let candidate = Points::affine(&params.inverse[3 * j..3 * j + 3], p);
+        let at = blend(images, &candidate, &[true; LANES], cells);
+        let miss = at.point.minus(p).length();
+        let better = mask(|l| miss[l] < best[l]);
+        best = select(&better, &miss, &best);
+        x = Points::select(&better, &candidate, &x);
+        b = Blend::select(&better, &at, &b);
+    }
+    let none = mask(|l| best[l] == NOT_CHOSEN);
+    if none.contains(&true) {
+        b = Blend::select(&none, &blend(images, &x, &none, cells), &b);
     }
     (x, best, b)
 }
