@@ -127,12 +127,17 @@ pub fn corners(source: &[f32], q: [f32; 3], dims: [u32; 3]) -> ([f32; 8], [f32; 
 /// volumes on one grid at q.
 #[inline]
 pub fn corner_indices(q: [f32; 3], dims: [u32; 3]) -> ([u32; 8], [f32; 3]) {
-    let axes: [([u32; 2], f32); 3] = std::array::from_fn(|a| axis_corners(q[a], dims[a]));
-    let ends = axes.map(|(ends, _)| ends);
-    (
-        std::array::from_fn(|c| corner_index(c, ends, dims)),
-        axes.map(|(_, t)| t),
-    )
+    // Loops rather than array::from_fn and map, whose closures the compiler may leave
+    // uninlined behind calls (and so out of a caller's AVX2 build).
+    let (mut ends, mut t) = ([[0; 2]; 3], [0.0; 3]);
+    for a in 0..3 {
+        (ends[a], t[a]) = axis_corners(q[a], dims[a]);
+    }
+    let mut at = [0; 8];
+    for (c, at) in at.iter_mut().enumerate() {
+        *at = corner_index(c, ends, dims);
+    }
+    (at, t)
 }
 
 /// Along an axis of n voxels: the voxels continuous index q lies between, clamp(⌊q⌋, 0, n − 1)

@@ -33,10 +33,14 @@ impl Components<'_> {
         let qc = q.clamp(Vec3::ZERO, top).to_array();
         // The shader samples each component in turn; their corners are the same voxels.
         let (at, t) = corner_indices(qc, d);
-        let s = self
-            .each
-            .each_ref()
-            .map(|component| blend_corners(at.map(|n| component[n as usize]), t));
+        let mut s = [[0.0; 4]; 3];
+        for (s, component) in s.iter_mut().zip(&self.each) {
+            let mut corners = [0.0; 8];
+            for (value, &n) in corners.iter_mut().zip(&at) {
+                *value = component[n as usize];
+            }
+            *s = blend_corners(corners, t);
+        }
         Local {
             u: Vec3::new(s[0][0], s[1][0], s[2][0]),
             g: s.map(|v| Vec3::new(v[1], v[2], v[3])),
