@@ -60,13 +60,14 @@ impl LatticeTaps {
             let n = 3 * voxel_index(x, y, z, l) as usize;
             Vec3::from_slice(&lattice[n..n + 3])
         };
-        // shaders/lattice_warp.wgsl's column(), for every x node.
-        row.columns.clear();
-        row.columns.extend((0..l[0]).map(|x| {
+        // shaders/lattice_warp.wgsl's column(), for every x node. A loop, not extend over a
+        // map: the compiler left that closure uninlined, out of the caller's AVX2 build.
+        row.columns.resize(l[0] as usize, Vec3::ZERO);
+        for (x, column) in (0..).zip(&mut row.columns) {
             let c0 = (1.0 - ty) * node(x, y0, z0) + ty * node(x, y1, z0);
             let c1 = (1.0 - ty) * node(x, y0, z1) + ty * node(x, y1, z1);
-            (1.0 - tz) * c0 + tz * c1
-        }));
+            *column = (1.0 - tz) * c0 + tz * c1;
+        }
     }
 }
 
