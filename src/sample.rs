@@ -5,6 +5,18 @@
 
 use crate::abi::{BoneLookupParams, LabelCodes, ResampleParams};
 
+/// `std::array::from_fn` as a loop. The compiler may leave the closure of `from_fn` (or of an
+/// array's `map`) behind a call, which also keeps it out of a caller's AVX2 build
+/// (crate::cpu's notes); the closure of a loop it inlines.
+#[inline(always)]
+pub fn array_from<T: Copy + Default, const N: usize>(mut f: impl FnMut(usize) -> T) -> [T; N] {
+    let mut out = [T::default(); N];
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = f(i);
+    }
+    out
+}
+
 /// Flat index of voxel (i, j, k) in an x-fastest volume of size dims (common.wgsl's
 /// voxel_index).
 #[inline]
@@ -119,7 +131,7 @@ pub fn trilinear_with_gradient(source: &[f32], q: [f32; 3], dims: [u32; 3]) -> [
 #[inline]
 pub fn corners(source: &[f32], q: [f32; 3], dims: [u32; 3]) -> ([f32; 8], [f32; 3]) {
     let (at, t) = corner_indices(q, dims);
-    (at.map(|n| source[n as usize]), t)
+    (array_from(|c| source[at[c] as usize]), t)
 }
 
 /// The flat indices of the 8 voxels around continuous index q, in [`corners`]' order (clamped
@@ -127,17 +139,11 @@ pub fn corners(source: &[f32], q: [f32; 3], dims: [u32; 3]) -> ([f32; 8], [f32; 
 /// volumes on one grid at q.
 #[inline]
 pub fn corner_indices(q: [f32; 3], dims: [u32; 3]) -> ([u32; 8], [f32; 3]) {
-    // Loops rather than array::from_fn and map, whose closures the compiler may leave
-    // uninlined behind calls (and so out of a caller's AVX2 build).
     let (mut ends, mut t) = ([[0; 2]; 3], [0.0; 3]);
     for a in 0..3 {
         (ends[a], t[a]) = axis_corners(q[a], dims[a]);
     }
-    let mut at = [0; 8];
-    for (c, at) in at.iter_mut().enumerate() {
-        *at = corner_index(c, ends, dims);
-    }
-    (at, t)
+    (array_from(|c| corner_index(c, ends, dims)), t)
 }
 
 /// Along an axis of n voxels: the voxels continuous index q lies between, clamp(⌊q⌋, 0, n − 1)

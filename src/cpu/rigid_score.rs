@@ -3,7 +3,7 @@
 use super::common::{affine_row, voxel_index};
 use crate::abi::{ScoreParams, SCORE_SUMS};
 use crate::backend::BoneImages;
-use crate::sample::{inside_source, trilinear};
+use crate::sample::{array_from, inside_source, trilinear};
 use rayon::prelude::*;
 
 /// Fills `partial` with abi::SCORE_SUMS sums per column and candidate (Σ r², count, Σ S, Σ T,
@@ -50,11 +50,10 @@ pub fn rigid_score(
                             continue;
                         }
                         let p = [x as f32, y as f32, z as f32];
-                        let w: [f32; 3] =
-                            std::array::from_fn(|r| affine_row(params.source_to_world[r], p));
-                        let moved: [f32; 3] = std::array::from_fn(|r| affine_row(m[r], w));
+                        let w: [f32; 3] = array_from(|r| affine_row(params.source_to_world[r], p));
+                        let moved: [f32; 3] = array_from(|r| affine_row(m[r], w));
                         let q: [f32; 3] =
-                            std::array::from_fn(|r| affine_row(params.world_to_target[r], moved));
+                            array_from(|r| affine_row(params.world_to_target[r], moved));
                         if !inside_source(q, tdims) {
                             continue;
                         }

@@ -9,7 +9,7 @@
 
 use super::common::{affine_row, det3, solve3};
 use crate::abi::{SkinBlendParams, MAX_SKIN_BONES};
-use crate::sample::{axis_corners, corner_index, nearest};
+use crate::sample::{array_from, axis_corners, corner_index, nearest};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -31,25 +31,14 @@ type Lanes = [f32; LANES];
 /// One flag for each of [`LANES`] voxels.
 type Mask = [bool; LANES];
 
-/// `[f(0), f(1), …]`: `std::array::from_fn`, whose closure the compiler leaves uninlined
-/// behind a call here (and so out of the vector lanes).
-#[inline(always)]
-fn each<T: Copy + Default, const N: usize>(mut f: impl FnMut(usize) -> T) -> [T; N] {
-    let mut out = [T::default(); N];
-    for (i, o) in out.iter_mut().enumerate() {
-        *o = f(i);
-    }
-    out
-}
-
 #[inline(always)]
 fn lanes(f: impl FnMut(usize) -> f32) -> Lanes {
-    each(f)
+    array_from(f)
 }
 
 #[inline(always)]
 fn mask(f: impl FnMut(usize) -> bool) -> Mask {
-    each(f)
+    array_from(f)
 }
 
 /// `a` where `pick`, else `b`, lane by lane.
@@ -72,7 +61,7 @@ impl Points {
     #[inline(always)]
     fn affine(rows: &[[f32; 4]], p: &Points) -> Points {
         let [x, y, z] = &p.0;
-        Points(each(|r| {
+        Points(array_from(|r| {
             let m = rows[r];
             lanes(|l| m[0] * x[l] + m[1] * y[l] + m[2] * z[l] + m[3])
         }))
@@ -80,7 +69,7 @@ impl Points {
 
     #[inline(always)]
     fn minus(&self, other: &Points) -> Points {
-        Points(each(|a| lanes(|l| self.0[a][l] - other.0[a][l])))
+        Points(array_from(|a| lanes(|l| self.0[a][l] - other.0[a][l])))
     }
 
     /// glam's Vec3::length: √((x² + y²) + z²).
@@ -99,7 +88,7 @@ impl Points {
 
     #[inline(always)]
     fn select(pick: &Mask, a: &Points, b: &Points) -> Points {
-        Points(each(|c| select(pick, &a.0[c], &b.0[c])))
+        Points(array_from(|c| select(pick, &a.0[c], &b.0[c])))
     }
 }
 
@@ -116,7 +105,7 @@ impl Blend {
     fn select(pick: &Mask, a: &Blend, b: &Blend) -> Blend {
         Blend {
             point: Points::select(pick, &a.point, &b.point),
-            r: each(|i| Points::select(pick, &a.r[i], &b.r[i])),
+            r: array_from(|i| Points::select(pick, &a.r[i], &b.r[i])),
         }
     }
 
@@ -189,7 +178,7 @@ impl Cells {
             // bone count are the next voxels' weights, unused): one load, not one per bone.
             let corner: [f32; MAX_SKIN_BONES] = match images.weight.get(at..at + MAX_SKIN_BONES) {
                 Some(window) => window.try_into().expect("MAX_SKIN_BONES floats"),
-                None => each(|j| images.weight.get(at + j).copied().unwrap_or(0.0)),
+                None => array_from(|j| images.weight.get(at + j).copied().unwrap_or(0.0)),
             };
             for (bone, corners) in self.weights[..bones].iter_mut().enumerate() {
                 corners[c][l] = corner[bone];
@@ -227,7 +216,7 @@ fn blend(images: &Images, x: &Points, wanted: &Mask, cells: &mut Cells) -> Blend
     ];
     let inside = bones_at(images, x, wanted);
     let s = Points::affine(&params.world_to_weight, x);
-    let q = Points(each(|a| {
+    let q = Points(array_from(|a| {
         let top = n[a] as f32 - 1.0;
         lanes(|l| s.0[a][l].max(0.0).min(top))
     }));
@@ -303,8 +292,8 @@ fn dual_quaternion_blend(params: &SkinBlendParams, cells: &Cells, t: &Points, x:
         let [x, y, z, w] = [real[0][l], real[1][l], real[2][l], real[3][l]];
         ((x * x + z * z) + (y * y + w * w)).sqrt()
     });
-    let r: [Lanes; 4] = each(|c| lanes(|l| real[c][l] / norm[l]));
-    let d: [Lanes; 4] = each(|c| lanes(|l| dual[c][l] / norm[l]));
+    let r: [Lanes; 4] = array_from(|c| lanes(|l| real[c][l] / norm[l]));
+    let d: [Lanes; 4] = array_from(|c| lanes(|l| dual[c][l] / norm[l]));
     let [rx, ry, rz, rw] = &r;
     let [dx, dy, dz, dw] = &d;
     // 2 (r.w d − d.w r + r × d), each term glam's Vec3 operation.
@@ -333,7 +322,7 @@ fn dual_quaternion_blend(params: &SkinBlendParams, cells: &Cells, t: &Points, x:
     ]);
     let turned = [r0.dot(x), r1.dot(x), r2.dot(x)];
     Blend {
-        point: Points(each(|a| lanes(|l| turned[a][l] + t.0[a][l]))),
+        point: Points(array_from(|a| lanes(|l| turned[a][l] + t.0[a][l]))),
         r: [r0, r1, r2],
     }
 }
@@ -404,7 +393,9 @@ fn preimage(images: &Images, p: &Points, cells: &mut Cells) -> (Points, Lanes) {
     let mut active = [true; LANES];
     begin_steps(&mut active, (&mut steps, max_steps), &err, p, &b, &mut step);
     while active.contains(&true) {
-        let trial = Points(each(|a| lanes(|l| x.0[a][l] - length[l] * step.0[a][l])));
+        let trial = Points(array_from(|a| {
+            lanes(|l| x.0[a][l] - length[l] * step.0[a][l])
+        }));
         let at = blend(images, &trial, &active, cells);
         let miss = at.point.minus(p).length();
         let taken = mask(|l| active[l] && miss[l] < err[l]);

@@ -3,7 +3,7 @@
 
 use super::common::{linear_row, voxel_index};
 use crate::abi::RbfGradParams;
-use crate::sample::{axis_corners, blend_corners, corner_index, inside_axis};
+use crate::sample::{array_from, axis_corners, blend_corners, corner_index, inside_axis};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -194,7 +194,7 @@ fn sample_row(
         .map(|[lower, upper]| [&lower[..nx], &upper[..nx]]);
     let mut at = samples.at.each_mut().map(|lane| &mut lane[..nx]);
     for i in 0..nx {
-        let ends = ends.map(|[lower, upper]| [lower[i], upper[i]]);
+        let ends: [[u32; 2]; 3] = array_from(|a| [ends[a][0][i], ends[a][1][i]]);
         for (c, lane) in at.iter_mut().enumerate() {
             lane[i] = corner_index(c, ends, d);
         }
@@ -212,8 +212,8 @@ fn sample_row(
     let to_world = params.gradient_to_world;
     for i in 0..nx {
         let vg = blend_corners(
-            std::array::from_fn(|c| corners[c][i]),
-            std::array::from_fn(|a| fraction[a][i]),
+            array_from(|c| corners[c][i]),
+            array_from(|a| fraction[a][i]),
         );
         let g = [vg[1], vg[2], vg[3]];
         let keep = |value: f32| if inside[i] { value } else { 0.0 };
