@@ -7,7 +7,9 @@
 //! lanes, and one that has not still runs them. Both versions perform the same IEEE operations
 //! in the same order (Rust never fuses a multiply and an add on its own), so they give the same
 //! bits; a function they call must be inlined into them (`#[inline(always)]` where the
-//! compiler declines) to be compiled for AVX2 too.
+//! compiler declines) to be compiled for AVX2 too. So must a closure: the compiler has left
+//! those of `std::array::from_fn`, an array's `map` and `extend` over a `map` behind calls in
+//! hot loops, where `sample::array_from` and plain loops are inlined.
 
 pub mod common;
 pub mod compose;

@@ -3,9 +3,9 @@
 //! The shader inverts one voxel per invocation; the twin inverts [`LANES`] neighbouring voxels
 //! of a row side by side, each quantity held for all of them in one array ([`Lanes`]), so that
 //! the arithmetic runs in vector lanes. Each voxel takes the shader's candidates, steps and
-//! trials with the shader's operations in its order (glam's where the shader's vector types
-//! were glam's before), so the bits are those of a one-voxel loop; only the lookups into the
-//! label and weight grids go voxel by voxel.
+//! trials, every operation in the order of the one-voxel twin this replaced (glam's order where
+//! that used glam's vectors, as in a quaternion's length), so the outputs are the same bits;
+//! only the lookups into the label and weight grids go voxel by voxel.
 
 use super::common::{affine_row, det3, solve3};
 use crate::abi::{SkinBlendParams, MAX_SKIN_BONES};
