@@ -297,14 +297,14 @@ fn dual_quaternion_blend(params: &SkinBlendParams, cells: &Cells, t: &Points, x:
     let [rx, ry, rz, rw] = &r;
     let [dx, dy, dz, dw] = &d;
     // 2 (r.w d − d.w r + r × d), each term glam's Vec3 operation.
-    let translation = |a: &Lanes, b: &Lanes, cross: &dyn Fn(usize) -> f32| {
-        lanes(|l| 2.0 * ((rw[l] * a[l] - dw[l] * b[l]) + cross(l)))
-    };
-    let t = Points([
-        translation(dx, rx, &|l| ry[l] * dz[l] - dy[l] * rz[l]),
-        translation(dy, ry, &|l| rz[l] * dx[l] - dz[l] * rx[l]),
-        translation(dz, rz, &|l| rx[l] * dy[l] - dx[l] * ry[l]),
+    let cross = Points([
+        lanes(|l| ry[l] * dz[l] - dy[l] * rz[l]),
+        lanes(|l| rz[l] * dx[l] - dz[l] * rx[l]),
+        lanes(|l| rx[l] * dy[l] - dx[l] * ry[l]),
     ]);
+    let t = Points(array_from(|a| {
+        lanes(|l| 2.0 * ((rw[l] * d[a][l] - dw[l] * r[a][l]) + cross.0[a][l]))
+    }));
     let r0 = Points([
         lanes(|l| 1.0 - 2.0 * (ry[l] * ry[l] + rz[l] * rz[l])),
         lanes(|l| 2.0 * (rx[l] * ry[l] - rz[l] * rw[l])),
