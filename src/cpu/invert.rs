@@ -3,7 +3,9 @@
 
 use super::common::{det3, dims3, solve3};
 use crate::abi::InvertParams;
-use crate::sample::{affine_row, blend_corners, corner_indices, inside_source, linear_row};
+use crate::sample::{
+    affine_row, array_from, blend_corners, corner_indices, inside_source, linear_row,
+};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -33,14 +35,10 @@ impl Components<'_> {
         let qc = q.clamp(Vec3::ZERO, top).to_array();
         // The shader samples each component in turn; their corners are the same voxels.
         let (at, t) = corner_indices(qc, d);
-        let mut s = [[0.0; 4]; 3];
-        for (s, component) in s.iter_mut().zip(&self.each) {
-            let mut corners = [0.0; 8];
-            for (value, &n) in corners.iter_mut().zip(&at) {
-                *value = component[n as usize];
-            }
-            *s = blend_corners(corners, t);
-        }
+        let s: [[f32; 4]; 3] = array_from(|c| {
+            let component = &self.each[c];
+            blend_corners(array_from(|k| component[at[k] as usize]), t)
+        });
         Local {
             u: Vec3::new(s[0][0], s[1][0], s[2][0]),
             g: s.map(|v| Vec3::new(v[1], v[2], v[3])),
