@@ -7,7 +7,7 @@ use crate::abi::{BoneLookupParams, LabelCodes, ResampleParams};
 
 /// `std::array::from_fn` as a loop. The compiler may leave the closure of `from_fn` (or of an
 /// array's `map`) behind a call, which also keeps it out of a caller's AVX2 build
-/// (crate::cpu's notes); the closure of a loop it inlines.
+/// (the CPU backend's notes); the closure of a loop it inlines.
 #[inline(always)]
 pub fn array_from<T: Copy + Default, const N: usize>(mut f: impl FnMut(usize) -> T) -> [T; N] {
     let mut out = [T::default(); N];
