@@ -7,7 +7,7 @@
 //! that used glam's vectors, as in a quaternion's length), so the outputs are the same bits;
 //! only the lookups into the label and weight grids go voxel by voxel.
 
-use super::common::{affine_row, det3, solve3};
+use super::common::{affine_row, det3, dims3, solve3};
 use crate::abi::{SkinBlendParams, MAX_SKIN_BONES};
 use crate::sample::{array_from, axis_corners, corner_index, nearest};
 use glam::Vec3;
@@ -129,11 +129,7 @@ struct Images<'a> {
 fn bones_at(images: &Images, x: &Points, wanted: &Mask) -> [u32; LANES] {
     let params = images.params;
     let bones = params.blend[0];
-    let n = [
-        params.label_dims[0],
-        params.label_dims[1],
-        params.label_dims[2],
-    ];
+    let n = dims3(params.label_dims);
     let q = Points::affine(&params.world_to_label, x);
     let mut inside = [bones; LANES];
     for l in (0..LANES).filter(|&l| wanted[l]) {
@@ -174,8 +170,8 @@ impl Cells {
         let bones = images.params.blend[0] as usize;
         for c in 0..8 {
             let at = corner_index(c, ends, n) as usize * bones;
-            // A whole lane-width read where the grid reaches that far (the values past the
-            // bone count are the next voxels' weights, unused): one load, not one per bone.
+            // MAX_SKIN_BONES values read at once where the grid reaches that far (those past
+            // the bone count are the next voxels' weights, unused): one load, not one per bone.
             let corner: [f32; MAX_SKIN_BONES] = match images.weight.get(at..at + MAX_SKIN_BONES) {
                 Some(window) => window.try_into().expect("MAX_SKIN_BONES floats"),
                 None => array_from(|j| images.weight.get(at + j).copied().unwrap_or(0.0)),
@@ -209,11 +205,7 @@ impl Cells {
 fn blend(images: &Images, x: &Points, wanted: &Mask, cells: &mut Cells) -> Blend {
     let params = images.params;
     let bones = params.blend[0];
-    let n = [
-        params.weight_dims[0],
-        params.weight_dims[1],
-        params.weight_dims[2],
-    ];
+    let n = dims3(params.weight_dims);
     let inside = bones_at(images, x, wanted);
     let s = Points::affine(&params.world_to_weight, x);
     let q = Points(array_from(|a| {

@@ -111,9 +111,9 @@ fn warped_position(
 
 /// I0 and its gradient at x + R(x) for every voxel x of one row (warped_value_gradient in
 /// shaders/warp_sample.wgsl, a row at a time). The row is done in passes over all its voxels
-/// (the row's lattice columns, warped points, corners per axis, corners' indices, their values, blends) so that every
-/// pass but the gather of values vectorises; each voxel's operations are the shader's, in its
-/// order, so the values are the same bits.
+/// (the row's lattice columns, warped points, corners per axis, corners' indices, their
+/// values, blends) so that every pass but the gather of values vectorises; each voxel's
+/// operations are the shader's, in its order, so the values are the same bits.
 #[derive(Default)]
 pub struct RowSamples {
     /// Whether voxel i's warped point lies inside I0 (else its sample is all zero).
