@@ -14,7 +14,7 @@ use posereg::abi::{
     ScoreParams, SkinBlendParams, SkinWeightsParams, SsdParams, SumParams, ThresholdParams,
     RIGID_SUMS, SCORE_SUMS,
 };
-use posereg::backend::{box_sums, BoneImages, CostImages};
+use posereg::backend::{box_sums, BoneImages, Core, CostImages};
 use posereg::cpu::CpuBackend;
 use posereg::device::Opened;
 use posereg::gpu::GpuBackend;

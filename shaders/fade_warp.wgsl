@@ -1,7 +1,7 @@
 // fade_warp.wgsl: the adaptive warp R held off the bones. Each voxel's R is scaled by its
 // distance to the nearest bone over the margin, clamped to 1: zero on the bones (which then
 // move exactly by their rigid motions in the total field), rising linearly to the whole warp a
-// margin away, so that the total field has no step at a bone's surface.
+// margin away, so that the total field has no step at a bone's surface (fade.wgsl).
 //
 // Bindings (group 0):
 //   0 uniform  FadeParams
@@ -28,12 +28,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let v = voxel_index(gid.x, gid.y, gid.z, d);
-    let voxels = d.x * d.y * d.z;
-    var nearest = distance[v];
-    for (var b = 1u; b < params.dims.w; b = b + 1u) {
-        nearest = min(nearest, distance[b * voxels + v]);
-    }
-    let scale = select(min(nearest / params.margin.x, 1.0), 0.0, nearest <= 0.0);
+    let scale = fade_at(v, d.x * d.y * d.z, params.dims.w, params.margin.x);
     for (var c = 0u; c < 3u; c = c + 1u) {
         out[3u * v + c] = scale * warp[3u * v + c];
     }

@@ -9,6 +9,8 @@ use crate::error::{Error, Result};
 use crate::volume::{Affine, Grid};
 use bytemuck::{Pod, Zeroable};
 
+pub mod dense;
+
 /// How the bones' rigid motions are blended across soft tissue.
 #[derive(
     Clone,

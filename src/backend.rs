@@ -1,6 +1,10 @@
-//! The `Backend` trait: one method per kernel, implemented by the GPU path (wgpu compute
-//! shaders) and its CPU twin (rayon). Host code (registration loops, commands) is written
-//! against this trait only, so every stage runs on either and the two can be compared.
+//! The backend traits: [`Core`] (buffers and their traffic), one trait per kernel family
+//! (the dense stage's in [`dense`]) and [`Backend`], their sum, implemented by the GPU path
+//! (wgpu compute shaders) and its CPU twin (rayon). Host code (registration loops, commands)
+//! is written against these traits only, so every stage runs on either and the two can be
+//! compared.
+
+pub mod dense;
 
 use crate::abi::Interpolation;
 use crate::abi::{
@@ -63,14 +67,14 @@ impl Element for f64 {
 
 /// An image whose voxels are held where a backend computes; its grid stays on the host. A
 /// displacement field is one too, with 3 values per voxel.
-pub struct DeviceImage<B: Backend> {
+pub struct DeviceImage<B: Core> {
     /// Where its voxels are.
     pub grid: Grid,
     /// The values, x fastest (one per voxel, or three for a field).
     pub data: B::Buffer<f32>,
 }
 
-impl<B: Backend> Clone for DeviceImage<B> {
+impl<B: Core> Clone for DeviceImage<B> {
     /// Shares the voxels (buffers are never written after the kernel that made them).
     fn clone(&self) -> Self {
         DeviceImage {
@@ -80,7 +84,7 @@ impl<B: Backend> Clone for DeviceImage<B> {
     }
 }
 
-impl<B: Backend> DeviceImage<B> {
+impl<B: Core> DeviceImage<B> {
     /// Puts `volume` where `backend` computes (the CPU backend takes it without a copy).
     pub fn upload(backend: &B, what: &str, volume: Volume) -> Result<Self> {
         Ok(DeviceImage {
@@ -139,14 +143,14 @@ pub struct CostImages<'a, T: ?Sized> {
     pub covered: &'a T,
 }
 
-/// A place kernels run.
+/// Where buffers live and how they move: what every kernel family needs.
 ///
-/// Data a registration works on lives where the backend computes, as [`Backend::Buffer`]s: a
+/// Data a registration works on lives where the backend computes, as [`Core::Buffer`]s: a
 /// `Vec` on the CPU (nothing is copied), a device buffer on the GPU. Kernel methods that take
 /// buffers record work and return buffers or small reductions; the GPU backend submits recorded
 /// work only when something is downloaded, so a chain of kernels costs one submission and one
 /// wait.
-pub trait Backend {
+pub trait Core {
     /// An array of `T` held where this backend computes. Buffers are never written after the
     /// kernel (or upload) that made them, so a clone shares one instead of copying it.
     type Buffer<T: Element>: Clone;
@@ -166,14 +170,20 @@ pub trait Backend {
     /// `len` zeros where kernels can read them, without an upload.
     fn zeros(&self, what: &str, len: usize) -> Result<Self::Buffer<f32>>;
 
-    /// Brings one buffer back ([`Backend::download`]).
+    /// Brings one buffer back ([`Core::download`]).
     fn download_one<T: Element>(&self, buffer: &Self::Buffer<T>) -> Result<Vec<T>> {
         Ok(self
             .download(&[buffer])?
             .pop()
             .expect("one buffer asked for"))
     }
+}
 
+/// A place kernels run: the core, the dense stage's family ([`dense::Dense`]) and, until
+/// they move into families of their own, the other kernels, one method each. Host code
+/// (registration loops, commands) is written against these traits only, so every stage runs
+/// on either backend and the two can be compared.
+pub trait Backend: Core + dense::Dense {
     /// `source` sampled at x + u(x) for every voxel x of the target grid (`field`: u, 3 floats
     /// per voxel), trilinear or nearest; the background where that point is outside the
     /// source (`params`).

@@ -1,6 +1,6 @@
 //! Choosing where kernels run: `--device auto|gpu|cpu`.
 
-use crate::backend::Backend;
+use crate::backend::Core;
 use crate::cpu::CpuBackend;
 use crate::error::Result;
 use crate::gpu::context::{AdapterChoice, GpuContext};

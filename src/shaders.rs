@@ -21,6 +21,7 @@ const BONE_LOOKUP: (&str, &str) = (
 const THRESHOLD: (&str, &str) = ("threshold.wgsl", include_str!("../shaders/threshold.wgsl"));
 const GAIN: (&str, &str) = ("gain.wgsl", include_str!("../shaders/gain.wgsl"));
 const WINDOW: (&str, &str) = ("window.wgsl", include_str!("../shaders/window.wgsl"));
+const FADE: (&str, &str) = ("fade.wgsl", include_str!("../shaders/fade.wgsl"));
 const SUM_PARTIALS: (&str, &str) = (
     "sum_partials.wgsl",
     include_str!("../shaders/sum_partials.wgsl"),
@@ -270,6 +271,7 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         "fade_warp",
         &[
             COMMON,
+            FADE,
             ("fade_warp.wgsl", include_str!("../shaders/fade_warp.wgsl")),
         ],
     ),
@@ -387,6 +389,49 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             ("ssd_cells.wgsl", include_str!("../shaders/ssd_cells.wgsl")),
+        ],
+    ),
+    // The dense stage's family (shaders/dense/).
+    (
+        "gauss_axis",
+        &[
+            COMMON,
+            (
+                "dense/gauss_axis.wgsl",
+                include_str!("../shaders/dense/gauss_axis.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "dense_force",
+        &[
+            COMMON,
+            WINDOW,
+            (
+                "dense/dense_force.wgsl",
+                include_str!("../shaders/dense/dense_force.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "norm_max",
+        &[
+            COMMON,
+            (
+                "dense/norm_max.wgsl",
+                include_str!("../shaders/dense/norm_max.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "field_combine",
+        &[
+            COMMON,
+            FADE,
+            (
+                "dense/field_combine.wgsl",
+                include_str!("../shaders/dense/field_combine.wgsl"),
+            ),
         ],
     ),
 ];

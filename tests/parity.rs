@@ -16,7 +16,7 @@ use posereg::abi::{
     LocalMomentsParams, MomentsParams, RbfGradParams, ResampleParams, RigidParams, ScoreParams,
     ThresholdParams, FOLD_STATS_WIDTH, RIGID_SUMS, SCORE_SUMS,
 };
-use posereg::backend::{box_sums, BoneImages};
+use posereg::backend::{box_sums, BoneImages, Core};
 use posereg::cpu::CpuBackend;
 use posereg::volume::{Field, Grid, Image, Volume};
 use posereg::Affine;

@@ -5,7 +5,7 @@ mod common;
 use common::*;
 use posereg::abi::Interpolation;
 use posereg::abi::{Blending, BoneBlend, SumParams};
-use posereg::backend::DeviceImage;
+use posereg::backend::{Core, DeviceImage};
 use posereg::cpu::CpuBackend;
 use posereg::volume::{Affine, Grid, Image};
 use posereg::Backend;

@@ -201,11 +201,11 @@ fn locate_maps_assembled_lines_back_to_files() {
 #[test]
 fn host_bind_group_layouts_match_shader_bindings() {
     assert_eq!(
-        posereg::gpu::BINDINGS.len(),
+        posereg::gpu::bindings().count(),
         KERNELS.len(),
         "a kernel has no host layout"
     );
-    for (kernel, host) in posereg::gpu::BINDINGS {
+    for (kernel, host) in posereg::gpu::bindings() {
         let module = parse(kernel);
         let mut declared: Vec<(u32, String)> = module
             .global_variables

@@ -5,7 +5,7 @@
 
 use anyhow::bail;
 use clap::{Args, ValueEnum};
-use posereg::backend::Backend;
+use posereg::backend::{Backend, Core};
 use posereg::cpu::CpuBackend;
 use posereg::device::{DeviceChoice, DeviceWanted};
 use posereg::gpu::context::GpuContext;
@@ -78,10 +78,10 @@ fn peak_rss_mib() -> Option<f64> {
     Some(kib / 1024.0)
 }
 
-/// Median seconds per stage (initialisation, adaptive, finish, total) and the traffic of the
+/// Median seconds per stage (initialisation, adaptive, dense, finish, total) and the traffic of the
 /// last run (the same every run: the work is deterministic).
 struct Timed {
-    seconds: [f64; 4],
+    seconds: [f64; 5],
     traffic: StageTraffic,
     evaluations: Evaluations,
 }
@@ -109,8 +109,9 @@ fn time<B: Backend>(
         seconds: [
             m(|t| t.initialisation),
             m(|t| t.adaptive),
+            m(|t| t.dense),
             m(|t| t.finish),
-            m(|t| t.initialisation + t.adaptive + t.finish),
+            m(|t| t.total()),
         ],
         traffic,
         evaluations,
@@ -133,13 +134,14 @@ struct Sizes {
 fn print_row(describe: &str, timed: &Timed, sizes: &Sizes) {
     let t = timed.seconds;
     println!(
-        "{describe:<52} {:>10.2} {:>10.2} {:>10.2} {:>10.2}",
-        t[0], t[1], t[2], t[3]
+        "{describe:<52} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2}",
+        t[0], t[1], t[2], t[3], t[4]
     );
     let stages = &timed.traffic;
     for (stage, traffic) in [
         ("initialisation", stages.initialisation),
         ("adaptive", stages.adaptive),
+        ("dense", stages.dense),
         ("finish", stages.finish),
         ("registration", stages.total),
     ] {
@@ -200,8 +202,8 @@ pub fn run(args: &BenchArgs, device: &DeviceWanted) -> anyhow::Result<()> {
         mib(sizes.outputs)
     );
     println!(
-        "{:<52} {:>10} {:>10} {:>10} {:>10}",
-        "backend", "init s", "adaptive s", "finish s", "total s"
+        "{:<52} {:>10} {:>10} {:>10} {:>10} {:>10}",
+        "backend", "init s", "adaptive s", "dense s", "finish s", "total s"
     );
     let mut totals = Vec::new();
     if which != Which::Gpu {

@@ -34,6 +34,9 @@ pub struct RegisterArgs {
     /// Skip the articulated initialisation (the paper's first experiment: small bends only).
     #[arg(long)]
     pub no_init: bool,
+    /// Skip the dense refinement after the adaptive stage (dense.enabled = false).
+    #[arg(long)]
+    pub no_dense: bool,
     /// Bone labels to use, e.g. 2,3,4 (default: every bone label present).
     #[arg(long, value_delimiter = ',')]
     pub bones: Option<Vec<u16>>,
@@ -86,6 +89,9 @@ impl RegisterArgs {
         };
         if self.no_init {
             options.initialise = false;
+        }
+        if self.no_dense {
+            options.dense.enabled = false;
         }
         if let Some(bones) = &self.bones {
             options.init.bones = bones.clone();

@@ -2,7 +2,7 @@
 
 use super::common::linear_row;
 use crate::abi::ComposeParams;
-use crate::sample::{affine_row, trilinear_with_gradient};
+use crate::sample::{affine_row, array_from, blend_corners, corner_indices};
 use rayon::prelude::*;
 
 /// Fills `out` (3 floats per voxel) with u = R + u0 ∘ (id + R), `warp` holding R and
@@ -11,10 +11,6 @@ pub fn compose(params: &ComposeParams, warp: &[f32], initial: &[f32], out: &mut 
     let [nx, ny, _, _] = params.dims;
     let [ex, ey, ez, _] = params.initial_dims;
     let e = [ex, ey, ez];
-    // The shader reads one component at a time through sampled_value; here each is a volume.
-    let components: Vec<Vec<f32>> = (0..3)
-        .map(|c| initial.iter().skip(c).step_by(3).copied().collect())
-        .collect();
     out.par_chunks_mut(3 * (nx * ny) as usize)
         .enumerate()
         .for_each(|(zl, slice)| {
@@ -25,13 +21,18 @@ pub fn compose(params: &ComposeParams, warp: &[f32], initial: &[f32], out: &mut 
                     let at = 3 * (nx * ny) as usize * zl + o;
                     let r = [warp[at], warp[at + 1], warp[at + 2]];
                     let x = [i as f32, j as f32, k as f32];
-                    let q: [f32; 3] = std::array::from_fn(|a| {
-                        affine_row(params.index_to_initial[a], x)
-                            + linear_row(params.mm_to_initial[a], r)
-                    });
-                    let qc: [f32; 3] = std::array::from_fn(|a| q[a].clamp(0.0, e[a] as f32 - 1.0));
+                    let mut qc = [0.0f32; 3];
+                    for a in 0..3 {
+                        let q = affine_row(params.index_to_initial[a], x)
+                            + linear_row(params.mm_to_initial[a], r);
+                        qc[a] = q.clamp(0.0, e[a] as f32 - 1.0);
+                    }
+                    // The shader samples each component through sampled_value; the three
+                    // share one cell, found once here.
+                    let (corners, t) = corner_indices(qc, e);
                     for c in 0..3 {
-                        slice[o + c] = r[c] + trilinear_with_gradient(&components[c], qc, e)[0];
+                        let v = array_from(|n| initial[3 * corners[n] as usize + c]);
+                        slice[o + c] = r[c] + blend_corners(v, t)[0];
                     }
                 }
             }

@@ -47,19 +47,19 @@ fn window_length(c: u32, n: u32, r: u32) -> u32 {
 }
 
 /// The statistics of one window (Window in shaders/window.wgsl).
-struct Window {
+pub(crate) struct Window {
     n: f32,
-    ma: f32,
-    mb: f32,
-    va: f32,
-    vb: f32,
-    cab: f32,
-    flat: bool,
+    pub(crate) ma: f32,
+    pub(crate) mb: f32,
+    pub(crate) va: f32,
+    pub(crate) vb: f32,
+    pub(crate) cab: f32,
+    pub(crate) flat: bool,
 }
 
 /// The window of voxel v (index i, j, k) on a grid `d` (nx, ny, nz, radius) from its box
 /// sums (window_at in shaders/window.wgsl).
-fn window_at(sums: &[f32], v: usize, d: [u32; 4], [i, j, k]: [u32; 3]) -> Window {
+pub(crate) fn window_at(sums: &[f32], v: usize, d: [u32; 4], [i, j, k]: [u32; 3]) -> Window {
     let n = (window_length(i, d[0], d[3])
         * window_length(j, d[1], d[3])
         * window_length(k, d[2], d[3])) as f32;

@@ -14,6 +14,7 @@
 pub mod common;
 pub mod compose;
 pub mod coverage;
+pub mod dense;
 pub mod edt;
 pub mod fade_warp;
 pub mod fold;
@@ -47,7 +48,7 @@ use crate::abi::{
     RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
     SumParams, ThresholdParams, FOLD_STATS_WIDTH,
 };
-use crate::backend::{Backend, BoneImages, CostImages, Element, Traffic};
+use crate::backend::{Backend, BoneImages, Core, CostImages, Element, Traffic};
 use crate::error::Result;
 use std::sync::Arc;
 
@@ -102,7 +103,7 @@ fn zeroed<T: Element>(len: usize) -> Vec<T> {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct CpuBackend;
 
-impl Backend for CpuBackend {
+impl Core for CpuBackend {
     type Buffer<T: Element> = Arc<Vec<T>>;
 
     fn upload<T: Element>(&self, _what: &str, data: Vec<T>) -> Result<Arc<Vec<T>>> {
@@ -124,7 +125,9 @@ impl Backend for CpuBackend {
     fn traffic(&self) -> Traffic {
         Traffic::default()
     }
+}
 
+impl Backend for CpuBackend {
     fn resample(
         &self,
         params: &ResampleParams,

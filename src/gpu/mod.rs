@@ -7,6 +7,7 @@
 
 pub mod buffer;
 pub mod context;
+pub mod dense;
 pub mod field;
 pub mod fold;
 pub mod jacobian;
@@ -28,14 +29,15 @@ use crate::abi::{
     ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
     ThresholdParams,
 };
-use crate::backend::{Backend, BoneImages, CostImages, Element, Traffic};
+use crate::backend::{Backend, BoneImages, Core, CostImages, Element, Traffic};
 use crate::error::Result;
 use context::GpuContext;
 use kernel::Kernel;
 use resident::GpuBuffer;
 
-/// The bind group layout of every kernel, by name (the names of crate::shaders::KERNELS).
-pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
+/// The bind group layout of every kernel outside the families with tables of their own, by
+/// name (the names of crate::shaders::KERNELS).
+const BASE_BINDINGS: &[KernelBindings] = &[
     ("bone_at_source", labels::BONE_BINDINGS),
     ("compose", field::COMPOSE_BINDINGS),
     ("coverage", resample::COVERAGE_BINDINGS),
@@ -75,9 +77,16 @@ pub const BINDINGS: &[(&str, &[kernel::Binding])] = &[
     ("warp_image", nonrigid::WARP_IMAGE_BINDINGS),
 ];
 
+/// A kernel's name and bind group layout.
+pub type KernelBindings = (&'static str, &'static [kernel::Binding]);
+
+/// Every kernel's bind group layout, by name: the families' tables after the others'.
+pub fn bindings() -> impl Iterator<Item = &'static KernelBindings> {
+    BASE_BINDINGS.iter().chain(dense::BINDINGS)
+}
+
 fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
-    let bindings = BINDINGS
-        .iter()
+    let bindings = bindings()
         .find(|(n, _)| *n == name)
         .map(|(_, b)| *b)
         .unwrap_or_else(|| panic!("kernel {name} has no bindings entry"));
@@ -160,6 +169,8 @@ pub struct Kernels {
     pub fade_warp: Kernel,
     /// shaders/invert_field.wgsl
     pub invert_field: Kernel,
+    /// The dense stage's family (shaders/dense/).
+    pub dense: dense::DenseKernels,
 }
 
 /// The GPU backend with its compiled kernels.
@@ -219,6 +230,7 @@ impl GpuBackend {
                 compose: compile(&ctx, "compose")?,
                 fade_warp: compile(&ctx, "fade_warp")?,
                 invert_field: compile(&ctx, "invert_field")?,
+                dense: dense::DenseKernels::new(&ctx)?,
             },
             ctx,
             peak_dispatch_bytes: Default::default(),
@@ -245,7 +257,7 @@ impl GpuBackend {
     }
 }
 
-impl Backend for GpuBackend {
+impl Core for GpuBackend {
     type Buffer<T: Element> = GpuBuffer<T>;
 
     fn upload<T: Element>(&self, what: &str, data: Vec<T>) -> Result<GpuBuffer<T>> {
@@ -268,7 +280,9 @@ impl Backend for GpuBackend {
         // wgpu fills new buffers with zeros: nothing to upload.
         self.output_buffer(what, len)
     }
+}
 
+impl Backend for GpuBackend {
     fn resample(
         &self,
         params: &ResampleParams,

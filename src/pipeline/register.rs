@@ -14,6 +14,7 @@ use crate::init::articulated::{
 };
 use crate::io::transform::BoneTransforms;
 use crate::nonrigid::adaptive::{self, Adaptive, AdaptiveOptions, Moving};
+use crate::nonrigid::dense::{self, DenseInputs, DenseOptions, DenseReport};
 use crate::progress::Progress;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
 use nalgebra::Vector3;
@@ -29,6 +30,8 @@ pub struct RegisterOptions {
     pub init: InitOptions,
     /// The adaptive stage.
     pub adaptive: AdaptiveOptions,
+    /// The dense refinement after it.
+    pub dense: DenseOptions,
     /// Control points held at zero added displacement on each bone's surface.
     pub pins_per_bone: usize,
     /// The adaptive warp is zero on the bones, which move exactly by their rigid motions, and
@@ -46,6 +49,7 @@ impl Default for RegisterOptions {
             initialise: true,
             init: InitOptions::default(),
             adaptive: AdaptiveOptions::default(),
+            dense: DenseOptions::default(),
             pins_per_bone: 8,
             bone_margin_mm: 8.0,
         }
@@ -63,6 +67,7 @@ impl RegisterOptions {
     pub fn check(&self) -> Result<()> {
         self.init.check()?;
         self.adaptive.check()?;
+        self.dense.check()?;
         // Each pin is a control point of the dense RBF system: thousands would stall it.
         if self.pins_per_bone > MAX_PINS_PER_BONE {
             return Err(crate::Error::InvalidInput(format!(
@@ -91,6 +96,8 @@ pub struct Registration {
     pub init: Option<Initialisation>,
     /// The adaptive stage.
     pub adaptive: Adaptive,
+    /// What the dense refinement did, when run.
+    pub dense: Option<DenseReport>,
     /// Total field: target point → source point (RAS mm).
     pub field: Field,
     /// The source resampled once through it.
@@ -127,9 +134,11 @@ pub struct StageTraffic {
     pub initialisation: Traffic,
     /// Adaptive RBF stage.
     pub adaptive: Traffic,
-    /// Composition, fold check, the final resampling and the download of the outputs.
+    /// The dense refinement, with the composition and unfolding of the field it refines.
+    pub dense: Traffic,
+    /// The final fold check, resampling, inverse and the download of the outputs.
     pub finish: Traffic,
-    /// The three together.
+    /// The four together.
     pub total: Traffic,
 }
 
@@ -140,8 +149,17 @@ pub struct StageTimes {
     pub initialisation: f64,
     /// Adaptive RBF stage.
     pub adaptive: f64,
-    /// Composition, fold check and the final resampling.
+    /// The dense refinement, with the composition and unfolding of the field it refines.
+    pub dense: f64,
+    /// The final fold check, resampling and inverse.
     pub finish: f64,
+}
+
+impl StageTimes {
+    /// The whole registration.
+    pub fn total(&self) -> f64 {
+        self.initialisation + self.adaptive + self.dense + self.finish
+    }
 }
 
 /// Up to `per_bone` points on the surface in the target of each of `bones` bones: boundary
@@ -362,7 +380,7 @@ pub fn register_observed<B: Backend>(
     };
     let initialisation = clock.elapsed().as_secs_f64();
     let after_init = backend.traffic();
-    let (coverage, mask_share) = coverage(backend, &pair, &images, target_mask)?;
+    let (mask, coverage, mask_share) = coverage(backend, &pair, &images, target_mask)?;
     let adaptive = adaptive::register(
         backend,
         &Moving {
@@ -378,31 +396,54 @@ pub fn register_observed<B: Backend>(
     )?;
     let adaptive_seconds = clock.elapsed().as_secs_f64() - initialisation;
     let after_adaptive = backend.traffic();
-    progress.begin("composition and resampling", 1);
+    progress.begin("composition", 1);
     let labels = SourceLabels {
         host: labels,
         device: &pair.labels,
     };
     let held = (bones, bone_map.as_ref());
-    let finished = finish(backend, &pair, &labels, &images, &adaptive, held, options)?;
-    progress.step(&format!("warp scale {}", finished.scale));
+    let (field, scale) = composed(backend, &pair, &images, &adaptive, held, options)?;
+    progress.step(&format!("warp scale {scale}"));
+    progress.end();
+    let (field, dense) = match options.dense.enabled {
+        true => {
+            let inputs = DenseInputs {
+                source: &pair.source,
+                target: &pair.target,
+                field: &field,
+                mask: &mask,
+                bones: bone_map.as_ref().map(|map| (map, bones.len())),
+            };
+            let (refined, report) = dense::refine(backend, &inputs, &options.dense, progress)?;
+            (refined, Some(report))
+        }
+        false => (field, None),
+    };
+    let whole = unfolded(backend, (field, scale), &labels, &images, held, options)?;
+    let dense_seconds = clock.elapsed().as_secs_f64() - initialisation - adaptive_seconds;
+    let after_dense = backend.traffic();
+    progress.begin("resampling and inverse", 1);
+    let finished = outputs(backend, &pair, &whole.field, &whole.held)?;
     progress.end();
     let timings = StageTimes {
         initialisation,
         adaptive: adaptive_seconds,
-        finish: clock.elapsed().as_secs_f64() - initialisation - adaptive_seconds,
+        dense: dense_seconds,
+        finish: clock.elapsed().as_secs_f64() - initialisation - adaptive_seconds - dense_seconds,
     };
     let at_end = backend.traffic();
     let traffic = StageTraffic {
         initialisation: after_init - at_start,
         adaptive: after_adaptive - after_init,
-        finish: at_end - after_adaptive,
+        dense: after_dense - after_adaptive,
+        finish: at_end - after_dense,
         total: at_end - at_start,
     };
     let voxels = target.grid.len() as f64;
     Ok(Registration {
         init,
         adaptive,
+        dense,
         field: finished.field,
         warped: finished.warped,
         jacobian: finished.jacobian,
@@ -415,21 +456,22 @@ pub fn register_observed<B: Backend>(
         min_jacobian: finished.folds.min,
         folded_share: finished.folds.folded as f64 / voxels,
         contact_share: finished.folds.contacts as f64 / voxels,
-        warp_scale: finished.scale,
-        unfolding: finished.unfolding,
+        warp_scale: whole.scale,
+        unfolding: whole.unfolding,
         timings,
         traffic,
     })
 }
 
-/// Where the initialised source covers the target, within the target mask (all of the target
-/// without one), where the backend computes; and the mask's share of the target grid.
+/// The target mask (1 where the target's voxels count, 0 elsewhere: all of the target without
+/// one) and where the initialised source covers it, where the backend computes; and the
+/// mask's share of the target grid.
 fn coverage<B: Backend>(
     backend: &B,
     pair: &PairImages<B>,
     images: &InitialImages<B>,
     target_mask: Option<&Labels>,
-) -> Result<(DeviceImage<B>, f64)> {
+) -> Result<(DeviceImage<B>, DeviceImage<B>, f64)> {
     let grid = &pair.target.grid;
     let mask: Vec<f32> = match target_mask {
         Some(mask) => {
@@ -439,46 +481,44 @@ fn coverage<B: Backend>(
         None => vec![1.0; grid.len()],
     };
     let mask_share = mask.iter().filter(|&&m| m > 0.0).count().max(1) as f64 / mask.len() as f64;
-    let mask = backend.upload("target mask", mask)?;
-    let params = ResampleParams::new(&pair.source.grid, grid, 0.0, Interpolation::Linear);
-    let coverage = DeviceImage {
-        data: backend.coverage(&params, &images.field.data, &mask)?,
+    let mask = DeviceImage {
+        data: backend.upload("target mask", mask)?,
         grid: grid.clone(),
     };
-    Ok((coverage, mask_share))
+    let params = ResampleParams::new(&pair.source.grid, grid, 0.0, Interpolation::Linear);
+    let coverage = DeviceImage {
+        data: backend.coverage(&params, &images.field.data, &mask.data)?,
+        grid: grid.clone(),
+    };
+    Ok((mask, coverage, mask_share))
 }
 
-/// The outputs of a registration, on the host.
-struct Finished {
-    field: Field,
-    warped: Volume,
-    jacobian: Volume,
-    inverse: Field,
-    inverse_residual: Vec<f32>,
-    folds: Folds,
+/// The whole field where the backend computes, the factor its warp was scaled by, and how
+/// it was unfolded.
+struct TotalField<B: Backend> {
+    field: DeviceImage<B>,
+    /// The bone numbers of the voxels whose source point lies in a bone (fold statistics' held).
+    held: B::Buffer<f32>,
     scale: f64,
     unfolding: FoldRepair,
 }
 
 /// The total field of the adaptive warp, held off the bones where the initial field moves them
-/// (`bone_map`), and the `initial` field, unfolded where it folds, and the source resampled
-/// once through it; the field, the warped source and the Jacobian come
-/// back together.
+/// (`bone_map`), and the `initial` field, and the factor the warp was scaled by.
 ///
 /// Step control: the added warp itself must not fold; while it does, it is shrunk. Folds of
 /// the initial field (skinning at large angles) are carried into the total field and
-/// unfolded there, but are not the warp's to undo. (Counting the total field's folds instead
-/// threw away 94% of a good warp at 60° over one voxel sampled differently inside the initial
-/// field's fold: 1.34 → 1.77 mm.)
-fn finish<B: Backend>(
+/// unfolded there ([`unfolded`]), but are not the warp's to undo. (Counting the total field's
+/// folds instead threw away 94% of a good warp at 60° over one voxel sampled differently
+/// inside the initial field's fold: 1.34 → 1.77 mm.)
+fn composed<B: Backend>(
     backend: &B,
     pair: &PairImages<B>,
-    labels: &SourceLabels<B>,
     initial: &InitialImages<B>,
     adaptive: &Adaptive,
     (bones, bone_map): (&[u16], Option<&DeviceImage<B>>),
     options: &RegisterOptions,
-) -> Result<Finished> {
+) -> Result<(DeviceImage<B>, f64)> {
     let grid = &pair.target.grid;
     let nothing_held = backend.zeros("nothing held", grid.len())?;
     let mut scale = 1.0;
@@ -490,13 +530,11 @@ fn finish<B: Backend>(
         }
         scale *= 0.5;
     };
-    // The bone map the warp is held off, where it is held off the bones at all.
-    let held_off = bone_map.filter(|_| options.bone_margin_mm > 0.0);
-    let warp = match held_off {
+    let warp = match bone_map.filter(|_| options.bone_margin_mm > 0.0) {
         Some(map) => held_off_bones(backend, map, bones.len(), options.bone_margin_mm, &warp)?,
         None => warp,
     };
-    let mut field = DeviceImage {
+    let field = DeviceImage {
         data: backend.compose(
             &ComposeParams::new(grid, &initial.field.grid),
             &warp.data,
@@ -504,26 +542,73 @@ fn finish<B: Backend>(
         )?,
         grid: grid.clone(),
     };
+    Ok((field, scale))
+}
+
+/// The whole `field` unfolded where it folds (after the dense refinement, which cannot fold
+/// it but keeps the initial field's folds, where it ran).
+fn unfolded<B: Backend>(
+    backend: &B,
+    (field, scale): (DeviceImage<B>, f64),
+    labels: &SourceLabels<B>,
+    initial: &InitialImages<B>,
+    (bones, bone_map): (&[u16], Option<&DeviceImage<B>>),
+    options: &RegisterOptions,
+) -> Result<TotalField<B>> {
     let held = bones_at_source(backend, &field, labels, bones)?;
-    let (mut det, mut folds) = determinant(backend, &field, &held)?;
+    let (det, folds) = determinant(backend, &field, &held)?;
     // Only a field that folds is unfolded: the others keep their bits.
-    let mut unfolding = FoldRepair::default();
+    let mut whole = TotalField {
+        field,
+        held,
+        scale,
+        unfolding: FoldRepair::default(),
+    };
     if folds.folded > 0 {
         // Where the warp is held off the bones, the voxels the initial field moves by a bone's
         // motion keep it; tissue carried into a bone's label may move.
-        let rigid = held_off
+        let rigid = bone_map
+            .filter(|_| options.bone_margin_mm > 0.0)
             .map(|_| rigid_bones(backend, &initial.field, &initial.residual, labels, bones))
             .transpose()?;
-        let held_rigid = (&held, rigid.as_ref());
-        let unfolded =
-            unfold_registration(backend, field, (&det, &folds), held_rigid, labels, bones)?;
-        (field, unfolding) = unfolded;
-        (det, folds) = determinant(backend, &field, &held)?;
+        let held_rigid = (&whole.held, rigid.as_ref());
+        let repaired = unfold_registration(
+            backend,
+            whole.field,
+            (&det, &folds),
+            held_rigid,
+            labels,
+            bones,
+        )?;
+        (whole.field, whole.unfolding) = repaired;
     }
+    Ok(whole)
+}
+
+/// The outputs of a registration, on the host.
+struct Finished {
+    field: Field,
+    warped: Volume,
+    jacobian: Volume,
+    inverse: Field,
+    inverse_residual: Vec<f32>,
+    folds: Folds,
+}
+
+/// The whole `field`'s Jacobian and folds (`held` as [`TotalField`]'s), the source resampled
+/// once through it and its inverse; all come back together.
+fn outputs<B: Backend>(
+    backend: &B,
+    pair: &PairImages<B>,
+    field: &DeviceImage<B>,
+    held: &B::Buffer<f32>,
+) -> Result<Finished> {
+    let grid = &pair.target.grid;
+    let (det, folds) = determinant(backend, field, held)?;
     let resample = ResampleParams::new(&pair.source.grid, grid, 0.0, Interpolation::Linear);
     let warped = backend.resample(&resample, &pair.source.data, &field.data)?;
     let source_grid = &pair.source.grid;
-    let (inverse, residual) = invert(backend, &field, source_grid)?;
+    let (inverse, residual) = invert(backend, field, source_grid)?;
     let wanted = [&field.data, &warped, &det, &inverse.data, &residual];
     let [field, warped, jacobian, inverse, residual] = backend
         .download(&wanted)?
@@ -536,8 +621,6 @@ fn finish<B: Backend>(
         inverse: Image::from_data(source_grid.clone(), bytemuck::cast_vec(inverse))?,
         inverse_residual: residual,
         folds,
-        scale,
-        unfolding,
     })
 }
 

@@ -99,6 +99,7 @@ fn content(
         })),
         "adaptive_stages": result.adaptive.stages,
         "control_points": result.adaptive.points.len(),
+        "dense": result.dense,
         "correlation": {
             "before": correlations.before,
             "after": correlations.after,

@@ -1,0 +1,561 @@
+//! The dense refinement (beyond the paper): after the adaptive RBF stage, a stationary
+//! velocity field v on the target's finest one or two pyramid levels refines the whole field
+//! T to T ∘ exp(v). Each iteration compares the source seen through T ∘ exp(v) with the target
+//! (SSD or LNCC, shaders/dense/dense_force.wgsl), smooths the force (fluid) and the velocity
+//! (elastic), adds the step, scaled so that no voxel moves further than `step_voxels`, and holds
+//! v at zero on the bones, fading it in over `bone_margin_mm`. exp(v) is taken by scaling and
+//! squaring: v / 2ⁿ, small enough to be invertible, composed with itself n times, so the map
+//! stays invertible by construction, and where v is zero exp(v) is exactly the identity: every
+//! bone keeps exactly its rigid motion. A sparse set of RBF points cannot follow the dense,
+//! local deformation of real muscle and fat; this can (greedy's and demons' scheme, with the
+//! bones held). Volumes stay where the backend computes; per iteration one cost and the
+//! update's largest vectors per chunk come back.
+
+use crate::abi::dense::{CombineParams, ForceParams, ForceTerm, MAX_GAUSS_SIGMA};
+use crate::abi::{ComposeParams, Interpolation, LocalMomentsParams, ResampleParams, SumParams};
+use crate::backend::dense::{largest_vectors, smooth, ForceImages};
+use crate::backend::{box_sums, Backend, DeviceImage};
+use crate::error::{Error, Result};
+use crate::images::fold_repair::determinant;
+use crate::images::similarity::Similarity;
+use crate::images::{pyramid, regions};
+use crate::levels::PerLevel;
+use crate::progress::Progress;
+use crate::volume::Grid;
+
+/// Settings of the dense refinement (`[dense]` in a config file).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DenseOptions {
+    /// Run the stage (`--no-dense` skips it).
+    pub enabled: bool,
+    /// Pyramid levels of the target it runs on, counted from the finest: 1 the target's own
+    /// grid only, 2 a level at half the resolution first.
+    pub levels: usize,
+    /// Iterations per level, coarse to fine.
+    pub iterations: PerLevel<usize>,
+    /// The image term per level, coarse to fine.
+    pub similarity: PerLevel<Similarity>,
+    /// Radius (voxels) of LNCC's windows per level, (2 r + 1)³ voxels.
+    pub lncc_radius: PerLevel<usize>,
+    /// σ (voxels) of the Gaussian smoothing each update gets (fluid), per level.
+    pub fluid_sigma: PerLevel<f64>,
+    /// σ (voxels) of the Gaussian smoothing the velocity gets every iteration (elastic), per
+    /// level.
+    pub elastic_sigma: PerLevel<f64>,
+    /// The largest distance (voxels of the level) one update moves a voxel.
+    pub step_voxels: f64,
+    /// The velocity is zero on the bones and rises to its whole this far (mm) from the
+    /// nearest bone; 0 leaves it on the bones too.
+    pub bone_margin_mm: f64,
+}
+
+impl Default for DenseOptions {
+    fn default() -> Self {
+        DenseOptions {
+            enabled: true,
+            levels: 2,
+            iterations: PerLevel::coarse_to_fine(vec![40, 20]).expect("two values"),
+            similarity: PerLevel::all(Similarity::Lncc),
+            lncc_radius: PerLevel::all(2),
+            fluid_sigma: PerLevel::all(1.5),
+            elastic_sigma: PerLevel::all(1.0),
+            step_voxels: 0.5,
+            bone_margin_mm: 4.0,
+        }
+    }
+}
+
+/// Most levels the stage runs on.
+const MAX_DENSE_LEVELS: usize = 4;
+/// Most iterations at one level.
+const MAX_ITERATIONS: usize = 1000;
+/// Widest LNCC window radius (voxels).
+const MAX_LNCC_RADIUS: usize = 8;
+/// Widest margin (mm) over which the velocity may rise from the bones.
+const MAX_BONE_MARGIN_MM: f64 = 50.0;
+/// Iterations without a lower cost after which a level stops.
+const PATIENCE: usize = 5;
+/// Largest vector of v / 2ⁿ (voxels) before it is squared: small against a voxel, so that
+/// the first map is invertible.
+const SQUARING_START_VOXELS: f64 = 0.25;
+
+impl DenseOptions {
+    /// Rejects settings the stage cannot run with, naming the setting.
+    pub fn check(&self) -> Result<()> {
+        let out_of_range = |name: &str, range: (f64, f64), unit: &str| {
+            Error::InvalidInput(format!(
+                "dense.{name} must be {} to {}{unit}",
+                range.0, range.1
+            ))
+        };
+        let levels = (1.0, MAX_DENSE_LEVELS as f64);
+        let counts = |v: &PerLevel<usize>| v.values().iter().map(|&n| n as f64).collect();
+        // Every numeric setting with its range, checked alike.
+        let table: [(&str, Vec<f64>, (f64, f64), &str); 6] = [
+            ("levels", vec![self.levels as f64], levels, ""),
+            (
+                "iterations",
+                counts(&self.iterations),
+                (0.0, MAX_ITERATIONS as f64),
+                "",
+            ),
+            (
+                "lncc_radius",
+                counts(&self.lncc_radius),
+                (1.0, MAX_LNCC_RADIUS as f64),
+                " (voxels)",
+            ),
+            (
+                "fluid_sigma",
+                self.fluid_sigma.values().to_vec(),
+                (0.0, MAX_GAUSS_SIGMA),
+                " (voxels)",
+            ),
+            (
+                "elastic_sigma",
+                self.elastic_sigma.values().to_vec(),
+                (0.0, MAX_GAUSS_SIGMA),
+                " (voxels)",
+            ),
+            (
+                "step_voxels",
+                vec![self.step_voxels],
+                (0.01, 4.0),
+                " (voxels)",
+            ),
+        ];
+        for (name, values, range, unit) in table {
+            if !values.iter().all(|v| (range.0..=range.1).contains(v)) {
+                return Err(out_of_range(name, range, unit));
+            }
+        }
+        if !(0.0..=MAX_BONE_MARGIN_MM).contains(&self.bone_margin_mm) {
+            return Err(out_of_range(
+                "bone_margin_mm",
+                (0.0, MAX_BONE_MARGIN_MM),
+                " (mm)",
+            ));
+        }
+        self.iterations.check("dense.iterations", self.levels)?;
+        self.similarity.check("dense.similarity", self.levels)?;
+        self.lncc_radius.check("dense.lncc_radius", self.levels)?;
+        self.fluid_sigma.check("dense.fluid_sigma", self.levels)?;
+        self.elastic_sigma.check("dense.elastic_sigma", self.levels)
+    }
+}
+
+/// What the stage refines, where the backend computes, on the target's grid.
+pub struct DenseInputs<'a, B: Backend> {
+    /// The source scan, on its own grid.
+    pub source: &'a DeviceImage<B>,
+    /// The target scan.
+    pub target: &'a DeviceImage<B>,
+    /// The whole field so far, T (target point → source point, mm).
+    pub field: &'a DeviceImage<B>,
+    /// The target's voxels that count (1) and those that do not (0).
+    pub mask: &'a DeviceImage<B>,
+    /// Where the bones are in the target (1 + the bone's position, 0 elsewhere) and how many
+    /// bones; None: nothing held.
+    pub bones: Option<(&'a DeviceImage<B>, usize)>,
+}
+
+/// What the stage did at one level.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct DenseLevel {
+    /// Voxels of the level's grid.
+    pub dims: [usize; 3],
+    /// The image term.
+    pub similarity: Similarity,
+    /// Iterations run (fewer than asked when the cost stopped falling).
+    pub iterations: usize,
+    /// The image term's mean per voxel through the field the level started from.
+    pub cost_start: f64,
+    /// The same through the velocity kept (the lowest cost met).
+    pub cost_end: f64,
+    /// The iteration whose velocity was kept (0: none improved on the start).
+    pub kept_iteration: usize,
+}
+
+/// What the stage did.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct DenseReport {
+    /// Each level's figures, coarse to fine.
+    pub levels: Vec<DenseLevel>,
+    /// Squarings of the final exponential.
+    pub squarings: u32,
+    /// Smallest Jacobian determinant of exp(v) on the target's grid: above 0, the refinement
+    /// is invertible.
+    pub min_det: f32,
+}
+
+/// T refined to T ∘ exp(v) (on the target's grid), and what the stage did.
+pub fn refine<B: Backend>(
+    backend: &B,
+    inputs: &DenseInputs<B>,
+    options: &DenseOptions,
+    progress: &dyn Progress,
+) -> Result<(DeviceImage<B>, DenseReport)> {
+    options.check()?;
+    let targets = pyramid::build(backend, inputs.target.clone(), options.levels)?;
+    let sources = pyramid::build(backend, inputs.source.clone(), targets.len())?;
+    let mut levels = Vec::new();
+    let mut velocity: Option<(DeviceImage<B>, f64)> = None;
+    for (index, target) in targets.iter().enumerate().rev() {
+        let source = &sources[index.min(sources.len() - 1)];
+        let level = Level::new(backend, inputs, target, source, options.bone_margin_mm)?;
+        let start = level.start(backend, velocity.as_ref())?;
+        progress.begin(
+            &format!("dense refinement, level {}", targets.len() - index),
+            options.iterations.at_level(index),
+        );
+        let (kept, done) =
+            level.run(backend, start, &LevelSettings::of(options, index), progress)?;
+        progress.end();
+        levels.push(done);
+        velocity = Some(kept);
+    }
+    let (v, bound) = velocity.expect("at least one level");
+    let grid = &inputs.field.grid;
+    let squarings = squarings(bound, grid);
+    let phi = exponential(backend, grid, &v.data, squarings)?;
+    let nothing_held = backend.zeros("nothing held", grid.len())?;
+    let phi = DeviceImage {
+        data: phi,
+        grid: grid.clone(),
+    };
+    let (_, folds) = determinant(backend, &phi, &nothing_held)?;
+    let refined = backend.compose(
+        &ComposeParams::new(grid, grid),
+        &phi.data,
+        &inputs.field.data,
+    )?;
+    let report = DenseReport {
+        levels,
+        squarings,
+        min_det: folds.min,
+    };
+    Ok((
+        DeviceImage {
+            data: refined,
+            grid: grid.clone(),
+        },
+        report,
+    ))
+}
+
+/// One level's settings.
+struct LevelSettings {
+    iterations: usize,
+    similarity: Similarity,
+    radius: usize,
+    fluid_sigma: f64,
+    elastic_sigma: f64,
+    step_voxels: f64,
+}
+
+impl LevelSettings {
+    /// The settings at pyramid level `index` (0 the finest).
+    fn of(options: &DenseOptions, index: usize) -> Self {
+        LevelSettings {
+            iterations: options.iterations.at_level(index),
+            similarity: options.similarity.at_level(index),
+            radius: options.lncc_radius.at_level(index),
+            fluid_sigma: options.fluid_sigma.at_level(index),
+            elastic_sigma: options.elastic_sigma.at_level(index),
+            step_voxels: options.step_voxels,
+        }
+    }
+}
+
+/// The images of one level, on its grid.
+struct Level<B: Backend> {
+    /// The target at this level (F).
+    target: DeviceImage<B>,
+    /// The source at the matching level of its own pyramid.
+    source: DeviceImage<B>,
+    /// T sampled at this level's voxels.
+    field: B::Buffer<f32>,
+    /// The target mask at this level.
+    mask: B::Buffer<f32>,
+    /// The bones' distance maps (mm) at this level and the bones, with the margin; None:
+    /// nothing held.
+    held: Option<(B::Buffer<f32>, usize, f64)>,
+}
+
+impl<B: Backend> Level<B> {
+    /// The level on `target`'s grid.
+    fn new(
+        backend: &B,
+        inputs: &DenseInputs<B>,
+        target: &DeviceImage<B>,
+        source: &DeviceImage<B>,
+        margin_mm: f64,
+    ) -> Result<Self> {
+        let grid = &target.grid;
+        let field = sampled_field(backend, inputs.field, grid)?;
+        let mask = nearest_onto(backend, inputs.mask, grid)?;
+        let held = match inputs.bones.filter(|_| margin_mm > 0.0) {
+            Some((map, bones)) => {
+                let map = DeviceImage {
+                    data: nearest_onto(backend, map, grid)?,
+                    grid: grid.clone(),
+                };
+                Some((
+                    regions::distance_maps(backend, &map, bones)?,
+                    bones,
+                    margin_mm,
+                ))
+            }
+            None => None,
+        };
+        Ok(Level {
+            target: target.clone(),
+            source: source.clone(),
+            field,
+            mask,
+            held,
+        })
+    }
+
+    fn grid(&self) -> &Grid {
+        &self.target.grid
+    }
+
+    /// fade · (a_scale · a + b_scale · b), faded where bones are held.
+    fn combine(
+        &self,
+        backend: &B,
+        (a_scale, a): (f64, &B::Buffer<f32>),
+        (b_scale, b): (f64, &B::Buffer<f32>),
+    ) -> Result<B::Buffer<f32>> {
+        let params = CombineParams::sum(self.grid(), a_scale, b_scale);
+        match &self.held {
+            Some((distance, bones, margin)) => {
+                backend.field_combine(&params.faded(*bones, *margin), a, b, distance)
+            }
+            None => backend.field_combine(&params, a, b, a),
+        }
+    }
+
+    /// The velocity this level starts from, with a bound on its vectors' length (mm): zero, or
+    /// the coarser level's sampled on this grid and held off the bones here.
+    fn start(
+        &self,
+        backend: &B,
+        coarser: Option<&(DeviceImage<B>, f64)>,
+    ) -> Result<(B::Buffer<f32>, f64)> {
+        match coarser {
+            None => Ok((backend.zeros("velocity", 3 * self.grid().len())?, 0.0)),
+            Some((v, bound)) => {
+                let sampled = sampled_field(backend, v, self.grid())?;
+                Ok((
+                    self.combine(backend, (1.0, &sampled), (0.0, &sampled))?,
+                    *bound,
+                ))
+            }
+        }
+    }
+
+    /// The level's iterations from the velocity `start`: the velocity with the lowest cost met
+    /// (and a bound on its length, mm), and what was done.
+    fn run(
+        &self,
+        backend: &B,
+        (start, start_bound): (B::Buffer<f32>, f64),
+        settings: &LevelSettings,
+        progress: &dyn Progress,
+    ) -> Result<((DeviceImage<B>, f64), DenseLevel)> {
+        let grid = self.grid();
+        let step_mm = settings.step_voxels * grid.finest_spacing();
+        let update_sigma = settings.fluid_sigma.hypot(settings.elastic_sigma);
+        let (mut v, mut bound) = (start, start_bound);
+        let mut kept = (v.clone(), bound, f64::INFINITY, 0);
+        let (mut cost_start, mut ran) = (f64::NAN, 0);
+        for iteration in 0..=settings.iterations {
+            let (force, cost) = self.evaluate(backend, &v, bound, settings)?;
+            if iteration == 0 {
+                cost_start = cost;
+            }
+            if cost < kept.2 {
+                kept = (v.clone(), bound, cost, iteration);
+            }
+            let stalled = iteration >= kept.3 + PATIENCE;
+            if iteration == settings.iterations || stalled {
+                break;
+            }
+            let update = smooth(backend, grid, 3, update_sigma, &force)?;
+            let smoothed = smooth(backend, grid, 3, settings.elastic_sigma, &v)?;
+            let [largest, length] = largest_vectors(backend, grid, &[&update, &smoothed])?[..]
+            else {
+                unreachable!("two fields measured")
+            };
+            progress.step(&format!("cost {cost:.6}"));
+            if largest <= 0.0 {
+                break;
+            }
+            v = self.combine(
+                backend,
+                (1.0, &smoothed),
+                (step_mm / largest as f64, &update),
+            )?;
+            ran = iteration + 1;
+            // Fading never lengthens a vector; the step adds at most its size.
+            bound = length as f64 + step_mm;
+        }
+        let (v, bound, cost_end, kept_iteration) = kept;
+        let done = DenseLevel {
+            dims: grid.dims,
+            similarity: settings.similarity,
+            iterations: ran,
+            cost_start,
+            cost_end,
+            kept_iteration,
+        };
+        let v = DeviceImage {
+            data: v,
+            grid: grid.clone(),
+        };
+        Ok(((v, bound), done))
+    }
+
+    /// The force (3 floats per voxel) and the mean cost per voxel through T ∘ exp(v).
+    fn evaluate(
+        &self,
+        backend: &B,
+        v: &B::Buffer<f32>,
+        bound: f64,
+        settings: &LevelSettings,
+    ) -> Result<(B::Buffer<f32>, f64)> {
+        let grid = self.grid();
+        let phi = exponential(backend, grid, v, squarings(bound, grid))?;
+        let whole = backend.compose(&ComposeParams::new(grid, grid), &phi, &self.field)?;
+        let sampling = ResampleParams::new(&self.source.grid, grid, 0.0, Interpolation::Linear);
+        let moving = backend.resample(&sampling, &self.source.data, &whole)?;
+        let covered = backend.coverage(&sampling, &whole, &self.mask)?;
+        let (term, sums) = match settings.similarity {
+            Similarity::Ssd => (ForceTerm::Ssd, moving.clone()),
+            Similarity::Lncc => {
+                let passes = LocalMomentsParams::passes(grid, settings.radius);
+                (
+                    ForceTerm::Lncc,
+                    box_sums(backend, &passes, &moving, &self.target.data)?,
+                )
+            }
+        };
+        let images = ForceImages {
+            moving: &moving,
+            fixed: &self.target.data,
+            covered: &covered,
+            sums: &sums,
+        };
+        let params = ForceParams::new(grid, term, settings.radius);
+        let (force, cost) = backend.dense_force(&params, &images)?;
+        let chunks = backend.sum_chunks(&SumParams::new(grid.len()), &cost)?;
+        let total = backend.download_one(&backend.sum_partials(&chunks, 1)?)?;
+        Ok((force, total[0] / grid.len() as f64))
+    }
+}
+
+/// Squarings that bring a velocity whose vectors are at most `bound` mm long below
+/// [`SQUARING_START_VOXELS`] of `grid`'s finest voxel.
+fn squarings(bound: f64, grid: &Grid) -> u32 {
+    let ratio = bound / (SQUARING_START_VOXELS * grid.finest_spacing());
+    if ratio <= 1.0 {
+        0
+    } else {
+        ratio.log2().ceil().min(20.0) as u32
+    }
+}
+
+/// exp(v) by scaling and squaring: v / 2ⁿ composed with itself n times (3 floats per voxel of
+/// `grid`, mm).
+fn exponential<B: Backend>(
+    backend: &B,
+    grid: &Grid,
+    v: &B::Buffer<f32>,
+    squarings: u32,
+) -> Result<B::Buffer<f32>> {
+    let scale = 0.5f64.powi(squarings as i32);
+    let mut phi = backend.field_combine(&CombineParams::sum(grid, scale, 0.0), v, v, v)?;
+    let params = ComposeParams::new(grid, grid);
+    for _ in 0..squarings {
+        phi = backend.compose(&params, &phi, &phi)?;
+    }
+    Ok(phi)
+}
+
+/// `field` (3 floats per voxel) sampled at `grid`'s voxels (itself on its own grid).
+fn sampled_field<B: Backend>(
+    backend: &B,
+    field: &DeviceImage<B>,
+    grid: &Grid,
+) -> Result<B::Buffer<f32>> {
+    if field.grid.same_as(grid, 0.0) {
+        return Ok(field.data.clone());
+    }
+    // u = 0 + field ∘ (id + 0): the composition samples the second field at the first's grid.
+    let still = backend.zeros("zero displacement", 3 * grid.len())?;
+    backend.compose(&ComposeParams::new(grid, &field.grid), &still, &field.data)
+}
+
+/// `image` at `grid`'s voxels, nearest voxel (label and mask maps; itself on its own grid).
+fn nearest_onto<B: Backend>(
+    backend: &B,
+    image: &DeviceImage<B>,
+    grid: &Grid,
+) -> Result<B::Buffer<f32>> {
+    if image.grid.same_as(grid, 0.0) {
+        return Ok(image.data.clone());
+    }
+    let params = ResampleParams::new(&image.grid, grid, 0.0, Interpolation::Nearest);
+    let still = backend.zeros("zero displacement", 3 * grid.len())?;
+    backend.resample(&params, &image.data, &still)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_defaults_pass_their_own_checks_and_bad_values_are_named() {
+        assert!(DenseOptions::default().check().is_ok());
+        let bad = DenseOptions {
+            step_voxels: 0.0,
+            ..Default::default()
+        };
+        let err = bad.check().unwrap_err().to_string();
+        assert!(err.contains("dense.step_voxels"), "{err}");
+        let bad = DenseOptions {
+            fluid_sigma: PerLevel::all(50.0),
+            ..Default::default()
+        };
+        assert!(bad
+            .check()
+            .unwrap_err()
+            .to_string()
+            .contains("dense.fluid_sigma"));
+        let bad = DenseOptions {
+            levels: 3,
+            ..Default::default()
+        };
+        let err = bad.check().unwrap_err().to_string();
+        assert!(
+            err.contains("dense.iterations") && err.contains("3 pyramid levels"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn squarings_bring_the_velocity_below_a_quarter_voxel() {
+        let mut affine = crate::volume::Affine::identity();
+        for a in 0..3 {
+            affine[(a, a)] = 2.0;
+        }
+        let grid = Grid::new([8, 8, 8], affine).unwrap();
+        assert_eq!(squarings(0.0, &grid), 0);
+        assert_eq!(squarings(0.5, &grid), 0);
+        assert_eq!(squarings(0.6, &grid), 1);
+        assert_eq!(squarings(8.0, &grid), 4);
+    }
+}

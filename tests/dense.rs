@@ -1,0 +1,361 @@
+//! The dense stage's kernel family (shaders/dense/): the CPU twins against closed forms, then
+//! GPU (lavapipe in CI) against the CPU twins on seeded data at odd sizes and an oblique grid.
+//!
+//! Tolerances: the twins run the same f32 operations in the same order; a hardware driver may
+//! fuse a multiply and an add, an ulp per operation. Smoothing sums at most 63 products of
+//! values about 100 (1e-4 absolute); the force multiplies a few such terms (1e-4 relative).
+
+mod common;
+
+use common::*;
+use posereg::abi::dense::{CombineParams, ForceParams, ForceTerm, GaussParams, NormParams};
+use posereg::abi::LocalMomentsParams;
+use posereg::backend::dense::{largest_vectors, smooth, Dense, ForceImages};
+use posereg::backend::{box_sums, Core};
+use posereg::cpu::CpuBackend;
+use posereg::volume::Grid;
+use posereg::Backend;
+
+/// A host vector where `backend` computes.
+fn on<B: Core>(backend: &B, values: &[f32]) -> B::Buffer<f32> {
+    backend.upload("values", values.to_vec()).unwrap()
+}
+
+/// A field's values, flat (3 per voxel).
+fn flat(field: &posereg::volume::Field) -> Vec<f32> {
+    field.data.iter().flatten().copied().collect()
+}
+
+/// `smooth` on the host's values, brought back.
+fn smoothed<B: Dense>(b: &B, grid: &Grid, components: usize, sigma: f64, v: &[f32]) -> Vec<f32> {
+    b.download_one(&smooth(b, grid, components, sigma, &on(b, v)).unwrap())
+        .unwrap()
+}
+
+#[test]
+fn smoothing_keeps_a_constant_and_spreads_an_impulse_as_its_taps() {
+    let grid = oblique_grid([9, 8, 7]);
+    let constant = vec![42.0f32; 3 * grid.len()];
+    let out = smoothed(&CpuBackend, &grid, 3, 1.7, &constant);
+    assert!(max_abs_diff(&out, &constant) < 1e-4, "a constant stays");
+    let mut impulse = vec![0.0f32; grid.len()];
+    let centre = 4 + 9 * (4 + 8 * 3);
+    impulse[centre] = 1.0;
+    let out = smoothed(&CpuBackend, &grid, 1, 1.0, &impulse);
+    let [x, ..] = GaussParams::passes(&grid, 1, 1.0);
+    let (w0, w1) = (x.tap(0), x.tap(1));
+    assert!((out[centre] - w0 * w0 * w0).abs() < 1e-7);
+    assert!(
+        (out[centre + 1] - w1 * w0 * w0).abs() < 1e-7,
+        "one step along x"
+    );
+    assert!(
+        (out[centre + 9 * 8] - w0 * w0 * w1).abs() < 1e-7,
+        "one step along z"
+    );
+    let total: f32 = out.iter().sum();
+    assert!(
+        (total - 1.0).abs() < 1e-5,
+        "nothing reaches a face: the mass stays, {total}"
+    );
+    // The taps are a normalised Gaussian.
+    let sum: f32 = (1..=x.radius).map(|t| 2.0 * x.tap(t)).sum::<f32>() + x.tap(0);
+    assert!((sum - 1.0).abs() < 1e-6 && x.radius == 3);
+}
+
+#[test]
+fn the_ssd_force_is_the_residual_times_the_world_gradient() {
+    // W linear in world space: central and one-sided differences are exact, so ∇W = a.
+    let grid = oblique_grid([7, 6, 5]);
+    let a = [0.7f32, -1.3, 2.1];
+    let moving: Vec<f32> = (0..grid.len())
+        .map(|n| {
+            let p = grid.world_of(n);
+            100.0 + a[0] * p.x as f32 + a[1] * p.y as f32 + a[2] * p.z as f32
+        })
+        .collect();
+    let fixed: Vec<f32> = moving
+        .iter()
+        .enumerate()
+        .map(|(n, w)| w + (n % 5) as f32)
+        .collect();
+    let covered: Vec<f32> = (0..grid.len()).map(|n| (n % 7 != 0) as u8 as f32).collect();
+    let (force, cost) = force_on(
+        &CpuBackend,
+        &grid,
+        ForceTerm::Ssd,
+        1,
+        [&moving, &fixed, &covered],
+    );
+    for n in 0..grid.len() {
+        let c = covered[n];
+        let r = fixed[n] - moving[n];
+        for k in 0..3 {
+            let want = c * r * a[k];
+            assert!(
+                (force[3 * n + k] - want).abs() < 2e-3 * (1.0 + want.abs()),
+                "voxel {n}"
+            );
+        }
+        assert!((cost[n] - c * r * r).abs() < 1e-3 * (1.0 + r * r));
+    }
+}
+
+#[test]
+fn the_lncc_force_vanishes_where_the_images_correlate_perfectly() {
+    // F an affine function of W: ρ = 1 in every window, so no force and no cost.
+    let grid = oblique_grid([9, 7, 6]);
+    let moving = smooth_volume(&grid, 3).data;
+    let fixed: Vec<f32> = moving.iter().map(|w| 3.0 * w - 40.0).collect();
+    let covered = vec![1.0; grid.len()];
+    let (force, cost) = force_on(
+        &CpuBackend,
+        &grid,
+        ForceTerm::Lncc,
+        2,
+        [&moving, &fixed, &covered],
+    );
+    let largest = force.iter().fold(0.0f32, |m, f| m.max(f.abs()));
+    assert!(largest < 1e-3, "force {largest}");
+    assert!(cost.iter().all(|c| c.abs() < 1e-3), "cost");
+    // Uncorrelated images cost about 1 per voxel.
+    let other = smooth_volume(&grid, 9).data;
+    let (_, cost) = force_on(
+        &CpuBackend,
+        &grid,
+        ForceTerm::Lncc,
+        2,
+        [&moving, &other, &covered],
+    );
+    let mean = cost.iter().sum::<f32>() / cost.len() as f32;
+    assert!(mean > 0.3, "mean cost {mean}");
+}
+
+#[test]
+fn the_lncc_force_moves_the_image_towards_the_target() {
+    // F is W shifted by 0.4 voxel along x: a small step along the force raises the mean ρ².
+    let grid = Grid::new([24, 20, 16], posereg::Affine::identity()).unwrap();
+    let moving = smooth_volume(&grid, 5);
+    let shifted = shifted_x(&moving, 0.4);
+    let covered = vec![1.0; grid.len()];
+    let (force, cost) = force_on(
+        &CpuBackend,
+        &grid,
+        ForceTerm::Lncc,
+        2,
+        [&moving.data, &shifted, &covered],
+    );
+    let before: f32 = cost.iter().sum();
+    let largest = force.iter().fold(0.0f32, |m, f| m.max(f.abs()));
+    // Moving W(x) to W(x + δ) with δ = 0.2 voxel · force / |force|max along x.
+    let moved: Vec<f32> = (0..grid.len())
+        .map(|n| moving.data[n] + gradient_x(&moving, n) * 0.2 * force[3 * n] / largest)
+        .collect();
+    let (_, cost) = force_on(
+        &CpuBackend,
+        &grid,
+        ForceTerm::Lncc,
+        2,
+        [&moved, &shifted, &covered],
+    );
+    let after: f32 = cost.iter().sum();
+    assert!(after < before, "cost {before} -> {after}");
+}
+
+/// W shifted along x by `s` voxels (linear interpolation, the ends held).
+fn shifted_x(volume: &posereg::volume::Volume, s: f32) -> Vec<f32> {
+    let nx = volume.grid.dims[0];
+    (0..volume.grid.len())
+        .map(|n| {
+            let i = n % nx;
+            let q = (i as f32 + s).clamp(0.0, (nx - 1) as f32);
+            let (lo, t) = (q.floor() as usize, q - q.floor());
+            let hi = (lo + 1).min(nx - 1);
+            let row = n - i;
+            volume.data[row + lo] * (1.0 - t) + volume.data[row + hi] * t
+        })
+        .collect()
+}
+
+/// ∂W/∂i at voxel n, central (one-sided at the ends).
+fn gradient_x(volume: &posereg::volume::Volume, n: usize) -> f32 {
+    let nx = volume.grid.dims[0];
+    let i = n % nx;
+    let (lo, hi) = (i.max(1) - 1, (i + 1).min(nx - 1));
+    (volume.data[n - i + hi] - volume.data[n - i + lo]) / (hi - lo) as f32
+}
+
+/// The force kernel on host images, brought back (force, cost).
+fn force_on<B: Backend>(
+    b: &B,
+    grid: &Grid,
+    term: ForceTerm,
+    radius: usize,
+    [moving, fixed, covered]: [&[f32]; 3],
+) -> (Vec<f32>, Vec<f32>) {
+    let (w, f, c) = (on(b, moving), on(b, fixed), on(b, covered));
+    let sums = match term {
+        ForceTerm::Ssd => w.clone(),
+        ForceTerm::Lncc => box_sums(b, &LocalMomentsParams::passes(grid, radius), &w, &f).unwrap(),
+    };
+    let images = ForceImages {
+        moving: &w,
+        fixed: &f,
+        covered: &c,
+        sums: &sums,
+    };
+    let (force, cost) = b
+        .dense_force(&ForceParams::new(grid, term, radius), &images)
+        .unwrap();
+    let mut both = b.download(&[&force, &cost]).unwrap();
+    let cost = both.pop().unwrap();
+    (both.pop().unwrap(), cost)
+}
+
+#[test]
+fn norm_max_finds_the_longest_vector_in_each_chunk() {
+    let grid = Grid::new([70, 65, 3], posereg::Affine::identity()).unwrap();
+    let field = flat(&smooth_field(&grid, 4, 6.0));
+    let longest = (0..grid.len())
+        .map(|v| {
+            field[3 * v..3 * v + 3]
+                .iter()
+                .map(|x| x * x)
+                .sum::<f32>()
+                .sqrt()
+        })
+        .fold(0.0f32, f32::max);
+    let got = largest_vectors(&CpuBackend, &grid, &[&on(&CpuBackend, &field)]).unwrap();
+    assert_eq!(got, vec![longest]);
+    assert!(NormParams::new(&grid).chunks > 1, "several chunks");
+}
+
+#[test]
+fn combine_fades_from_zero_on_a_bone_to_the_whole_a_margin_away() {
+    let grid = Grid::new([5, 4, 3], posereg::Affine::identity()).unwrap();
+    let a: Vec<f32> = (0..3 * grid.len()).map(|k| k as f32).collect();
+    let b: Vec<f32> = (0..3 * grid.len()).map(|k| 1.0 - k as f32 * 0.5).collect();
+    // One bone, its distance map 0, 2, 4, … mm along the voxels.
+    let distance: Vec<f32> = (0..grid.len()).map(|v| (v % 5) as f32 * 2.0).collect();
+    let params = CombineParams::sum(&grid, 2.0, -3.0).faded(1, 4.0);
+    let out = combine_on(&CpuBackend, &params, [&a, &b, &distance]);
+    for v in 0..grid.len() {
+        let fade = (distance[v] / 4.0).min(1.0);
+        for c in 0..3 {
+            let k = 3 * v + c;
+            let want = fade * (2.0 * a[k] - 3.0 * b[k]);
+            assert!((out[k] - want).abs() <= 1e-4 * (1.0 + want.abs()), "{k}");
+        }
+    }
+    assert!(
+        out[..3].iter().all(|&x| x == 0.0),
+        "exactly zero on the bone"
+    );
+    let plain = combine_on(
+        &CpuBackend,
+        &CombineParams::sum(&grid, 2.0, -3.0),
+        [&a, &b, &a],
+    );
+    assert_eq!(plain[0], 2.0 * a[0] - 3.0 * b[0], "no bones: no fade");
+}
+
+/// The combine kernel on host fields, brought back.
+fn combine_on<B: Backend>(b: &B, params: &CombineParams, [x, y, d]: [&[f32]; 3]) -> Vec<f32> {
+    let out = b
+        .field_combine(params, &on(b, x), &on(b, y), &on(b, d))
+        .unwrap();
+    b.download_one(&out).unwrap()
+}
+
+/// GPU against CPU within `abs` + `rel` |cpu|.
+fn close(name: &str, got: &[f32], want: &[f32], abs: f32, rel: f32) {
+    assert_eq!(got.len(), want.len(), "{name}: lengths");
+    let worst = got
+        .iter()
+        .zip(want)
+        .map(|(g, w)| (g - w).abs() / (abs + rel * w.abs()))
+        .fold(0.0f32, |m, r| if r > m || r.is_nan() { r } else { m });
+    let identical = got.iter().zip(want).filter(|(g, w)| g == w).count();
+    eprintln!(
+        "{name}: worst {worst:.2}× the tolerance, {identical}/{} bit-identical",
+        want.len()
+    );
+    assert!(worst <= 1.0, "{name}: {worst}× the tolerance");
+}
+
+#[test]
+fn gauss_axis_parity_at_odd_sizes() {
+    let Some(gpu) = gpu() else { return };
+    let grid = oblique_grid([13, 11, 7]);
+    let image = smooth_volume(&grid, 1).data;
+    let field = flat(&smooth_field(&grid, 2, 5.0));
+    for sigma in [0.7, 2.3, 10.0] {
+        let want = smoothed(&CpuBackend, &grid, 1, sigma, &image);
+        close(
+            "gauss 1",
+            &smoothed(gpu, &grid, 1, sigma, &image),
+            &want,
+            1e-4,
+            1e-6,
+        );
+        let want = smoothed(&CpuBackend, &grid, 3, sigma, &field);
+        close(
+            "gauss 3",
+            &smoothed(gpu, &grid, 3, sigma, &field),
+            &want,
+            1e-4,
+            1e-6,
+        );
+    }
+}
+
+#[test]
+fn dense_force_parity_ssd_and_lncc() {
+    let Some(gpu) = gpu() else { return };
+    let grid = oblique_grid([15, 12, 9]);
+    let moving = smooth_volume(&grid, 3).data;
+    let fixed = smooth_volume(&grid, 4).data;
+    let covered: Vec<f32> = (0..grid.len())
+        .map(|n| (n % 11 != 0) as u8 as f32)
+        .collect();
+    for (term, radius) in [
+        (ForceTerm::Ssd, 1),
+        (ForceTerm::Lncc, 2),
+        (ForceTerm::Lncc, 1),
+    ] {
+        let images = [&moving[..], &fixed[..], &covered[..]];
+        let (want_force, want_cost) = force_on(&CpuBackend, &grid, term, radius, images);
+        let (force, cost) = force_on(gpu, &grid, term, radius, images);
+        let scale = want_force.iter().fold(0.0f32, |m, f| m.max(f.abs()));
+        close(
+            &format!("{term:?} force"),
+            &force,
+            &want_force,
+            1e-4 * scale,
+            1e-4,
+        );
+        close(&format!("{term:?} cost"), &cost, &want_cost, 1e-4, 1e-4);
+    }
+}
+
+#[test]
+fn norm_max_and_combine_parity() {
+    let Some(gpu) = gpu() else { return };
+    let grid = oblique_grid([33, 21, 17]);
+    let a = flat(&smooth_field(&grid, 5, 4.0));
+    let b = flat(&smooth_field(&grid, 6, 2.0));
+    let want = largest_vectors(&CpuBackend, &grid, &[&on(&CpuBackend, &a)]).unwrap();
+    let got = largest_vectors(gpu, &grid, &[&on(gpu, &a)]).unwrap();
+    close("norm_max", &got, &want, 0.0, 1e-6);
+    let distance: Vec<f32> = (0..2 * grid.len())
+        .map(|k| ((k * 37) % 41).saturating_sub(8) as f32 * 0.5)
+        .collect();
+    for params in [
+        CombineParams::sum(&grid, 1.0, 0.37),
+        CombineParams::sum(&grid, 0.25, -2.0).faded(2, 6.0),
+    ] {
+        let want = combine_on(&CpuBackend, &params, [&a, &b, &distance]);
+        let got = combine_on(gpu, &params, [&a, &b, &distance]);
+        close("field_combine", &got, &want, 1e-6, 1e-6);
+    }
+}
