@@ -15,10 +15,18 @@
 #   indep{2,1}-{20,45,90}  the real knee bent 20°, 45°, 90° by scripts/make_pair.py (independent of
 #                          posereg: its own axis, motions and soft-tissue flow, per-scan bias and
 #                          noise) at 2 mm and 1 mm voxels; indep2-fibula: 20° at 2 mm with the
-#                          target cut below (the fibula mostly out of view). Scored by
-#                          scripts/score_pair.py (body, bone, soft tissue, folds, worst bone) in
-#                          OUT_DIR/independent.md, with SimpleITK demons (scripts/demons.py) beside
+#                          target cut below (the fibula mostly out of view);
+#   indep{2,1}-{20,45,90}v the same bends and seeds with volume-keeping soft tissue
+#                          (make_pair.py --tissue incompressible: the flow made divergence-free,
+#                          plus a curl-noise wobble). MAKE_PAIR_OPTS adds make_pair.py options to
+#                          every independent pair made (a pair already in OUT_DIR/NAME/pair is
+#                          reused as it is). Scored by scripts/score_pair.py (body, bone, soft
+#                          tissue split by whether the truth keeps its volume, the warped source's
+#                          correlation with the target, folds, worst bone) in
+#                          OUT_DIR/independent.md, with SimpleITK demons (scripts/demons.py) and
+#                          PICSL greedy (scripts/greedy.py, pip install picsl-greedy) beside
 #                          elastix; elastix uses mutual information there (scans shaded differently).
+# SKIP_POSEREG=1 runs the peers only (no cargo build, no posereg runs).
 # elastix runs affine + multi-resolution B-spline
 # (scripts/elastix/*.txt); its field comes from transformix (-def all), which is in the same ITK
 # convention as posereg's field.nii.gz, so both are scored by `posereg eval` against the truth
@@ -32,11 +40,12 @@ command -v elastix >/dev/null || {
     sudo=""; [ "$(id -u)" -eq 0 ] || sudo="sudo"
     $sudo apt-get install -y -qq elastix
 }
-cargo build --release -q
+skip_posereg=${SKIP_POSEREG:-0}
+[ "$skip_posereg" = 1 ] || cargo build --release -q
 bin=target/release/posereg
 mkdir -p "$out"
 seconds() { /usr/bin/time -f %e "$@" 2>&1 >/dev/null | tail -1; }
-printf '| pair | method | wall s | mean error mm | within 2 vox | within 4 vox | correlation |\n|---|---|---|---|---|---|---|\n' > "$out/table.md"
+[ "$skip_posereg" = 1 ] || printf '| pair | method | wall s | mean error mm | within 2 vox | within 4 vox | correlation |\n|---|---|---|---|---|---|---|\n' > "$out/table.md"
 
 # compare DIR NAME SOURCE LABELS TARGET TRUTH MASK(or "") [posereg runs: "label|flags" ...]
 # (DIR without spaces: elastix cannot write into folders with spaces in their names)
@@ -106,13 +115,14 @@ independent_pair() {
     shift 5
     local pair="$dir/pair" data=../shared/data/knee-dess
     [ -f "$pair/truth.json" ] || python3 scripts/make_pair.py --image $data/image.nii.gz \
-        --labels $data/labels.nii.gz --degrees "$deg" --spacing "$spacing" --seed "$seed" "$@" -o "$pair"
-    [ -f "$out/independent.md" ] || printf '| pair | method | wall s | body mm | bone mm | soft tissue mm | folded %% | worst bone |\n|---|---|---|---|---|---|---|---|\n' > "$out/independent.md"
+        --labels $data/labels.nii.gz --degrees "$deg" --spacing "$spacing" --seed "$seed" "$@" \
+        ${MAKE_PAIR_OPTS:-} -o "$pair"
+    [ -f "$out/independent.md" ] || python3 scripts/score_pair.py --header > "$out/independent.md"
     iscore() { # method, field, seconds, [bone transforms]
         python3 scripts/score_pair.py "$pair" "$2" ${4:+--bones "$4"} --row "$name" "$1" "$3" \
             >> "$out/independent.md"
     }
-    for device in ${DEVICES:-cpu gpu}; do
+    for device in $([ "$skip_posereg" = 1 ] || echo ${DEVICES:-cpu gpu}); do
         local to="$dir/posereg-$device"
         t=$(seconds $bin register --quiet --device "$device" --source "$pair/source.nii.gz" \
             --source-labels "$pair/source_labels.nii.gz" --target "$pair/target.nii.gz" -o "$to")
@@ -125,6 +135,8 @@ independent_pair() {
     iscore "elastix affine + B-spline (MI)" "$dir/elastix/deformationField.nii" "$t"
     t=$(seconds python3 scripts/demons.py "$pair/target.nii.gz" "$pair/source.nii.gz" "$dir/demons")
     iscore "SimpleITK affine + diffeomorphic demons" "$dir/demons/field.nii.gz" "$t"
+    t=$(seconds env THREADS="$threads" python3 scripts/greedy.py "$pair/target.nii.gz" "$pair/source.nii.gz" "$dir/greedy")
+    iscore "greedy affine + deformable (NCC)" "$dir/greedy/field.nii.gz" "$t"
 }
 
 for pair in ${PAIRS:-phantom10 phantom60 knee10}; do
@@ -143,6 +155,11 @@ for pair in ${PAIRS:-phantom10 phantom60 knee10}; do
         mm=${pair:5:1} deg=${pair#*-}
         seed=$(( 10 + (mm == 2 ? 0 : 3) + (deg == 20 ? 1 : deg == 45 ? 2 : 3) ))
         independent_pair "$dir" "knee ${mm} mm, $deg°" "$mm" "$deg" "$seed" ;;
+    indep2-20v | indep2-45v | indep2-90v | indep1-20v | indep1-45v | indep1-90v)
+        mm=${pair:5:1} deg=${pair#*-} deg=${deg%v}
+        seed=$(( 10 + (mm == 2 ? 0 : 3) + (deg == 20 ? 1 : deg == 45 ? 2 : 3) ))
+        independent_pair "$dir" "knee ${mm} mm, $deg°, volume kept" "$mm" "$deg" "$seed" \
+            --tissue incompressible ;;
     indep2-fibula)
         independent_pair "$dir" "knee 2 mm, 20°, target cut (fibula 8% seen)" 2 20 7 --target-keep 1 0 0.75 ;;
     *)
@@ -150,5 +167,5 @@ for pair in ${PAIRS:-phantom10 phantom60 knee10}; do
         exit 2 ;;
     esac
 done
-cat "$out/table.md"
+[ "$skip_posereg" = 1 ] || cat "$out/table.md"
 [ -f "$out/independent.md" ] && cat "$out/independent.md"

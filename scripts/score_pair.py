@@ -2,6 +2,7 @@
 """Scores a registration of a pair made by scripts/make_pair.py, independently of posereg.
 
     scripts/score_pair.py PAIR_DIR FIELD [--bones TRANSFORM_JSON] [--json | --row PAIR METHOD SECONDS]
+    scripts/score_pair.py --header
 
 FIELD is a displacement field in the ITK convention (posereg's field.nii.gz, elastix's
 deformationField.nii, ANTs' warp, SimpleITK's): on the target grid, LPS mm, target point ->
@@ -18,11 +19,17 @@ The soft-tissue error is also split by how the pair's own truth changes the tiss
 (its det J): tissue kept within 0.8-1.25x its volume, and tissue squeezed or stretched beyond,
 which real tissue, nearly incompressible, is not (the generator's polyrigid flow compresses
 the tissue behind a deeply bent knee to a fraction of its volume).
---row prints one row of scripts/compare_elastix.sh's independent-pairs table instead.
+Also the Pearson correlation of the source scan resampled through FIELD (SimpleITK, linear) with
+the target scan over the target's body (target_labels > 0) where FIELD maps inside the source, so
+that every tool's image match is measured the same way (key `correlation`; the share of the body
+it covers, `correlation_share`).
+--row prints one row of scripts/compare_elastix.sh's independent-pairs table instead (--header,
+that table's header).
 """
 import argparse
 import json
 import os
+import sys
 
 import numpy as np
 import SimpleITK as sitk
@@ -86,6 +93,21 @@ def by_truth_volume(error, soft, truth):
             "soft_strained_mm": mean(strained)}
 
 
+def warped_correlation(pair, field, body):
+    """Pearson correlation of the pair's source scan resampled through `field` (SimpleITK,
+    linear) with its target scan, over the target's body where the field maps inside the
+    source: the same image measure for every tool, whatever its own resampling."""
+    source = sitk.ReadImage(os.path.join(pair, "source.nii.gz"), sitk.sitkFloat32)
+    target = sitk.GetArrayFromImage(sitk.ReadImage(os.path.join(pair, "target.nii.gz"), sitk.sitkFloat32))
+    transform = sitk.DisplacementFieldTransform(sitk.Image(field))
+    warped = sitk.GetArrayFromImage(sitk.Resample(source, field, transform, sitk.sitkLinear, 0.0))
+    ones = sitk.Image(source.GetSize(), sitk.sitkUInt8) + 1
+    ones.CopyInformation(source)
+    inside = sitk.GetArrayFromImage(sitk.Resample(ones, field, transform, sitk.sitkNearestNeighbor, 0)) > 0
+    m = body & inside
+    return float(np.corrcoef(warped[m], target[m])[0, 1]), float(m.sum() / body.sum())
+
+
 def bone_errors(pair, transforms):
     truth = {b["label"]: np.array(b["matrix"]) for b in json.load(open(os.path.join(pair, "truth.json")))["bones"]}
     found = {b["label"]: (b["name"], np.array(b["matrix"])) for b in json.load(open(transforms))["bones"]}
@@ -113,7 +135,13 @@ def table_row(r, pair, method, seconds):
         name, e = max(bones.items(), key=lambda b: b[1]["degrees"])
         worst = f"{name} {e['degrees']:.2f}° / {max(b['mm'] for b in bones.values()):.2f} mm"
     return (f"| {pair} | {method} | {float(seconds):.1f} | {r['mean_mm']:.2f} | {r['bone_mm']:.2f} | "
-            f"{r['soft_mm']:.2f} | {100 * r['folded_share']:.4f} | {worst} |")
+            f"{r['soft_mm']:.2f} | {r['soft_kept_mm']:.2f} | {r['soft_strained_mm']:.2f} | "
+            f"{r['correlation']:.3f} | {100 * r['folded_share']:.4f} | {worst} |")
+
+
+TABLE_HEADER = ("| pair | method | wall s | body mm | bone mm | soft tissue mm | soft, volume kept mm | "
+                "soft, volume strained mm | correlation | folded % | worst bone |\n"
+                "|---|---|---|---|---|---|---|---|---|---|---|")
 
 
 def main():
@@ -123,6 +151,10 @@ def main():
     p.add_argument("--bones")
     p.add_argument("--json", action="store_true")
     p.add_argument("--row", nargs=3, metavar=("PAIR", "METHOD", "SECONDS"))
+    p.add_argument("--header", action="store_true", help="print the --row table's header and stop")
+    if "--header" in sys.argv[1:]:
+        print(TABLE_HEADER)
+        return
     a = p.parse_args()
     mask = lambda name: sitk.GetArrayFromImage(sitk.ReadImage(os.path.join(a.pair, name))) > 0
     truth = sitk.ReadImage(os.path.join(a.pair, "truth_field.nii.gz"), sitk.sitkVectorFloat64)
@@ -140,6 +172,7 @@ def main():
         "bone_contact_share": float((det[body & contact] <= 0).sum() / body.sum()),
         **by_truth_volume(error, soft, truth),
     }
+    result["correlation"], result["correlation_share"] = warped_correlation(a.pair, field, body)
     if a.bones:
         result["bones"] = bone_errors(a.pair, a.bones)
     if a.json:
@@ -154,6 +187,8 @@ def main():
     print(f"  soft tissue whose volume the truth keeps within {KEPT_VOLUME[0]}-{KEPT_VOLUME[1]}x "
           f"({100 * result['soft_kept_share']:.0f}%): {result['soft_kept_mm']:.2f} mm; squeezed or "
           f"stretched beyond: {result['soft_strained_mm']:.2f} mm")
+    print(f"  warped source's correlation with the target over the body: {result['correlation']:.4f} "
+          f"({100 * result['correlation_share']:.1f}% of the body mapped inside the source)")
     for name, e in result.get("bones", {}).items():
         print(f"  {name:<8} {e['degrees']:.2f}° {e['mm']:.2f} mm")
 
