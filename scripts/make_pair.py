@@ -37,6 +37,12 @@ smooth bumps are not used. The truth's det J quantiles over the soft tissue and 
 default, --tissue polyrigid, makes exactly the pairs it made before the option existed
 (pair.json included).
 
+Measured on the knee (2 mm, seeds 11-13): soft tissue within 0.8-1.25x its volume 99.9% at 20°,
+99.2% at 45°, 96.3% at 90° (97.4% at 90°, 1 mm), about 80-95 s a pair at 2 mm (11 min at 1 mm).
+Known flaw: at 45° and 90° a few voxels fold (central-difference det J <= 0; 0.02% and 0.2% of
+the body at 2 mm, 0.17% at 90°, 1 mm), in the thin tissue between two bones' articular surfaces
+(femur-tibia, femur-patella), which the flow squeezes for long where κ is small; 20° has none.
+
 Both scans are sampled from the same anti-aliased high-resolution scan onto grids of the asked
 spacing, each with its own smooth multiplicative bias and Rician noise. The target's field of
 view can be cut (--target-keep) so that a bone is only partly seen.
