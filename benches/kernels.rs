@@ -7,6 +7,7 @@
 //! 64³, 128³ and the paper's 136×256×256.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use posereg::abi::dense::{CombineParams, ForceParams, ForceTerm, NormParams};
 use posereg::abi::{
     pack_candidates, BoneLookupParams, ComposeParams, DilateParams, EdtParams, FadeParams,
     GainParams, Interpolation, InvertParams, JacobianParams, LabelParams, LnccParams,
@@ -14,6 +15,7 @@ use posereg::abi::{
     ScoreParams, SkinBlendParams, SkinWeightsParams, SsdParams, SumParams, ThresholdParams,
     RIGID_SUMS, SCORE_SUMS,
 };
+use posereg::backend::dense::{Dense, ForceImages};
 use posereg::backend::{box_sums, BoneImages, Core, CostImages};
 use posereg::cpu::CpuBackend;
 use posereg::device::Opened;
@@ -440,6 +442,51 @@ fn kernels(c: &mut Criterion) {
                 b.fade_warp(&FadeParams::new(&g, 4, 8.0), r, d)
             }))
         });
+        // The dense refinement's family: a velocity smoothed (σ 1.8 voxels, three passes),
+        // the LNCC force from the box sums, the update's largest vector, the faded update.
+        group(
+            c,
+            "gauss_axis (3 passes, 3 components)",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| {
+                posereg::on_backend!(b, b => resident(b, &[&uf], |b, [f]| {
+                    posereg::backend::dense::smooth(b, &g, 3, 1.8, f)
+                }))
+            },
+        );
+        group(
+            c,
+            "dense_force (LNCC)",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| {
+                posereg::on_backend!(b, b => resident(b, &[&source.data, &target.data], |b, [w, f]| {
+                    let sums = box_sums(b, &LocalMomentsParams::passes(&g, 2), w, f)?;
+                    let images = ForceImages { moving: w, fixed: f, covered: f, sums: &sums };
+                    Ok(b.dense_force(&ForceParams::new(&g, ForceTerm::Lncc, 2), &images)?.0)
+                }))
+            },
+        );
+        group(c, "norm_max", g.len() as u64, &label, &backends, |b| {
+            posereg::on_backend!(b, b => resident(b, &[&uf], |b, [f]| {
+                b.norm_max(&NormParams::new(&g), f)
+            }))
+        });
+        group(
+            c,
+            "field_combine (faded)",
+            g.len() as u64,
+            &label,
+            &backends,
+            |b| {
+                posereg::on_backend!(b, b => resident(b, &[&uf, &uf, &distances], |b, [v, u, d]| {
+                    b.field_combine(&CombineParams::sum(&g, 1.0, 0.5).faded(4, 4.0), v, u, d)
+                }))
+            },
+        );
         group(c, "invert_field", g.len() as u64, &label, &backends, |b| {
             posereg::on_backend!(b, b => resident(b, &[&uf], |b, [f]| {
                 Ok(b.invert_field(&InvertParams::new(&g, &g), f)?.0)

@@ -69,7 +69,8 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
-    let pairs: [(&str, &str, usize); 37] = [
+    use posereg::abi::dense;
+    let pairs: [(&str, &str, usize); 41] = [
         ("warp_image", "RbfGradParams", size_of::<RbfGradParams>()),
         ("gain_terms", "GainParams", size_of::<GainParams>()),
         ("gain_ratio", "GainParams", size_of::<GainParams>()),
@@ -154,6 +155,18 @@ fn abi_structs_match_their_wgsl_twins() {
             "skin_blend",
             "SkinBlendParams",
             size_of::<SkinBlendParams>(),
+        ),
+        ("gauss_axis", "GaussParams", size_of::<dense::GaussParams>()),
+        (
+            "dense_force",
+            "ForceParams",
+            size_of::<dense::ForceParams>(),
+        ),
+        ("norm_max", "NormParams", size_of::<dense::NormParams>()),
+        (
+            "field_combine",
+            "CombineParams",
+            size_of::<dense::CombineParams>(),
         ),
     ];
     assert_eq!(

@@ -34,7 +34,10 @@ pub struct RegisterArgs {
     /// Skip the articulated initialisation (the paper's first experiment: small bends only).
     #[arg(long)]
     pub no_init: bool,
-    /// Skip the dense refinement after the adaptive stage (dense.enabled = false).
+    /// Run the dense refinement after the adaptive stage (dense.enabled = true).
+    #[arg(long, conflicts_with = "no_dense")]
+    pub dense: bool,
+    /// Skip the dense refinement (dense.enabled = false), whatever the settings file says.
     #[arg(long)]
     pub no_dense: bool,
     /// Bone labels to use, e.g. 2,3,4 (default: every bone label present).
@@ -90,8 +93,8 @@ impl RegisterArgs {
         if self.no_init {
             options.initialise = false;
         }
-        if self.no_dense {
-            options.dense.enabled = false;
+        if self.dense || self.no_dense {
+            options.dense.enabled = self.dense;
         }
         if let Some(bones) = &self.bones {
             options.init.bones = bones.clone();

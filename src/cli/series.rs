@@ -63,6 +63,7 @@ impl SeriesArgs {
             },
             config: self.config.clone(),
             no_init: false,
+            dense: false,
             no_dense: false,
             bones: None,
             blending: None,

@@ -27,7 +27,8 @@ use crate::volume::Grid;
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DenseOptions {
-    /// Run the stage (`--no-dense` skips it).
+    /// Run the stage (`--dense`; off by default until its cost in time and in backend
+    /// agreement is measured on every test pair: BENCHMARKS.md, twenty-sixth session).
     pub enabled: bool,
     /// Pyramid levels of the target it runs on, counted from the finest: 1 the target's own
     /// grid only, 2 a level at half the resolution first.
@@ -53,7 +54,7 @@ pub struct DenseOptions {
 impl Default for DenseOptions {
     fn default() -> Self {
         DenseOptions {
-            enabled: true,
+            enabled: false,
             levels: 2,
             iterations: PerLevel::coarse_to_fine(vec![40, 20]).expect("two values"),
             similarity: PerLevel::all(Similarity::Lncc),
