@@ -405,20 +405,15 @@ pub fn register_observed<B: Backend>(
     let (field, scale) = composed(backend, &pair, &images, &adaptive, held, options)?;
     progress.step(&format!("warp scale {scale}"));
     progress.end();
-    let (field, dense) = match options.dense.enabled {
-        true => {
-            let inputs = DenseInputs {
-                source: &pair.source,
-                target: &pair.target,
-                field: &field,
-                mask: &mask,
-                bones: bone_map.as_ref().map(|map| (map, bones.len())),
-            };
-            let (refined, report) = dense::refine(backend, &inputs, &options.dense, progress)?;
-            (refined, Some(report))
-        }
-        false => (field, None),
-    };
+    let bones_held = bone_map.as_ref().map(|map| (map, bones.len()));
+    let (field, dense) = refined(
+        backend,
+        &pair,
+        (field, &mask),
+        bones_held,
+        options,
+        progress,
+    )?;
     let whole = unfolded(backend, (field, scale), &labels, &images, held, options)?;
     let dense_seconds = clock.elapsed().as_secs_f64() - initialisation - adaptive_seconds;
     let after_dense = backend.traffic();
@@ -461,6 +456,30 @@ pub fn register_observed<B: Backend>(
         timings,
         traffic,
     })
+}
+
+/// `field` refined by the dense stage when `options` ask for it (`mask`: the target's voxels
+/// that count; `bones`: where the bones are in the target and how many), and what it did.
+fn refined<B: Backend>(
+    backend: &B,
+    pair: &PairImages<B>,
+    (field, mask): (DeviceImage<B>, &DeviceImage<B>),
+    bones: Option<(&DeviceImage<B>, usize)>,
+    options: &RegisterOptions,
+    progress: &dyn Progress,
+) -> Result<(DeviceImage<B>, Option<DenseReport>)> {
+    if !options.dense.enabled {
+        return Ok((field, None));
+    }
+    let inputs = DenseInputs {
+        source: &pair.source,
+        target: &pair.target,
+        field: &field,
+        mask,
+        bones,
+    };
+    let (refined, report) = dense::refine(backend, &inputs, &options.dense, progress)?;
+    Ok((refined, Some(report)))
 }
 
 /// The target mask (1 where the target's voxels count, 0 elsewhere: all of the target without
