@@ -54,6 +54,7 @@ pub mod nonrigid;
 pub mod phantom;
 pub mod pipeline;
 pub mod progress;
+pub mod registration;
 pub mod report;
 pub mod sample;
 pub mod shaders;

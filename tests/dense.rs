@@ -239,8 +239,8 @@ fn combine_fades_from_zero_on_a_bone_to_the_whole_a_margin_away() {
     let distance: Vec<f32> = (0..grid.len()).map(|v| (v % 5) as f32 * 2.0).collect();
     let params = CombineParams::sum(&grid, 2.0, -3.0).faded(1, 4.0);
     let out = combine_on(&CpuBackend, &params, [&a, &b, &distance]);
-    for v in 0..grid.len() {
-        let fade = (distance[v] / 4.0).min(1.0);
+    for (v, d) in distance.iter().enumerate() {
+        let fade = (d / 4.0).min(1.0);
         for c in 0..3 {
             let k = 3 * v + c;
             let want = fade * (2.0 * a[k] - 3.0 * b[k]);

@@ -14,8 +14,9 @@ const MAY_USE_CPU: &[&str] = &["cpu", "device"];
 
 /// The layers, bottom up: the kernel vocabulary (ABI structs, the Backend trait, shared types
 /// and settings), the two backends, operations the stages share, files on disk, the stages,
-/// whole registrations, reporting, the command line. A module imports from lower layers and
-/// from its own group only (the vocabulary's modules from each other).
+/// whole registrations, reporting, the one registration entry every door calls, the command
+/// line. A module imports from lower layers and from its own group only (the vocabulary's
+/// modules from each other).
 const LAYERS: &[&[&str]] = &[
     &[
         "abi", "backend", "check", "error", "labels", "levels", "progress", "sample", "shaders",
@@ -27,6 +28,7 @@ const LAYERS: &[&[&str]] = &[
     &["init", "nonrigid", "phantom"],
     &["pipeline"],
     &["report"],
+    &["registration"],
     &["cli"],
 ];
 

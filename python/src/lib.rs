@@ -6,10 +6,10 @@ use numpy::{IntoPyArray, PyReadonlyArray1};
 use posereg::device::{open_backend, DeviceChoice, DeviceWanted};
 use posereg::io::config::parse_options;
 use posereg::io::field::flip_ras_lps;
-use posereg::pipeline::inputs::{check_pair, check_settings, PairPaths};
-use posereg::pipeline::register::{register, Inputs, RegisterOptions};
+use posereg::pipeline::inputs::{check_pair, Pair, PairPaths};
+use posereg::pipeline::register::RegisterOptions;
 use posereg::progress::{Progress, Silent};
-use posereg::report::{report, Run};
+use posereg::registration::{register_pair, Request};
 use posereg::{Affine, Field, Grid, Image};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -89,7 +89,6 @@ fn register_flat<'py>(
         &options.init.chain,
     )
     .map_err(failed)?;
-    check_settings(&options, &pair, names).map_err(failed)?;
     let kind = match device {
         "cpu" => DeviceChoice::Cpu,
         "gpu" => DeviceChoice::Gpu,
@@ -105,7 +104,7 @@ fn register_flat<'py>(
         .build()
         .map_err(failed)?;
     let done = py
-        .detach(|| pool.install(|| run(&pair, &options, &wanted, progress)))
+        .detach(|| pool.install(|| run(&pair, (&options, names), &wanted, progress)))
         .map_err(failed)?;
     let out = PyDict::new(py);
     out.set_item("warped", done.warped.into_pyarray(py))?;
@@ -118,49 +117,39 @@ fn register_flat<'py>(
     Ok(out)
 }
 
-/// The registration, its kinematics and its report, without the GIL.
+/// The registration, its kinematics and its report (the library's one entry, as the command
+/// line's), without the GIL.
 fn run(
-    pair: &posereg::pipeline::inputs::Pair,
-    options: &RegisterOptions,
+    pair: &Pair,
+    (options, names): (&RegisterOptions, PairPaths),
     wanted: &DeviceWanted,
     progress: bool,
 ) -> posereg::Result<Done> {
     let (opened, _) = open_backend(wanted)?;
     let shown: &dyn Progress = if progress { &Lines } else { &Silent };
-    let started = std::time::Instant::now();
-    let inputs = Inputs::new(&pair.source, &pair.labels, &pair.target);
-    let result =
-        posereg::on_backend!(opened, backend => register(backend, inputs, options, shown))?;
-    let seconds = started.elapsed().as_secs_f64();
-    let kinematics = match &result.init {
-        Some(init) => init.kinematics(&pair.labels, &options.init.chain, None)?.0,
-        None => None,
-    };
-    let run = Run {
-        source: &pair.source,
-        labels: &pair.labels,
-        target: &pair.target,
-        result: &result,
+    let request = Request {
+        pair,
+        names,
         options,
+        start: None,
+        target_mask: None,
+        side: None,
         inputs: serde_json::json!({ "python": "arrays handed to posereg.register" }),
-        warnings: &pair.warnings,
-        seconds,
-        kinematics,
+        keep_initial_field: false,
     };
-    let device = opened.describe();
-    let judged = posereg::on_backend!(opened, backend => report(backend, &device, &run))?;
-    let kinematics = run
-        .kinematics
-        .map(|k| serde_json::to_string(&k).unwrap_or_default());
-    let transforms = serde_json::to_string(&result.transforms(options)).unwrap_or_default();
+    let done = register_pair(&opened, request, shown)?;
+    done.kinematics_warnings.iter().for_each(|w| shown.step(w));
+    let kinematics =
+        (done.kinematics.as_ref()).map(|k| serde_json::to_string(k).unwrap_or_default());
+    let transforms = serde_json::to_string(&done.result.transforms(options)).unwrap_or_default();
     Ok(Done {
-        field: lps(&result.field),
-        inverse_field: lps(&result.inverse),
-        warped: result.warped.data,
-        jacobian: result.jacobian.data,
+        field: lps(&done.result.field),
+        inverse_field: lps(&done.result.inverse),
+        warped: done.result.warped.data,
+        jacobian: done.result.jacobian.data,
         transforms,
         kinematics,
-        report: judged.json.to_string(),
+        report: done.report.json.to_string(),
     })
 }
 

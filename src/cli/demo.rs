@@ -2,7 +2,6 @@
 //! registered (articulated initialisation, then adaptive cubic-RBF), with its figures
 //! against the known truth.
 
-use super::init::kinematics;
 use super::outputs::write_registration;
 use super::progress::Reporter;
 use clap::Args;
@@ -11,13 +10,16 @@ use posereg::init::articulated::bone_name;
 use posereg::io::config::load_options;
 use posereg::io::field::save_field;
 use posereg::io::nifti::{save_labels, save_volume, DataType};
+use posereg::io::transform::BoneTransforms;
 use posereg::joints::joint::rotation_degrees;
 use posereg::labels as label;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
-use posereg::pipeline::register::{register_observed, Inputs, RegisterOptions};
+use posereg::pipeline::inputs::{Pair, PairPaths};
+use posereg::pipeline::register::RegisterOptions;
+use posereg::registration::{Registered, Request};
 use posereg::report::evaluate::field_error;
-use posereg::report::Run;
-use std::path::PathBuf;
+use posereg::{Field, Labels};
+use std::path::{Path, PathBuf};
 
 /// Arguments of `posereg demo`.
 #[derive(Args, Debug)]
@@ -61,61 +63,66 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     ));
     let source = generate(&posereg::cpu::CpuBackend, &spec(0.0, 1))?;
     let target = generate(&posereg::cpu::CpuBackend, &spec(args.flexion, 2))?;
+    let truth = (target.truth_field, target.truth, target.labels);
+    let pair = Pair {
+        source: source.image,
+        labels: source.labels,
+        target: target.image,
+        warnings: Vec::new(),
+    };
     reporter.result("registering ...");
-    let started = std::time::Instant::now();
-    // The initial field, brought back for its error against the truth.
-    let mut initial_field = None;
-    let result = posereg::on_backend!(opened, backend => register_observed(
-        backend,
-        Inputs::new(&source.image, &source.labels, &target.image),
-        &options,
-        reporter,
-        &mut |images| {
-            initial_field = Some(images.field.download_field(backend)?);
-            Ok(())
+    let request = Request {
+        pair: &pair,
+        names: PairPaths {
+            source: Path::new("the straight phantom"),
+            labels: Path::new("the straight phantom's labels"),
+            target: Path::new("the bent phantom"),
         },
-    ))?;
-    let seconds = started.elapsed().as_secs_f64();
-
-    let out = |name: &str| args.output.join(name);
-    save_volume(&out("source.nii.gz"), &source.image, DataType::F32)?;
-    save_labels(&out("source_labels.nii.gz"), &source.labels)?;
-    save_volume(&out("target.nii.gz"), &target.image, DataType::F32)?;
-    save_field(&out("truth_field.nii.gz"), &target.truth_field)?;
-    target.truth.save(&out("truth.json"))?;
-    let run = Run {
-        source: &source.image,
-        labels: &source.labels,
-        target: &target.image,
-        result: &result,
         options: &options,
+        start: None,
+        target_mask: None,
+        side: None,
         inputs: serde_json::json!({
             "phantom": format!("{:?}, straight and bent {}°", args.size, args.flexion),
             "start": posereg::init::articulated::Start::describe(None),
         }),
-        warnings: &[],
-        seconds,
-        kinematics: match &result.init {
-            Some(init) => {
-                let chain = &options.init.chain;
-                kinematics(None, &source.labels, chain, init, reporter)?
-            }
-            None => None,
-        },
+        keep_initial_field: true,
     };
-    let (correlations, _) = write_registration(&args.output, &opened, &run, reporter)?;
-    reporter.result(&format!("done in {seconds:.1} s on {}", opened.describe()));
-    let motions = result
-        .init
-        .as_ref()
+    let done = posereg::registration::register_pair(&opened, request, reporter)?;
+    let out = |name: &str| args.output.join(name);
+    save_volume(&out("source.nii.gz"), &pair.source, DataType::F32)?;
+    save_labels(&out("source_labels.nii.gz"), &pair.labels)?;
+    save_volume(&out("target.nii.gz"), &pair.target, DataType::F32)?;
+    save_field(&out("truth_field.nii.gz"), &truth.0)?;
+    truth.1.save(&out("truth.json"))?;
+    write_registration(&args.output, (&pair, &options), &done, reporter)?;
+    reporter.result(&format!(
+        "done in {:.1} s on {}",
+        done.seconds,
+        opened.describe()
+    ));
+    say_bone_errors(&done, &truth.1, reporter);
+    say_field_errors(&pair, &done, (&truth.0, &truth.2), reporter)?;
+    reporter.result(&format!(
+        "outputs in {}: what `posereg register` writes (warped.nii.gz, field.nii.gz, \
+         inverse_field.nii.gz, jacobian.nii.gz, transform.json, bones/*.tfm, report.json, \
+         quicklook.png), the inputs and the truth",
+        args.output.display()
+    ));
+    reporter.save_log(&args.output.join("posereg.log"))?;
+    Ok(())
+}
+
+/// Prints each bone's motion against the truth.
+fn say_bone_errors(done: &Registered, truth: &BoneTransforms, reporter: &Reporter) {
+    let motions = (done.result.init.as_ref())
         .map(|i| i.motions.clone())
         .unwrap_or_default();
     if !motions.is_empty() {
         reporter.result("bone motions against the truth:");
     }
     for (code, m) in &motions {
-        let truth = target
-            .truth
+        let truth = truth
             .bones
             .iter()
             .find(|t| t.label == *code)
@@ -129,16 +136,24 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
             ));
         }
     }
-    // Inside the body and seen by both scans: where the true source point lies in the source's
-    // field of view (the bent shank brings in anatomy the straight scan never saw).
-    let seen =
-        posereg::report::evaluate::seen_by_both(&target.truth_field, &source.image.grid, 0.0);
-    let body = |n: usize| target.labels.data[n] != label::OUTSIDE && seen[n];
-    let zero = posereg::Image::filled(target.image.grid.clone(), [0.0f32; 3]);
-    let before = field_error(&zero, &target.truth_field, body)?;
-    let after = field_error(&result.field, &target.truth_field, body)?;
-    if let Some(initial_field) = &initial_field.filter(|_| result.init.is_some()) {
-        let initial = field_error(initial_field, &target.truth_field, body)?;
+}
+
+/// Prints the field's error against the truth inside the body, where both scans see it (the
+/// bent shank brings in anatomy the straight scan never saw), before, after the
+/// initialisation and after the registration, and the field's figures.
+fn say_field_errors(
+    pair: &Pair,
+    done: &Registered,
+    (truth_field, target_labels): (&Field, &Labels),
+    reporter: &Reporter,
+) -> anyhow::Result<()> {
+    let seen = posereg::report::evaluate::seen_by_both(truth_field, &pair.source.grid, 0.0);
+    let body = |n: usize| target_labels.data[n] != label::OUTSIDE && seen[n];
+    let zero = posereg::Image::filled(pair.target.grid.clone(), [0.0f32; 3]);
+    let before = field_error(&zero, truth_field, body)?;
+    let after = field_error(&done.result.field, truth_field, body)?;
+    if let Some(initial_field) = &done.initial_field {
+        let initial = field_error(initial_field, truth_field, body)?;
         reporter.result(&format!(
             "after the articulated initialisation: mean error {:.2} mm, within 2 voxels {:.1}%",
             initial.mean_mm,
@@ -158,10 +173,12 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         100.0 * before.within_4_voxels,
         100.0 * after.within_4_voxels
     ));
+    let correlations = &done.report.correlations;
     reporter.result(&format!(
         "  correlation     {:.3} -> {:.3}   (over the target's body)",
         correlations.before, correlations.after
     ));
+    let result = &done.result;
     let free = result.adaptive.points.iter().filter(|p| !p.pinned).count();
     reporter.result(&format!(
         "  control points  {free} adaptive + {} pinned on bone surfaces; Jacobian min {:.3}, {:.4}% folded",
@@ -169,12 +186,5 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         result.min_jacobian,
         100.0 * result.folded_share
     ));
-    reporter.result(&format!(
-        "outputs in {}: what `posereg register` writes (warped.nii.gz, field.nii.gz, \
-         inverse_field.nii.gz, jacobian.nii.gz, transform.json, bones/*.tfm, report.json, \
-         quicklook.png), the inputs and the truth",
-        args.output.display()
-    ));
-    reporter.save_log(&args.output.join("posereg.log"))?;
     Ok(())
 }

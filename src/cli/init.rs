@@ -124,7 +124,7 @@ impl PairArgs {
 
 /// The knee's kinematics for the initialisation's bone motions (see posereg::joints::kinematics),
 /// each joint with its bones' confidence, or None with the reason warned.
-pub fn kinematics(
+fn kinematics(
     side: Option<Side>,
     labels: &posereg::Labels,
     chain: &[Link],

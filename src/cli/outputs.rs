@@ -1,34 +1,29 @@
 //! What `register` and `demo` write into their output folder, the same for both: the warped
 //! source, the field and its inverse, the Jacobian, the bone transforms (JSON and ITK .tfm),
-//! the figure, report.json and the log.
+//! the figure, report.json, the kinematics and the log.
 
 use super::init::write_kinematics;
 use super::progress::Reporter;
-use posereg::device::Opened;
 use posereg::io::field::save_field;
 use posereg::io::itk_transform::save_bone_tfms;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::joints::anatomy::Frame;
+use posereg::pipeline::inputs::Pair;
+use posereg::pipeline::register::RegisterOptions;
+use posereg::registration::Registered;
 use posereg::report::quicklook::Figure;
-use posereg::report::result_checks::{Check, Correlations};
-use posereg::report::{report, Run};
 use posereg::Error;
 use std::path::Path;
 
-/// Writes every output of `run` into `folder`; returns the correlations and the checks.
+/// Writes every output of `done`, a registration of `pair` with `options`, into `folder`, and
+/// warns of each failed check.
 pub fn write_registration(
     folder: &Path,
-    opened: &Opened,
-    run: &Run,
+    (pair, options): (&Pair, &RegisterOptions),
+    done: &Registered,
     reporter: &Reporter,
-) -> anyhow::Result<(Correlations, Vec<Check>)> {
-    let Run {
-        source,
-        target,
-        result,
-        options,
-        ..
-    } = *run;
+) -> anyhow::Result<()> {
+    let result = &done.result;
     let out = |name: &str| folder.join(name);
     save_volume(&out("warped.nii.gz"), &result.warped, DataType::F32)?;
     save_field(&out("field.nii.gz"), &result.field)?;
@@ -37,49 +32,60 @@ pub fn write_registration(
     let transform = result.transforms(options);
     transform.save(&out("transform.json"))?;
     save_bone_tfms(folder, &transform)?;
-    let device = opened.describe();
-    let judged = posereg::on_backend!(opened, backend => report(backend, &device, run))?;
-    let (correlations, checks) = (judged.correlations, judged.checks);
+    save_quicklook(&out("quicklook.png"), (pair, options), done)?;
+    let text = serde_json::to_string_pretty(&done.report.json)? + "\n";
+    posereg::io::write_atomically(&out("report.json"), |tmp| {
+        std::fs::write(tmp, text).map_err(|e| Error::io(tmp, e))
+    })?;
+    done.kinematics_warnings
+        .iter()
+        .for_each(|w| reporter.warn(w));
+    if let Some(k) = &done.kinematics {
+        write_kinematics(folder, k, reporter)?;
+    }
+    for check in done.report.checks.iter().filter(|c| !c.passed) {
+        reporter.warn(&format!("check {} failed: {}", check.name, check.detail));
+    }
+    Ok(())
+}
+
+/// Draws the quicklook figure: centred on the knee's axis (the target's centre without the
+/// initialisation), with the bones, the control points and the joints' frames.
+fn save_quicklook(
+    path: &Path,
+    (pair, options): (&Pair, &RegisterOptions),
+    done: &Registered,
+) -> anyhow::Result<()> {
+    let (result, target) = (&done.result, &pair.target);
     let centre = match &result.init {
         Some(init) => [init.axis.point.x, init.axis.point.y, init.axis.point.z],
         None => target
             .grid
             .voxel_to_world(target.grid.dims.map(|d| (d as f64 - 1.0) / 2.0)),
     };
-    let bones: Vec<(u16, String)> =
-        posereg::joints::chain::present(&options.init.chain, run.labels)
-            .into_iter()
-            .map(|code| (code, options.init.name_of(code)))
-            .collect();
-    let frames: Vec<Frame> = run
+    let present = posereg::joints::chain::present(&options.init.chain, &pair.labels);
+    let bones: Vec<(u16, String)> = present
+        .into_iter()
+        .map(|code| (code, options.init.name_of(code)))
+        .collect();
+    let frames: Vec<Frame> = done
         .kinematics
         .iter()
         .flat_map(|k| k.frames.iter().map(|f| f.target))
         .collect();
     let figure = Figure {
         target,
-        before: &judged.unregistered,
+        before: &done.report.unregistered,
         warped: &result.warped,
         jacobian: &result.jacobian,
         field: &result.field,
-        source_grid: &source.grid,
-        labels: run.labels,
+        source_grid: &pair.source.grid,
+        labels: &pair.labels,
         bones: &bones,
         points: &result.adaptive.points,
         centre,
         frames: &frames,
-        correlations,
+        correlations: done.report.correlations,
     };
-    posereg::report::quicklook::save(&out("quicklook.png"), &figure)?;
-    let text = serde_json::to_string_pretty(&judged.json)? + "\n";
-    posereg::io::write_atomically(&out("report.json"), |tmp| {
-        std::fs::write(tmp, text).map_err(|e| Error::io(tmp, e))
-    })?;
-    if let Some(k) = &run.kinematics {
-        write_kinematics(folder, k, reporter)?;
-    }
-    for check in checks.iter().filter(|c| !c.passed) {
-        reporter.warn(&format!("check {} failed: {}", check.name, check.detail));
-    }
-    Ok((correlations, checks))
+    Ok(posereg::report::quicklook::save(path, &figure)?)
 }

@@ -2,7 +2,7 @@
 //! pipeline, writing warped.nii.gz, field.nii.gz, inverse_field.nii.gz, transform.json,
 //! bones/*.tfm, jacobian.nii.gz, report.json and quicklook.png.
 
-use super::init::{kinematics, load_given, PairArgs};
+use super::init::{load_given, PairArgs};
 use super::outputs::write_registration;
 use super::progress::Reporter;
 use clap::Args;
@@ -12,12 +12,10 @@ use posereg::images::similarity::Similarity;
 use posereg::init::articulated::{Chained, Start};
 use posereg::io::config::{load_options, options_toml};
 use posereg::io::transform::BoneTransforms;
-use posereg::joints::kinematics::KneeKinematics;
 use posereg::levels::PerLevel;
-use posereg::pipeline::inputs::{check_settings, load_target_mask, Pair};
-use posereg::pipeline::register::{register, Inputs, RegisterOptions};
-use posereg::report::Run;
-use posereg::Field;
+use posereg::pipeline::inputs::{load_target_mask, Pair};
+use posereg::pipeline::register::RegisterOptions;
+use posereg::registration::{Registered, Request};
 use std::path::PathBuf;
 
 /// Arguments of `posereg register`.
@@ -125,28 +123,25 @@ pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> a
     let options = args.options()?;
     let unchained: StartOf = &|_, _| Ok(None);
     let starts = (None, unchained);
-    let registered = register_pair(args, &options, (device, &mut None), starts, reporter)?;
-    if args.strict && !registered.failed.is_empty() {
+    let written = register_pair(args, &options, (device, &mut None), starts, reporter)?;
+    let failed = written.registered.failed_checks();
+    if args.strict && !failed.is_empty() {
         anyhow::bail!(
             "--strict: {} result check(s) failed ({}); the outputs are in {} for inspection",
-            registered.failed.len(),
-            registered.failed.join(", "),
+            failed.len(),
+            failed.join(", "),
             args.pair.output.display()
         );
     }
     Ok(())
 }
 
-/// What one registration leaves for its caller.
-pub struct Registered {
+/// What one registration leaves for its caller once its outputs are written.
+pub struct Written {
+    /// The registration and what came with it.
+    pub registered: Registered,
     /// The bone motions (none without the initialisation).
     pub transforms: BoneTransforms,
-    /// The knee's kinematics, when they could be told.
-    pub kinematics: Option<KneeKinematics>,
-    /// The result checks that failed.
-    pub failed: Vec<&'static str>,
-    /// The registered field: target point → source point.
-    pub field: Field,
     /// report.json's headline figures, for a summary over several registrations.
     pub summary: serde_json::Value,
 }
@@ -165,9 +160,20 @@ pub fn register_pair(
     (device, opened): (&DeviceWanted, &mut Option<Opened>),
     (seeds, chained): (Option<&BoneTransforms>, StartOf),
     reporter: &Reporter,
-) -> anyhow::Result<Registered> {
+) -> anyhow::Result<Written> {
     let (_folder, pair) = args.pair.load(reporter, &options.init.chain)?;
-    check_settings(options, &pair, args.pair.paths())?;
+    let given = match &args.init {
+        Some(path) => Some(load_given(path, &pair.labels, &options.init)?),
+        None => None,
+    };
+    let mask = match &args.target_mask {
+        Some(path) => Some(load_target_mask(
+            path,
+            &pair.target.grid,
+            &args.pair.target,
+        )?),
+        None => None,
+    };
     if opened.is_none() {
         let (backend, line) = open_backend(device)?;
         reporter.say(&line);
@@ -175,42 +181,16 @@ pub fn register_pair(
     }
     let opened = opened.as_ref().expect("opened above");
     let chained = chained(opened, &pair)?;
-    let Pair {
-        source,
-        labels,
-        target,
-        warnings,
-    } = pair;
-    let given = match &args.init {
-        Some(path) => Some(load_given(path, &labels, &options.init)?),
-        None => None,
-    };
-    let mask = match &args.target_mask {
-        Some(path) => Some(load_target_mask(path, &target.grid, &args.pair.target)?),
-        None => None,
-    };
-    let started = std::time::Instant::now();
     let start = (given.as_ref().map(Start::Given))
         .or(chained.as_ref().map(Start::Chained))
         .or(seeds.map(Start::Seeded));
-    let inputs = Inputs {
+    let request = Request {
+        pair: &pair,
+        names: args.pair.paths(),
+        options,
         start,
         target_mask: mask.as_ref(),
-        ..Inputs::new(&source, &labels, &target)
-    };
-    let result = posereg::on_backend!(opened, backend => register(
-        backend,
-        inputs,
-        options,
-        reporter,
-    ))?;
-    let seconds = started.elapsed().as_secs_f64();
-    let run = Run {
-        source: &source,
-        labels: &labels,
-        target: &target,
-        result: &result,
-        options,
+        side: args.pair.side,
         inputs: serde_json::json!({
             "source": args.pair.source,
             "source_labels": args.pair.source_labels,
@@ -219,46 +199,39 @@ pub fn register_pair(
             "target_mask": args.target_mask,
             "start": Start::describe(start),
         }),
-        warnings: &warnings,
-        seconds,
-        kinematics: match &result.init {
-            Some(init) => {
-                let (side, chain) = (args.pair.side, &options.init.chain);
-                kinematics(side, &labels, chain, init, reporter)?
-            }
-            None => None,
-        },
+        keep_initial_field: false,
     };
-    let (correlations, checks) = write_registration(&args.pair.output, opened, &run, reporter)?;
+    let registered = posereg::registration::register_pair(opened, request, reporter)?;
+    write_registration(&args.pair.output, (&pair, options), &registered, reporter)?;
+    let summary = summary(args, start, &registered);
     reporter.result(&format!(
-        "registered in {seconds:.1} s: correlation {:.3} -> {:.3}, {} control points, Jacobian min {:.3}; outputs in {}",
-        correlations.before,
-        correlations.after,
-        result.adaptive.points.len(),
-        result.min_jacobian,
+        "registered in {:.1} s: correlation {:.3} -> {:.3}, {} control points, Jacobian min {:.3}; outputs in {}",
+        registered.seconds,
+        registered.report.correlations.before,
+        registered.report.correlations.after,
+        registered.result.adaptive.points.len(),
+        registered.result.min_jacobian,
         args.pair.output.display()
     ));
     reporter.save_log(&args.pair.output.join("posereg.log"))?;
-    let kinematics = run.kinematics;
-    let failed: Vec<&'static str> = checks
-        .iter()
-        .filter(|c| !c.passed)
-        .map(|c| c.name)
-        .collect();
-    Ok(Registered {
-        transforms: result.transforms(options),
-        kinematics,
-        failed: failed.clone(),
-        summary: serde_json::json!({
-            "folder": args.pair.output,
-            "target": args.pair.target,
-            "start": Start::describe(start),
-            "seconds": seconds,
-            "correlation": { "before": correlations.before, "after": correlations.after },
-            "control_points": result.adaptive.points.len(),
-            "jacobian_min": result.min_jacobian,
-            "checks_failed": failed,
-        }),
-        field: result.field,
+    Ok(Written {
+        transforms: registered.result.transforms(options),
+        registered,
+        summary,
+    })
+}
+
+/// report.json's headline figures for a summary over several registrations (series.json).
+fn summary(args: &RegisterArgs, start: Option<Start>, done: &Registered) -> serde_json::Value {
+    let correlations = &done.report.correlations;
+    serde_json::json!({
+        "folder": args.pair.output,
+        "target": args.pair.target,
+        "start": Start::describe(start),
+        "seconds": done.seconds,
+        "correlation": { "before": correlations.before, "after": correlations.after },
+        "control_points": done.result.adaptive.points.len(),
+        "jacobian_min": done.result.min_jacobian,
+        "checks_failed": done.failed_checks(),
     })
 }

@@ -8,7 +8,7 @@
 
 use super::init::PairArgs;
 use super::progress::Reporter;
-use super::register::{register_pair, RegisterArgs, Registered, StartOf};
+use super::register::{register_pair, RegisterArgs, StartOf, Written};
 use clap::Args;
 use posereg::device::DeviceWanted;
 use posereg::joints::anatomy::Side;
@@ -83,7 +83,7 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
     let options = args.pose(0).options()?;
     let _folder = posereg::io::prepare_output_folder(&args.output)?;
     let mut opened = None;
-    let mut previous: Option<Registered> = None;
+    let mut previous: Option<Written> = None;
     let mut table = String::from("pose,target,joint,quantity,unit,value,change\n");
     let mut poses: Vec<(serde_json::Value, Option<KneeKinematics>)> = Vec::new();
     for index in 0..args.targets.len() {
@@ -99,7 +99,7 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
                 return Ok(None);
             };
             let reached = Reached {
-                field: &p.field,
+                field: &p.registered.result.field,
                 motions: &p.transforms,
             };
             let source = (&pair.source, &pair.labels);
@@ -116,7 +116,7 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
             reporter,
         )?;
         table += &kinematics_rows(index, &pose, &done);
-        poses.push((done.summary.clone(), done.kinematics.clone()));
+        poses.push((done.summary.clone(), done.registered.kinematics.clone()));
         previous = Some(done);
     }
     let write = |name: &str, text: &str| {
@@ -140,9 +140,9 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
 }
 
 /// series.csv's rows for pose `index`.
-fn kinematics_rows(index: usize, pose: &RegisterArgs, done: &Registered) -> String {
+fn kinematics_rows(index: usize, pose: &RegisterArgs, done: &Written) -> String {
     let mut rows = String::new();
-    for joint in done.kinematics.iter().flat_map(|k| &k.joints) {
+    for joint in done.registered.kinematics.iter().flat_map(|k| &k.joints) {
         for q in &joint.quantities {
             rows += &format!(
                 "{},{},{},{},{},{:.4},{:.4}\n",

@@ -3,7 +3,7 @@
 
 use crate::abi::{Blending, Interpolation, ResampleParams, ThresholdParams};
 use crate::backend::{Backend, DeviceImage};
-use crate::check::within;
+use crate::check::{check_ranges, Range};
 use crate::error::{Error, Result};
 use crate::images::fold_repair::{FoldRepair, SourceLabels};
 use crate::images::pyramid;
@@ -118,29 +118,23 @@ impl InitOptions {
     /// Rejects settings the stage cannot run with, naming the setting.
     pub fn check(&self) -> Result<()> {
         let bad = |what: &str| Err(Error::InvalidInput(format!("init.{what}")));
-        if !(1..=MAX_LEVELS).contains(&self.levels) {
-            return bad(&format!("levels must be 1 to {MAX_LEVELS}"));
-        }
-        if !within(self.finest_spacing_mm, 0.01, 100.0)
-            || !within(self.dilation_mm, 0.0, 50.0)
-            || !within(self.dilation_voxels, 0.0, 10.0)
-        {
-            return bad("finest_spacing_mm must be 0.01 to 100, dilation_mm 0 to 50 (mm) and dilation_voxels 0 to 10");
-        }
+        let (r, one) = (Range::new, |v: f64| vec![v]);
+        #[rustfmt::skip]
+        let table = [
+            r("levels", one(self.levels as f64), (1.0, MAX_LEVELS as f64), ""),
+            r("finest_spacing_mm", one(self.finest_spacing_mm), (0.01, 100.0), " (mm)"),
+            r("dilation_mm", one(self.dilation_mm), (0.0, 50.0), " (mm)"),
+            r("dilation_voxels", one(self.dilation_voxels), (0.0, 10.0), ""),
+            r("search_tilt_degrees", one(self.search_tilt_degrees), (0.0, 90.0), ""),
+            r("search_basin_degrees", one(self.search_basin_degrees), (0.0, 90.0), ""),
+            r("search_min_voxels", one(self.search_min_voxels as f64), (10.0, 1e6), ""),
+            r("reach", self.reach.clone(), (1.0, 4.0), ""),
+        ];
+        check_ranges("init", &table)?;
         chain::check(&self.chain)?;
         self.follow.check()?;
-        if !within(self.search_tilt_degrees, 0.0, 90.0) {
-            return bad("search_tilt_degrees must be 0 to 90");
-        }
-        if !within(self.search_basin_degrees, 0.0, 90.0) {
-            return bad("search_basin_degrees must be 0 to 90");
-        }
-        if !(10..=1_000_000).contains(&self.search_min_voxels) {
-            return bad("search_min_voxels must be 10 to 1000000");
-        }
         if self.reach.is_empty()
             || self.reach.len() > MAX_REACH_CANDIDATES
-            || !self.reach.iter().all(|&r| within(r, 1.0, 4.0))
             || !self.reach.windows(2).all(|w| w[0] < w[1])
         {
             return bad(&format!(

@@ -21,7 +21,7 @@ use crate::abi::{
     SsdParams, SumParams,
 };
 use crate::backend::{total, Backend, CostImages, DeviceImage, Traffic};
-use crate::check::finite_non_negative;
+use crate::check::{check_ranges, Range, UNBOUNDED};
 use crate::error::{Error, Result};
 use crate::images::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::images::pyramid;
@@ -125,36 +125,40 @@ impl AdaptiveOptions {
     /// Rejects settings the stage cannot run with, naming the setting.
     pub fn check(&self) -> Result<()> {
         let bad = |what: &str| Err(Error::InvalidInput(format!("adaptive.{what}")));
-        if !(1..=MAX_LEVELS).contains(&self.levels) {
-            return bad(&format!("levels must be 1 to {MAX_LEVELS}"));
-        }
-        // Every cell of the first refinement gets a point (crate::nonrigid::adaptive): 16³ there made
-        // thousands, and the dense RBF system stalled.
+        let counts = |v: &[usize]| v.iter().map(|&n| n as f64).collect::<Vec<_>>();
+        let many = UNBOUNDED;
+        let (r, one) = (Range::new, |v: f64| vec![v]);
+        #[rustfmt::skip]
+        let table = [
+            r("levels", one(self.levels as f64), (1.0, MAX_LEVELS as f64), ""),
+            r("cell_levels", counts(&self.cell_levels), (1.0, MAX_CELLS as f64), " cells"),
+            r("min_cell_voxels", one(self.min_cell_voxels as f64), (1.0, 64.0), ""),
+            r("lattice_mm", one(self.lattice_mm), (1.0, 100.0), " (mm)"),
+            r("smoothing", one(self.smoothing), (0.0, many), ""),
+            r("gain_scale_mm", one(self.gain_scale_mm), (0.0, many), " (mm)"),
+            r("lncc_radius", one(self.lncc_radius as f64), (1.0, MAX_LNCC_RADIUS as f64), " (voxels)"),
+            // Below 1 nearly every cell would get a point: the RBF system grows unbounded.
+            r("threshold", self.threshold.values().to_vec(), (1.0, many), ""),
+            r("tolerance", self.tolerance.values().to_vec(), (0.0, MAX_TOLERANCE), ""),
+            r("membrane", self.membrane.values().to_vec(), (0.0, many), ""),
+            r("bending", self.bending.values().to_vec(), (0.0, many), ""),
+            r("iterations", counts(self.iterations.values()), (0.0, MAX_ITERATIONS as f64), ""),
+        ];
+        check_ranges("adaptive", &table)?;
+        // Every cell of the first refinement gets a point (crate::nonrigid::adaptive): 16³ there
+        // made thousands, and the dense RBF system stalled.
         let rising = self.cell_levels.windows(2).all(|w| w[0] < w[1]);
-        if !rising
-            || self
-                .cell_levels
-                .first()
-                .is_some_and(|&c| c > MAX_FIRST_CELLS)
-        {
+        let first = self.cell_levels.first();
+        if !rising || first.is_none_or(|&c| c > MAX_FIRST_CELLS) {
             return bad(&format!(
                 "cell_levels must rise coarse to fine and start at {MAX_FIRST_CELLS} cells or fewer"
             ));
         }
-        if self.cell_levels.is_empty() || self.cell_levels.iter().any(|&c| c == 0 || c > MAX_CELLS)
-        {
-            return bad(&format!(
-                "cell_levels must be a non-empty list of cell counts 1 to {MAX_CELLS}"
-            ));
-        }
-        if !(1..=64).contains(&self.min_cell_voxels) {
-            return bad("min_cell_voxels must be 1 to 64");
-        }
-        if !(self.lattice_mm >= 1.0 && self.lattice_mm <= 100.0) {
-            return bad("lattice_mm must be 1 to 100 (mm)");
-        }
-        if !finite_non_negative(self.smoothing) || !finite_non_negative(self.gain_scale_mm) {
-            return bad("smoothing and gain_scale_mm must be finite and zero or positive");
+        if self.iterations.values().iter().all(|&i| i == 0) {
+            return bad(
+                "iterations must be above 0 at one level at least (0 everywhere would \
+                        leave the warp untouched)",
+            );
         }
         // The default reads as "4 at the finest level, 8 above" for any level count
         // (PerLevel::at_level takes the finest values); a threshold given is held to the count.
@@ -162,48 +166,15 @@ impl AdaptiveOptions {
             self.threshold.check("adaptive.threshold", self.levels)?;
         }
         self.similarity.check("adaptive.similarity", self.levels)?;
-        if !(1..=MAX_LNCC_RADIUS).contains(&self.lncc_radius) {
-            return bad(&format!(
-                "lncc_radius must be 1 to {MAX_LNCC_RADIUS} (voxels)"
-            ));
-        }
         self.membrane.check("adaptive.membrane", self.levels)?;
         self.bending.check("adaptive.bending", self.levels)?;
         self.tolerance.check("adaptive.tolerance", self.levels)?;
-        self.iterations.check("adaptive.iterations", self.levels)?;
-        // A cell is poorly fitted when its residual exceeds this multiple of the mean: below 1
-        // nearly every cell gets a point, and the dense RBF system grows without bound.
-        if !self
-            .threshold
-            .values()
-            .iter()
-            .all(|&t| t >= 1.0 && t.is_finite())
-        {
-            return bad("threshold must be a finite number of at least 1 at every level");
-        }
-        if !self
-            .tolerance
-            .values()
-            .iter()
-            .all(|&t| (0.0..1.0).contains(&t))
-        {
-            return bad("tolerance must be at least 0 and below 1 at every level");
-        }
-        let all_finite = |p: &PerLevel<f64>| p.values().iter().all(|&v| finite_non_negative(v));
-        if ![&self.membrane, &self.bending].into_iter().all(all_finite) {
-            return bad("membrane and bending must be finite and zero or positive at every level");
-        }
-        let iterations = self.iterations.values();
-        if iterations.iter().all(|&i| i == 0) || iterations.iter().any(|&i| i > MAX_ITERATIONS) {
-            return bad(&format!(
-                "iterations must be at most {MAX_ITERATIONS} and above 0 at one level at least \
-                 (0 everywhere would leave the warp untouched)"
-            ));
-        }
-        Ok(())
+        self.iterations.check("adaptive.iterations", self.levels)
     }
 }
 
+/// Largest relative cost decrease at which an optimisation may be told to stop (below 1).
+const MAX_TOLERANCE: f64 = 0.5;
 /// Most cells per axis at the first refinement, where every cell gets a point.
 const MAX_FIRST_CELLS: usize = 4;
 /// Most cells per axis at a refinement (64³ cells).

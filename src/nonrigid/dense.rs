@@ -15,7 +15,8 @@ use crate::abi::dense::{CombineParams, ForceParams, ForceTerm, MAX_GAUSS_SIGMA};
 use crate::abi::{ComposeParams, Interpolation, LocalMomentsParams, ResampleParams, SumParams};
 use crate::backend::dense::{largest_vectors, smooth, ForceImages};
 use crate::backend::{box_sums, Backend, DeviceImage};
-use crate::error::{Error, Result};
+use crate::check::{check_ranges, Range};
+use crate::error::Result;
 use crate::images::fold_repair::determinant;
 use crate::images::similarity::Similarity;
 use crate::images::{pyramid, regions};
@@ -84,60 +85,20 @@ const SQUARING_START_VOXELS: f64 = 0.25;
 impl DenseOptions {
     /// Rejects settings the stage cannot run with, naming the setting.
     pub fn check(&self) -> Result<()> {
-        let out_of_range = |name: &str, range: (f64, f64), unit: &str| {
-            Error::InvalidInput(format!(
-                "dense.{name} must be {} to {}{unit}",
-                range.0, range.1
-            ))
-        };
-        let levels = (1.0, MAX_DENSE_LEVELS as f64);
         let counts = |v: &PerLevel<usize>| v.values().iter().map(|&n| n as f64).collect();
-        // Every numeric setting with its range, checked alike.
-        let table: [(&str, Vec<f64>, (f64, f64), &str); 6] = [
-            ("levels", vec![self.levels as f64], levels, ""),
-            (
-                "iterations",
-                counts(&self.iterations),
-                (0.0, MAX_ITERATIONS as f64),
-                "",
-            ),
-            (
-                "lncc_radius",
-                counts(&self.lncc_radius),
-                (1.0, MAX_LNCC_RADIUS as f64),
-                " (voxels)",
-            ),
-            (
-                "fluid_sigma",
-                self.fluid_sigma.values().to_vec(),
-                (0.0, MAX_GAUSS_SIGMA),
-                " (voxels)",
-            ),
-            (
-                "elastic_sigma",
-                self.elastic_sigma.values().to_vec(),
-                (0.0, MAX_GAUSS_SIGMA),
-                " (voxels)",
-            ),
-            (
-                "step_voxels",
-                vec![self.step_voxels],
-                (0.01, 4.0),
-                " (voxels)",
-            ),
+        let voxels = " (voxels)";
+        let (r, one) = (Range::new, |v: f64| vec![v]);
+        #[rustfmt::skip]
+        let table = [
+            r("levels", one(self.levels as f64), (1.0, MAX_DENSE_LEVELS as f64), ""),
+            r("iterations", counts(&self.iterations), (0.0, MAX_ITERATIONS as f64), ""),
+            r("lncc_radius", counts(&self.lncc_radius), (1.0, MAX_LNCC_RADIUS as f64), voxels),
+            r("fluid_sigma", self.fluid_sigma.values().to_vec(), (0.0, MAX_GAUSS_SIGMA), voxels),
+            r("elastic_sigma", self.elastic_sigma.values().to_vec(), (0.0, MAX_GAUSS_SIGMA), voxels),
+            r("step_voxels", one(self.step_voxels), (0.01, 4.0), voxels),
+            r("bone_margin_mm", one(self.bone_margin_mm), (0.0, MAX_BONE_MARGIN_MM), " (mm)"),
         ];
-        for (name, values, range, unit) in table {
-            if !values.iter().all(|v| (range.0..=range.1).contains(v)) {
-                return Err(out_of_range(name, range, unit));
-            }
-        }
-        if !(0.0..=MAX_BONE_MARGIN_MM).contains(&self.bone_margin_mm) {
-            return Err(out_of_range(
-                "bone_margin_mm",
-                (0.0, MAX_BONE_MARGIN_MM),
-                " (mm)",
-            ));
-        }
+        check_ranges("dense", &table)?;
         self.iterations.check("dense.iterations", self.levels)?;
         self.similarity.check("dense.similarity", self.levels)?;
         self.lncc_radius.check("dense.lncc_radius", self.levels)?;

@@ -9,7 +9,9 @@ use crate::error::{Error, Result};
 use crate::images::pyramid::next_level_grid;
 use crate::init::articulated::InitOptions;
 use crate::io::memory;
-use crate::io::nifti::{labels_from_raw, read_header, read_raw, spatial_grid, volume_from_raw};
+use crate::io::nifti::{
+    check_finite, labels_from_raw, read_header, read_raw, spatial_grid, volume_from_raw,
+};
 use crate::joints::chain::{self, Link};
 use crate::pipeline::register::RegisterOptions;
 use crate::volume::{Grid, Labels, Volume};
@@ -84,7 +86,7 @@ pub fn load_pair(paths: PairPaths, chain: &[Link]) -> Result<Pair> {
 
 /// Checks three inputs that did not come from files (the Python package's arrays; `names`
 /// says what to call them): the labels on the source's grid, the scans overlapping, and their
-/// content, as [`load_pair`] checks files.
+/// content, as [`load_pair`] and its reads check files (voxels finite).
 pub fn check_pair(
     source: Volume,
     labels: Labels,
@@ -102,6 +104,8 @@ pub fn check_pair(
         ));
     }
     check_overlap(&target.grid, &source.grid, names)?;
+    check_finite(names.source, &source.data)?;
+    check_finite(names.target, &target.data)?;
     checked_content(source, labels, target, names, chain)
 }
 

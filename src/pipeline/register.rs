@@ -3,6 +3,7 @@
 
 use crate::abi::{BoneLookupParams, ComposeParams, FadeParams, Interpolation, ResampleParams};
 use crate::backend::{resample_onto, Backend, DeviceImage, Traffic};
+use crate::check::{check_ranges, Range};
 use crate::error::{Error, Result};
 use crate::images::fold_repair::{
     bones_at_source, determinant, rigid_bones, unfold_registration, FoldRepair, Folds, SourceLabels,
@@ -69,17 +70,13 @@ impl RegisterOptions {
         self.adaptive.check()?;
         self.dense.check()?;
         // Each pin is a control point of the dense RBF system: thousands would stall it.
-        if self.pins_per_bone > MAX_PINS_PER_BONE {
-            return Err(crate::Error::InvalidInput(format!(
-                "pins_per_bone must be 0 to {MAX_PINS_PER_BONE}"
-            )));
-        }
-        if !(0.0..=MAX_BONE_MARGIN_MM).contains(&self.bone_margin_mm) {
-            return Err(crate::Error::InvalidInput(format!(
-                "bone_margin_mm must be 0 to {MAX_BONE_MARGIN_MM} (mm)"
-            )));
-        }
-        Ok(())
+        let (r, one) = (Range::new, |v: f64| vec![v]);
+        #[rustfmt::skip]
+        let table = [
+            r("pins_per_bone", one(self.pins_per_bone as f64), (0.0, MAX_PINS_PER_BONE as f64), ""),
+            r("bone_margin_mm", one(self.bone_margin_mm), (0.0, MAX_BONE_MARGIN_MM), " (mm)"),
+        ];
+        check_ranges("", &table)
     }
 }
 

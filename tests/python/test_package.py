@@ -1,10 +1,12 @@
 """The Python package (`pip install .`): a small phantom pair registered through it gives the
-same field bytes as the command line, SimpleITK images go in and come back on their grids, and
+same field bytes and the same report.json (timings and the inputs' names apart) as the command
+line, SimpleITK images go in and come back on their grids, and
 bad input raises ValueError naming it. Run by scripts/test after the package is installed.
 
 POSEREG names the command-line binary (default target/release/posereg).
 """
 
+import json
 import os
 import subprocess
 
@@ -38,11 +40,11 @@ def pair(tmp_path_factory):
         "--target", paths["target"], "--config", d / "fast.json", "--device", "cpu",
         "--threads", 2, "-q", "-o", d / "cli")
     field = np.asarray(nib.load(d / "cli" / "field.nii.gz").dataobj)[:, :, :, 0, :]
-    return paths, field
+    return paths, field, json.loads((d / "cli" / "report.json").read_text())
 
 
 def test_arrays_with_affines_give_the_command_lines_field(pair):
-    paths, cli_field = pair
+    paths, cli_field, _ = pair
     src, lab, tgt = (nib.load(paths[k]) for k in ("source", "labels", "target"))
     r = posereg.register(src.get_fdata(dtype=np.float32), np.asarray(lab.dataobj),
                          tgt.get_fdata(dtype=np.float32), source_affine=src.affine,
@@ -58,7 +60,7 @@ def test_arrays_with_affines_give_the_command_lines_field(pair):
 
 
 def test_simpleitk_images_keep_their_grids(pair):
-    paths, cli_field = pair
+    paths, cli_field, _ = pair
     src, lab, tgt = (sitk.ReadImage(str(paths[k])) for k in ("source", "labels", "target"))
     r = posereg.register(src, lab, tgt, threads=2, **FAST)
     for image, like in ((r.warped, tgt), (r.field, tgt), (r.jacobian, tgt),
@@ -78,7 +80,7 @@ def test_simpleitk_images_keep_their_grids(pair):
 
 
 def test_bad_input_raises_naming_it(pair):
-    paths, _ = pair
+    paths, _, _ = pair
     src, tgt = nib.load(paths["source"]), nib.load(paths["target"])
     no_bones = np.zeros(src.shape, np.uint16)
     with pytest.raises(ValueError, match="source_labels"):
@@ -90,3 +92,43 @@ def test_bad_input_raises_naming_it(pair):
         posereg.register(src.get_fdata(), np.asarray(nib.load(paths["labels"]).dataobj),
                          tgt.get_fdata(), source_affine=src.affine, target_affine=tgt.affine,
                          adaptive={"nonsense": 1})
+
+
+def without_timings(report, at=""):
+    """report.json without what differs between two identical runs or names the inputs: wall
+    times, the finishing time, the command line, where the inputs came from. Returns the rest
+    and the keys left out (their paths)."""
+    if not isinstance(report, dict):
+        return report, []
+    kept, dropped = {}, []
+    for key, value in report.items():
+        path = f"{at}.{key}"
+        if key in ("command_line", "inputs", "finished_unix_seconds") or key.endswith("seconds"):
+            dropped.append(path)
+        else:
+            kept[key], more = without_timings(value, path)
+            dropped += more
+    return kept, dropped
+
+
+def test_python_writes_the_command_lines_report(pair):
+    paths, _, cli_report = pair
+    src, lab, tgt = (nib.load(paths[k]) for k in ("source", "labels", "target"))
+    r = posereg.register(src.get_fdata(dtype=np.float32), np.asarray(lab.dataobj),
+                         tgt.get_fdata(dtype=np.float32), source_affine=src.affine,
+                         target_affine=tgt.affine, threads=2, **FAST)
+    ours, dropped = without_timings(r.report)
+    theirs, _ = without_timings(cli_report)
+    assert ".seconds" in dropped and ".inputs" in dropped
+    assert len(ours) >= 12
+    assert ours == theirs
+
+
+def test_nan_voxels_are_refused_as_the_command_line_refuses_them(pair):
+    paths, _, _ = pair
+    src, lab, tgt = (nib.load(paths[k]) for k in ("source", "labels", "target"))
+    source = src.get_fdata(dtype=np.float32)
+    source[3, 4, 5] = np.nan
+    with pytest.raises(ValueError, match="source.*non-finite"):
+        posereg.register(source, np.asarray(lab.dataobj), tgt.get_fdata(dtype=np.float32),
+                         source_affine=src.affine, target_affine=tgt.affine)

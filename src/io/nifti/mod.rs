@@ -122,20 +122,29 @@ pub fn spatial_grid(path: &Path, info: &HeaderInfo, what: &str) -> Result<Grid> 
     Grid::new(d3, info.affine).map_err(|e| Error::bad_file(path, e.to_string()))
 }
 
+/// Non-finite voxels of an intensity image (read from `path`, or handed over under that name)
+/// are an error: they would poison every sum.
+pub fn check_finite(path: &Path, data: &[f32]) -> Result<()> {
+    match data.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(i) => {
+            let bad = data.iter().filter(|v| !v.is_finite()).count();
+            Err(Error::bad_file(
+                path,
+                format!(
+                    "has {bad} non-finite voxels (NaN, Inf, or beyond float32's range), the first \
+                     at index {i}"
+                ),
+            ))
+        }
+    }
+}
+
 /// An intensity image from its raw read. Non-finite voxels are an error: they would poison
 /// every sum.
 pub fn volume_from_raw(path: &Path, raw: RawImage) -> Result<Volume> {
     let grid = spatial_grid(path, &raw.info, "an intensity image")?;
-    if let Some(i) = raw.data.iter().position(|v| !v.is_finite()) {
-        let bad = raw.data.iter().filter(|v| !v.is_finite()).count();
-        return Err(Error::bad_file(
-            path,
-            format!(
-                "has {bad} non-finite voxels (NaN, Inf, or beyond float32's range), the first at \
-                 index {i}"
-            ),
-        ));
-    }
+    check_finite(path, &raw.data)?;
     Ok(Image {
         grid,
         data: raw.data,
