@@ -68,7 +68,10 @@ mod tests {
             Range::new("radius", vec![3.0], (1.0, 2.0), " (voxels)"),
         ];
         let err = check_ranges("stage", &table).unwrap_err().to_string();
-        assert!(err.contains("stage.radius must be 1 to 2 (voxels)"), "{err}");
+        assert!(
+            err.contains("stage.radius must be 1 to 2 (voxels)"),
+            "{err}"
+        );
         for bad in [f64::NAN, f64::INFINITY, -1.0] {
             let table = [Range::new("gain", vec![1.0, bad], (0.0, UNBOUNDED), "")];
             let err = check_ranges("", &table).unwrap_err().to_string();

@@ -6,9 +6,11 @@ use clap::Args;
 use posereg::abi::Blending;
 use posereg::abi::Interpolation;
 use posereg::backend::resample_volume;
-use posereg::device::{open_backend, DeviceWanted};
+use posereg::device::{open_backend, DeviceWanted, Opened};
 use posereg::images::metric::correlation;
-use posereg::init::articulated::{initialise_volumes, rigid_field, InitOptions, Start};
+use posereg::init::articulated::{
+    initialise_volumes, rigid_field, InitOptions, InitialVolumes, Initialisation, Start,
+};
 use posereg::io::config::load_options;
 use posereg::io::field::save_field;
 use posereg::io::itk_transform::save_bone_tfms;
@@ -21,7 +23,7 @@ use posereg::joints::joint::rotation_degrees;
 use posereg::joints::kinematics::KneeKinematics;
 use posereg::pipeline::inputs::{check_bones, load_pair, Pair, PairPaths};
 use posereg::pipeline::register::{unregistered, RegisterOptions};
-use posereg::Error;
+use posereg::{Error, Volume};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `posereg init`.
@@ -186,34 +188,35 @@ pub fn load_given(
     Ok(given)
 }
 
+impl InitArgs {
+    /// The settings file's `[init]`, overridden by the flags, checked before any voxel is read.
+    fn options(&self) -> anyhow::Result<InitOptions> {
+        let mut options = match &self.config {
+            Some(path) => load_options::<RegisterOptions>(path)?.init,
+            None => InitOptions::default(),
+        };
+        if !self.bones.is_empty() {
+            options.bones = self.bones.clone();
+        }
+        if let Some(blending) = self.blending {
+            options.blending = blending;
+        }
+        if let Some(reach) = &self.reach {
+            options.reach = reach.clone();
+        }
+        options.chain = self.pair.chain(&options.chain)?;
+        options.check()?;
+        Ok(options)
+    }
+}
+
 /// Runs the initialisation and writes init.json, init_field.nii.gz, initialised.nii.gz.
 pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
-    let mut options = match &args.config {
-        Some(path) => load_options::<RegisterOptions>(path)?.init,
-        None => InitOptions::default(),
-    };
-    if !args.bones.is_empty() {
-        options.bones = args.bones.clone();
-    }
-    if let Some(blending) = args.blending {
-        options.blending = blending;
-    }
-    if let Some(reach) = &args.reach {
-        options.reach = reach.clone();
-    }
-    options.chain = args.pair.chain(&options.chain)?;
-    // The flags are checked before any voxel is read.
-    options.check()?;
+    let options = args.options()?;
     let (_folder, pair) = args.pair.load(reporter, &options.chain)?;
-    let Pair {
-        source,
-        labels,
-        target,
-        ..
-    } = pair;
-    check_bones(&options, &labels, args.pair.paths())?;
+    check_bones(&options, &pair.labels, args.pair.paths())?;
     let given = match &args.init {
-        Some(path) => Some(load_given(path, &labels, &options)?),
+        Some(path) => Some(load_given(path, &pair.labels, &options)?),
         None => None,
     };
     let (opened, line) = open_backend(device)?;
@@ -221,15 +224,36 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     let started = std::time::Instant::now();
     let (init, images) = posereg::on_backend!(opened, backend => initialise_volumes(
         backend,
-        &source,
-        &labels,
-        &target,
+        &pair.source,
+        &pair.labels,
+        &pair.target,
         &options,
         given.as_ref().map(Start::Given),
         reporter,
     ))?;
     let seconds = started.elapsed().as_secs_f64();
-    let mut transforms = init.transforms(&options);
+    let folder = &args.pair.output;
+    write_initialisation(folder, &options, (&init, &images))?;
+    let side = args.pair.side;
+    if let Some(k) = kinematics(side, &pair.labels, &options.chain, &init, reporter)? {
+        write_kinematics(folder, &k, reporter)?;
+    }
+    reporter.result(&format!("initialisation in {seconds:.1} s"));
+    say_bones(&init, &options, reporter);
+    say_fit(&opened, &pair, &options, (&init, &images), reporter)?;
+    reporter.result(&format!("written to {}", folder.display()));
+    reporter.save_log(&folder.join("posereg.log"))?;
+    Ok(())
+}
+
+/// Writes init.json (the bone motions with the skinning, the flexion axis and each bone's
+/// report), the bones' .tfm files, init_field.nii.gz and initialised.nii.gz into `folder`.
+fn write_initialisation(
+    folder: &Path,
+    options: &InitOptions,
+    (init, images): (&Initialisation, &InitialVolumes),
+) -> anyhow::Result<()> {
+    let mut transforms = init.transforms(options);
     transforms.extra.insert(
         "skinning".into(),
         serde_json::json!({
@@ -249,32 +273,16 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     transforms
         .extra
         .insert("bones_report".into(), serde_json::to_value(&init.reports)?);
-    transforms.save(&args.pair.output.join("init.json"))?;
-    save_bone_tfms(&args.pair.output, &transforms)?;
-    save_field(&args.pair.output.join("init_field.nii.gz"), &images.field)?;
-    let side = args.pair.side;
-    if let Some(k) = kinematics(side, &labels, &options.chain, &init, reporter)? {
-        write_kinematics(&args.pair.output, &k, reporter)?;
-    }
-    save_volume(
-        &args.pair.output.join("initialised.nii.gz"),
-        &images.initialised,
-        DataType::F32,
-    )?;
+    transforms.save(&folder.join("init.json"))?;
+    save_bone_tfms(folder, &transforms)?;
+    save_field(&folder.join("init_field.nii.gz"), &images.field)?;
+    let initialised = folder.join("initialised.nii.gz");
+    save_volume(&initialised, &images.initialised, DataType::F32)?;
+    Ok(())
+}
 
-    let root = init
-        .motions
-        .iter()
-        .find(|m| chain::parent_among(&options.chain, m.0, &init.bones).is_none())
-        .map(|m| m.1);
-    let body = |n: usize| target.data[n] > 0.0;
-    let corr_identity = correlation(
-        &posereg::on_backend!(opened, backend => unregistered(backend, &source, &target.grid))?
-            .data,
-        &target.data,
-        body,
-    );
-    reporter.result(&format!("initialisation in {seconds:.1} s"));
+/// Prints each bone's search, fit and confidence, and its rotation.
+fn say_bones(init: &Initialisation, options: &InitOptions, reporter: &Reporter) {
     for r in &init.reports {
         let last = r.levels.last();
         reporter.result(&format!(
@@ -298,6 +306,18 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
             rotation_degrees(m)
         ));
     }
+}
+
+/// Prints the blend's inversion residual, the reach, the folds and the correlation with the
+/// target of the source as it lies, moved by the root bone only, and initialised.
+fn say_fit(
+    opened: &Opened,
+    pair: &Pair,
+    options: &InitOptions,
+    (init, images): (&Initialisation, &InitialVolumes),
+    reporter: &Reporter,
+) -> anyhow::Result<()> {
+    let (source, target) = (&pair.source, &pair.target);
     let residual = &images.residual.data;
     let worst = residual.iter().cloned().fold(0.0f32, f32::max);
     reporter.result(&format!("  blend inversion residual: worst {worst:.3} mm"));
@@ -307,28 +327,34 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         "  folds (det J <= 0.05): {} in the blend, {} after {} smoothing rounds and {} unfolding steps",
         repair.folded_before, repair.folded_after, repair.rounds, repair.unfold_steps
     ));
+    let body = |n: usize| target.data[n] > 0.0;
+    let fit = |moved: &Volume| correlation(&moved.data, &target.data, body);
+    let as_it_lies =
+        posereg::on_backend!(opened, backend => unregistered(backend, source, &target.grid))?;
     reporter.result(&format!(
-        "  correlation with target: identity {corr_identity:.4}"
+        "  correlation with target: identity {:.4}",
+        fit(&as_it_lies)
     ));
+    let root = (init.motions.iter())
+        .find(|m| chain::parent_among(&options.chain, m.0, &init.bones).is_none())
+        .map(|m| m.1);
     if let Some(root) = root {
-        let femur_only = posereg::on_backend!(opened, backend => resample_volume(
+        let root_only = posereg::on_backend!(opened, backend => resample_volume(
             backend,
-            &source,
+            source,
             &rigid_field(&root, &target.grid)?,
             0.0,
             Interpolation::Linear,
         ))?;
         reporter.result(&format!(
             "                             root bone only {:.4}",
-            correlation(&femur_only.data, &target.data, body)
+            fit(&root_only)
         ));
     }
     reporter.result(&format!(
         "                             initialised {:.4}",
-        correlation(&images.initialised.data, &target.data, body)
+        fit(&images.initialised)
     ));
-    reporter.result(&format!("written to {}", args.pair.output.display()));
-    reporter.save_log(&args.pair.output.join("posereg.log"))?;
     Ok(())
 }
 

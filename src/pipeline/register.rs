@@ -343,97 +343,51 @@ pub fn register_observed<B: Backend>(
     progress: &dyn Progress,
     observe: &mut dyn FnMut(&InitialImages<B>) -> Result<()>,
 ) -> Result<Registration> {
-    let Inputs {
-        source,
-        labels,
-        target,
-        start,
-        target_mask,
-    } = inputs;
-    let clock = std::time::Instant::now();
-    let at_start = backend.traffic();
+    let mut laps = Laps::new(backend);
     options.check()?;
-    let pair = PairImages::upload(backend, source, labels, target)?;
-    let (init, images) = match options.initialise.then_some(&options.init) {
-        Some(init_options) => {
-            let (found, images) =
-                initialise(backend, &pair, labels, init_options, start, progress)?;
-            (Some(found), images)
-        }
-        None => (None, no_initialisation(backend, &pair)?),
+    let pair = PairImages::upload(backend, inputs.source, inputs.labels, inputs.target)?;
+    let start = initialised(backend, &pair, inputs, options, progress)?;
+    observe(&start.images)?;
+    let (images, bones) = (&start.images, start.bones());
+    let initialisation = laps.lap();
+    let (mask, coverage, mask_share) = coverage(backend, &pair, images, inputs.target_mask)?;
+    let moving = Moving {
+        image: &images.initialised,
+        coverage: &coverage,
+        prealigned: start.init.is_some(),
+        mask_share,
     };
-    observe(&images)?;
-    let bones = init.as_ref().map_or(&[][..], |i| &i.bones[..]);
-    // Read by the pins and, after the adaptive stage, by the warp's holding off the bones.
-    let bone_map = match bones {
-        [] => None,
-        bones => Some(initial_bones(backend, &pair, &images, bones)?),
-    };
-    let pins = match &bone_map {
-        Some(map) if options.pins_per_bone > 0 => {
-            bone_pins(backend, map, bones.len(), options.pins_per_bone)?
-        }
-        _ => Vec::new(),
-    };
-    let initialisation = clock.elapsed().as_secs_f64();
-    let after_init = backend.traffic();
-    let (mask, coverage, mask_share) = coverage(backend, &pair, &images, target_mask)?;
     let adaptive = adaptive::register(
         backend,
-        &Moving {
-            image: &images.initialised,
-            coverage: &coverage,
-            prealigned: init.is_some(),
-            mask_share,
-        },
+        &moving,
         &pair.target,
-        &pins,
+        &start.pins,
         &options.adaptive,
         progress,
     )?;
-    let adaptive_seconds = clock.elapsed().as_secs_f64() - initialisation;
-    let after_adaptive = backend.traffic();
+    let adaptive_lap = laps.lap();
     progress.begin("composition", 1);
     let labels = SourceLabels {
-        host: labels,
+        host: inputs.labels,
         device: &pair.labels,
     };
-    let held = (bones, bone_map.as_ref());
-    let (field, scale) = composed(backend, &pair, &images, &adaptive, held, options)?;
+    let held = (bones, start.bone_map.as_ref());
+    let (field, scale) = composed(backend, &pair, images, &adaptive, held, options)?;
     progress.step(&format!("warp scale {scale}"));
     progress.end();
-    let bones_held = bone_map.as_ref().map(|map| (map, bones.len()));
-    let (field, dense) = refined(
-        backend,
-        &pair,
-        (field, &mask),
-        bones_held,
-        options,
-        progress,
-    )?;
-    let whole = unfolded(backend, (field, scale), &labels, &images, held, options)?;
-    let dense_seconds = clock.elapsed().as_secs_f64() - initialisation - adaptive_seconds;
-    let after_dense = backend.traffic();
+    let bones_held = start.bone_map.as_ref().map(|map| (map, bones.len()));
+    let refinement = (field, &mask);
+    let (field, dense) = refined(backend, &pair, refinement, bones_held, options, progress)?;
+    let whole = unfolded(backend, (field, scale), &labels, images, held, options)?;
+    let dense_lap = laps.lap();
     progress.begin("resampling and inverse", 1);
     let finished = outputs(backend, &pair, &whole.field, &whole.held)?;
     progress.end();
-    let timings = StageTimes {
-        initialisation,
-        adaptive: adaptive_seconds,
-        dense: dense_seconds,
-        finish: clock.elapsed().as_secs_f64() - initialisation - adaptive_seconds - dense_seconds,
-    };
-    let at_end = backend.traffic();
-    let traffic = StageTraffic {
-        initialisation: after_init - at_start,
-        adaptive: after_adaptive - after_init,
-        dense: after_dense - after_adaptive,
-        finish: at_end - after_dense,
-        total: at_end - at_start,
-    };
-    let voxels = target.grid.len() as f64;
+    let finish = laps.lap();
+    let source = inputs.source;
+    let voxels = inputs.target.grid.len() as f64;
     Ok(Registration {
-        init,
+        init: start.init,
         adaptive,
         dense,
         field: finished.field,
@@ -450,8 +404,105 @@ pub fn register_observed<B: Backend>(
         contact_share: finished.folds.contacts as f64 / voxels,
         warp_scale: whole.scale,
         unfolding: whole.unfolding,
-        timings,
-        traffic,
+        timings: StageTimes {
+            initialisation: initialisation.0,
+            adaptive: adaptive_lap.0,
+            dense: dense_lap.0,
+            finish: finish.0,
+        },
+        traffic: StageTraffic {
+            initialisation: initialisation.1,
+            adaptive: adaptive_lap.1,
+            dense: dense_lap.1,
+            finish: finish.1,
+            total: laps.total(),
+        },
+    })
+}
+
+/// Wall time and device traffic stage by stage: each lap ends a stage.
+struct Laps<'b, B: Backend> {
+    backend: &'b B,
+    clock: std::time::Instant,
+    first: Traffic,
+    last: (f64, Traffic),
+}
+
+impl<'b, B: Backend> Laps<'b, B> {
+    fn new(backend: &'b B) -> Self {
+        let first = backend.traffic();
+        Laps {
+            backend,
+            clock: std::time::Instant::now(),
+            first,
+            last: (0.0, first),
+        }
+    }
+
+    /// The seconds and the traffic since the last lap (or the start).
+    fn lap(&mut self) -> (f64, Traffic) {
+        let now = (self.clock.elapsed().as_secs_f64(), self.backend.traffic());
+        let since = (now.0 - self.last.0, now.1 - self.last.1);
+        self.last = now;
+        since
+    }
+
+    /// The traffic since the start.
+    fn total(&self) -> Traffic {
+        self.backend.traffic() - self.first
+    }
+}
+
+/// What the non-rigid stages start from: the initialisation (None when skipped), its images,
+/// and where its bones lie in the target with the pins on their surfaces.
+struct Initialised<B: Backend> {
+    init: Option<Initialisation>,
+    images: InitialImages<B>,
+    /// Read by the pins and, after the adaptive stage, by the warp's holding off the bones.
+    bone_map: Option<DeviceImage<B>>,
+    pins: Vec<Vector3<f64>>,
+}
+
+impl<B: Backend> Initialised<B> {
+    /// The bones registered, in the initialisation's order (none without it).
+    fn bones(&self) -> &[u16] {
+        self.init.as_ref().map_or(&[][..], |i| &i.bones[..])
+    }
+}
+
+/// Runs the initialisation when `options` ask for it and finds its bones in the target.
+fn initialised<B: Backend>(
+    backend: &B,
+    pair: &PairImages<B>,
+    inputs: Inputs,
+    options: &RegisterOptions,
+    progress: &dyn Progress,
+) -> Result<Initialised<B>> {
+    let (init, images) = match options.initialise.then_some(&options.init) {
+        Some(init_options) => {
+            let start = inputs.start;
+            let (found, images) =
+                initialise(backend, pair, inputs.labels, init_options, start, progress)?;
+            (Some(found), images)
+        }
+        None => (None, no_initialisation(backend, pair)?),
+    };
+    let bones = init.as_ref().map_or(&[][..], |i| &i.bones[..]);
+    let bone_map = match bones {
+        [] => None,
+        bones => Some(initial_bones(backend, pair, &images, bones)?),
+    };
+    let pins = match &bone_map {
+        Some(map) if options.pins_per_bone > 0 => {
+            bone_pins(backend, map, bones.len(), options.pins_per_bone)?
+        }
+        _ => Vec::new(),
+    };
+    Ok(Initialised {
+        init,
+        images,
+        bone_map,
+        pins,
     })
 }
 
