@@ -35,27 +35,10 @@ pub fn lbfgs<E>(
     let (mut cost, mut grad) = f(&x)?;
     let start_cost = cost;
     let mut evaluations = 1;
-    let mut history: Vec<(Vec<f64>, Vec<f64>, f64)> = Vec::new();
+    let mut history: Vec<Pair> = Vec::new();
     let mut iterations = 0;
     while iterations < max_iterations && !x.is_empty() {
-        // Two-loop recursion: d = −H g.
-        let mut q = grad.clone();
-        let mut alphas = Vec::with_capacity(history.len());
-        for (s, y, rho) in history.iter().rev() {
-            let a = rho * dot(s, &q);
-            q.iter_mut().zip(y).for_each(|(qi, yi)| *qi -= a * yi);
-            alphas.push(a);
-        }
-        let gamma = history
-            .last()
-            .map(|(s, y, _)| dot(s, y) / dot(y, y))
-            .unwrap_or_else(|| 1.0 / dot(&grad, &grad).sqrt().max(1e-12));
-        q.iter_mut().for_each(|v| *v *= gamma);
-        for ((s, y, rho), a) in history.iter().zip(alphas.iter().rev()) {
-            let b = rho * dot(y, &q);
-            q.iter_mut().zip(s).for_each(|(qi, si)| *qi += (a - b) * si);
-        }
-        let mut d: Vec<f64> = q.iter().map(|v| -v).collect();
+        let mut d = direction(&grad, &history);
         let mut slope = dot(&grad, &d);
         if slope >= 0.0 {
             // Not a descent direction: restart from steepest descent.
@@ -105,6 +88,30 @@ pub fn lbfgs<E>(
         iterations,
         evaluations,
     })
+}
+
+/// One remembered step of L-BFGS: s (the step), y (the gradient's change), 1 / (s·y).
+type Pair = (Vec<f64>, Vec<f64>, f64);
+
+/// The search direction d = −H g by the two-loop recursion over the remembered steps.
+fn direction(grad: &[f64], history: &[Pair]) -> Vec<f64> {
+    let mut q = grad.to_vec();
+    let mut alphas = Vec::with_capacity(history.len());
+    for (s, y, rho) in history.iter().rev() {
+        let a = rho * dot(s, &q);
+        q.iter_mut().zip(y).for_each(|(qi, yi)| *qi -= a * yi);
+        alphas.push(a);
+    }
+    let gamma = history
+        .last()
+        .map(|(s, y, _)| dot(s, y) / dot(y, y))
+        .unwrap_or_else(|| 1.0 / dot(grad, grad).sqrt().max(1e-12));
+    q.iter_mut().for_each(|v| *v *= gamma);
+    for ((s, y, rho), a) in history.iter().zip(alphas.iter().rev()) {
+        let b = rho * dot(y, &q);
+        q.iter_mut().zip(s).for_each(|(qi, si)| *qi += (a - b) * si);
+    }
+    q.iter().map(|v| -v).collect()
 }
 
 #[cfg(test)]

@@ -349,7 +349,7 @@ pub fn register_observed<B: Backend>(
     let start = initialised(backend, &pair, inputs, options, progress)?;
     observe(&start.images)?;
     let (images, bones) = (&start.images, start.bones());
-    let initialisation = laps.lap();
+    laps.lap(); // the initialisation
     let (mask, coverage, mask_share) = coverage(backend, &pair, images, inputs.target_mask)?;
     let moving = Moving {
         image: &images.initialised,
@@ -365,7 +365,7 @@ pub fn register_observed<B: Backend>(
         &options.adaptive,
         progress,
     )?;
-    let adaptive_lap = laps.lap();
+    laps.lap(); // the adaptive stage
     progress.begin("composition", 1);
     let labels = SourceLabels {
         host: inputs.labels,
@@ -379,11 +379,11 @@ pub fn register_observed<B: Backend>(
     let refinement = (field, &mask);
     let (field, dense) = refined(backend, &pair, refinement, bones_held, options, progress)?;
     let whole = unfolded(backend, (field, scale), &labels, images, held, options)?;
-    let dense_lap = laps.lap();
+    laps.lap(); // the composition, the dense stage and the unfolding
     progress.begin("resampling and inverse", 1);
     let finished = outputs(backend, &pair, &whole.field, &whole.held)?;
     progress.end();
-    let finish = laps.lap();
+    laps.lap(); // the finish
     let source = inputs.source;
     let voxels = inputs.target.grid.len() as f64;
     Ok(Registration {
@@ -404,28 +404,18 @@ pub fn register_observed<B: Backend>(
         contact_share: finished.folds.contacts as f64 / voxels,
         warp_scale: whole.scale,
         unfolding: whole.unfolding,
-        timings: StageTimes {
-            initialisation: initialisation.0,
-            adaptive: adaptive_lap.0,
-            dense: dense_lap.0,
-            finish: finish.0,
-        },
-        traffic: StageTraffic {
-            initialisation: initialisation.1,
-            adaptive: adaptive_lap.1,
-            dense: dense_lap.1,
-            finish: finish.1,
-            total: laps.total(),
-        },
+        timings: laps.times(),
+        traffic: laps.traffic(),
     })
 }
 
-/// Wall time and device traffic stage by stage: each lap ends a stage.
+/// Wall time and device traffic stage by stage: each lap ends a stage, in StageTimes' order.
 struct Laps<'b, B: Backend> {
     backend: &'b B,
     clock: std::time::Instant,
     first: Traffic,
     last: (f64, Traffic),
+    laps: Vec<(f64, Traffic)>,
 }
 
 impl<'b, B: Backend> Laps<'b, B> {
@@ -436,20 +426,42 @@ impl<'b, B: Backend> Laps<'b, B> {
             clock: std::time::Instant::now(),
             first,
             last: (0.0, first),
+            laps: Vec::new(),
         }
     }
 
-    /// The seconds and the traffic since the last lap (or the start).
-    fn lap(&mut self) -> (f64, Traffic) {
+    /// Ends a stage: the seconds and the traffic since the last lap (or the start).
+    fn lap(&mut self) {
         let now = (self.clock.elapsed().as_secs_f64(), self.backend.traffic());
-        let since = (now.0 - self.last.0, now.1 - self.last.1);
+        self.laps.push((now.0 - self.last.0, now.1 - self.last.1));
         self.last = now;
-        since
     }
 
-    /// The traffic since the start.
-    fn total(&self) -> Traffic {
-        self.backend.traffic() - self.first
+    /// The four stages' seconds.
+    fn times(&self) -> StageTimes {
+        let [initialisation, adaptive, dense, finish] = self.stages().map(|l| l.0);
+        StageTimes {
+            initialisation,
+            adaptive,
+            dense,
+            finish,
+        }
+    }
+
+    /// The four stages' traffic, and the whole run's.
+    fn traffic(&self) -> StageTraffic {
+        let [initialisation, adaptive, dense, finish] = self.stages().map(|l| l.1);
+        StageTraffic {
+            initialisation,
+            adaptive,
+            dense,
+            finish,
+            total: self.last.1 - self.first,
+        }
+    }
+
+    fn stages(&self) -> [(f64, Traffic); 4] {
+        self.laps[..].try_into().expect("four stages timed")
     }
 }
 
