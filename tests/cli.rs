@@ -1025,3 +1025,21 @@ fn fast_settings(dir: &Path) -> PathBuf {
     std::fs::write(&path, "[adaptive]\niterations = \"3x3x3\"\n").unwrap();
     path
 }
+
+#[test]
+fn a_reader_that_goes_away_ends_the_command_without_a_panic() {
+    // `posereg info --json x.nii.gz | head -1`: the reader closes the pipe before the output.
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_posereg"))
+        .args(["info", "--json", s(&data.join("oblique_nibabel.nii.gz"))])
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("the binary runs");
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("the binary ends");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(stderr.is_empty(), "{stderr}");
+}
