@@ -536,14 +536,15 @@ pub fn check_grids(a: &Grid, b: &Grid) -> Result<()> {
     }
 }
 
-/// `image` sampled on `grid` without any displacement (trilinear, 0 outside): the
-/// unregistered source seen on the target's grid.
+/// `image` sampled on `grid` without any displacement (0 outside): the unregistered source
+/// seen on the target's grid (trilinear), a mask or a label map on another level (nearest).
 pub fn resample_onto<B: Backend>(
     backend: &B,
     image: &DeviceImage<B>,
     grid: &Grid,
+    interpolation: Interpolation,
 ) -> Result<DeviceImage<B>> {
-    let params = ResampleParams::new(&image.grid, grid, 0.0, Interpolation::Linear);
+    let params = ResampleParams::new(&image.grid, grid, 0.0, interpolation);
     let still = backend.zeros("zero displacement", 3 * grid.len())?;
     Ok(DeviceImage {
         data: backend.resample(&params, &image.data, &still)?,

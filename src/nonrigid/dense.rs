@@ -14,7 +14,7 @@
 use crate::abi::dense::{CombineParams, ForceParams, ForceTerm, MAX_GAUSS_SIGMA};
 use crate::abi::{ComposeParams, Interpolation, LocalMomentsParams, ResampleParams, SumParams};
 use crate::backend::dense::{largest_vectors, smooth, ForceImages};
-use crate::backend::{box_sums, Backend, DeviceImage};
+use crate::backend::{box_sums, resample_onto, Backend, DeviceImage};
 use crate::check::{check_ranges, Range};
 use crate::error::Result;
 use crate::images::fold_repair::determinant;
@@ -470,9 +470,7 @@ fn nearest_onto<B: Backend>(
     if image.grid.same_as(grid, 0.0) {
         return Ok(image.data.clone());
     }
-    let params = ResampleParams::new(&image.grid, grid, 0.0, Interpolation::Nearest);
-    let still = backend.zeros("zero displacement", 3 * grid.len())?;
-    backend.resample(&params, &image.data, &still)
+    Ok(resample_onto(backend, image, grid, Interpolation::Nearest)?.data)
 }
 
 #[cfg(test)]

@@ -273,7 +273,7 @@ fn spread(points: &[Vector3<f64>], count: usize) -> Vec<Vector3<f64>> {
 /// grid (uploaded, resampled where the backend computes, brought back).
 pub fn unregistered<B: Backend>(backend: &B, source: &Volume, grid: &Grid) -> Result<Volume> {
     let image = DeviceImage::upload(backend, "source", source.clone())?;
-    resample_onto(backend, &image, grid)?.download(backend)
+    resample_onto(backend, &image, grid, Interpolation::Linear)?.download(backend)
 }
 
 /// The initial images when the articulated initialisation is skipped: no displacement, and
@@ -289,7 +289,7 @@ fn no_initialisation<B: Backend>(backend: &B, pair: &PairImages<B>) -> Result<In
     Ok(InitialImages {
         field: zeros("zero displacement", 3)?,
         residual: zeros("zero residual", 1)?,
-        initialised: resample_onto(backend, &pair.source, grid)?,
+        initialised: resample_onto(backend, &pair.source, grid, Interpolation::Linear)?,
     })
 }
 
