@@ -18,6 +18,7 @@ direction kept). Example::
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass
 from typing import Any, Optional
 
@@ -122,6 +123,20 @@ def _shaped(flat, dims, vector=False):
     return flat.reshape(tuple(reversed(dims))).transpose(2, 1, 0)
 
 
+def _check_run_arguments(device, threads, progress):
+    """The arguments that say how to run, checked before any work, each named when wrong."""
+    if not isinstance(device, str):
+        raise TypeError(f"device: a string (cpu, gpu or auto) is needed, got {type(device).__name__}")
+    if device not in ("cpu", "gpu", "auto"):
+        raise ValueError(f"device: {device!r} is not cpu, gpu or auto")
+    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)):
+        raise TypeError(f"threads: a whole number is needed, got {type(threads).__name__}")
+    if threads < 0:
+        raise ValueError(f"threads: {threads} is below 0 (0 uses every core)")
+    if not isinstance(progress, (bool, np.bool_)):
+        raise TypeError(f"progress: True or False is needed, got {type(progress).__name__}")
+
+
 def register(
     source,
     source_labels,
@@ -140,16 +155,30 @@ def register(
 
     Each image is a SimpleITK image, a nibabel image, or a 3-D array with voxel axes (x, y, z)
     whose voxel → world RAS affine is given (``source_affine``, also used for the labels, and
-    ``target_affine``). ``settings`` are the settings a ``posereg register --config`` file
+    ``target_affine``); or all three are paths of NIfTI files, read and checked as ``posereg
+    register`` reads them (the outputs are then arrays, on the grids ``target_affine`` and
+    ``source_affine`` of the result give). ``settings`` are the settings a ``posereg register --config`` file
     holds, as keyword arguments of dicts: ``adaptive={"iterations": "40x30x20"}``,
     ``init={"blending": "linear"}``, ``initialise=False``. ``device``: "cpu", "gpu" or "auto";
     ``threads``: CPU threads (0: every core); ``progress``: stage lines on stderr. The GIL is
-    released while it runs. Raises ValueError naming the input or setting that is wrong.
+    released while it runs. Raises ValueError (a wrong value) or TypeError (a wrong kind of
+    argument) naming the input, argument or setting that is wrong.
     """
-    s, s_shape, s_affine = _flat(source, source_affine, np.float32, "source")
-    l, _, _ = _flat(source_labels, source_affine, np.uint16, "source_labels")
-    t, t_shape, t_affine = _flat(target, target_affine, np.float32, "target")
-    out = _posereg.register_flat(s, l, t, json.dumps(settings), device, threads, progress)
+    _check_run_arguments(device, threads, progress)
+    paths = [isinstance(x, (str, os.PathLike)) for x in (source, source_labels, target)]
+    if any(paths) and not all(paths):
+        raise TypeError("source, source_labels and target: give all three as NIfTI paths, or "
+                        "none (arrays with affines, nibabel or SimpleITK images)")
+    if all(paths):
+        files = [os.fspath(x) for x in (source, source_labels, target)]
+        out = _posereg.register_files(*files, json.dumps(settings), device, threads, progress)
+        (s_shape, s_affine), (t_shape, t_affine) = (
+            (tuple(dims), np.array(affine)) for dims, affine in (out["source_grid"], out["target_grid"]))
+    else:
+        s, s_shape, s_affine = _flat(source, source_affine, np.float32, "source")
+        l, _, _ = _flat(source_labels, source_affine, np.uint16, "source_labels")
+        t, t_shape, t_affine = _flat(target, target_affine, np.float32, "target")
+        out = _posereg.register_flat(s, l, t, json.dumps(settings), device, threads, progress)
     arrays = {
         "warped": _shaped(out["warped"], t_shape),
         "field": _shaped(out["field"], t_shape, vector=True),

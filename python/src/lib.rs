@@ -1,12 +1,13 @@
 //! posereg's Python package, its native part (`posereg._posereg`): the whole registration on
-//! flat arrays, the GIL released while it runs. The Python side (python/posereg/__init__.py)
+//! flat arrays or on files, the GIL released while it runs. The Python side (python/posereg/__init__.py)
 //! turns nibabel-style arrays with affines and SimpleITK images into these and back.
 
 use numpy::{IntoPyArray, PyReadonlyArray1};
 use posereg::device::{open_backend, DeviceChoice, DeviceWanted};
-use posereg::io::config::parse_options;
+use posereg::init::articulated::Start;
+use posereg::io::config::options_from_json;
 use posereg::io::field::flip_ras_lps;
-use posereg::pipeline::inputs::{check_pair, Pair, PairPaths};
+use posereg::pipeline::inputs::{check_pair, load_pair, Pair, PairPaths};
 use posereg::pipeline::register::RegisterOptions;
 use posereg::progress::{Progress, Silent};
 use posereg::registration::{register_pair, Request};
@@ -32,9 +33,14 @@ impl Progress for Lines {
     fn end(&self) {}
 }
 
-fn image<T: Clone + numpy::Element>((data, dims, affine): Flat<T>) -> PyResult<Image<T>> {
-    let grid = Grid::new(dims, Affine::from_fn(|r, c| affine[r][c])).map_err(failed)?;
-    Image::from_data(grid, data.as_slice()?.to_vec()).map_err(failed)
+/// The image an argument holds; its problems are named after the argument.
+fn image<T: Clone + numpy::Element>(
+    name: &Path,
+    (data, dims, affine): Flat<T>,
+) -> PyResult<Image<T>> {
+    let named = |e: posereg::Error| failed(format!("{}: {e}", name.display()));
+    let grid = Grid::new(dims, Affine::from_fn(|r, c| affine[r][c])).map_err(named)?;
+    Image::from_data(grid, data.as_slice()?.to_vec()).map_err(named)
 }
 
 fn failed(e: impl std::fmt::Display) -> PyErr {
@@ -57,10 +63,14 @@ struct Done {
     report: String,
 }
 
-/// Registers `source` (with `labels`) to `target`. `settings`: a settings file's content as
-/// JSON (the keys `posereg register --help` lists); `device`: cpu, gpu or auto; `threads`: CPU
-/// threads (0: every core). Returns a dict of flat arrays (x-fastest; fields 3 LPS values per
-/// voxel) and JSON texts (transforms, kinematics, report).
+/// Where the registration runs: the device (cpu, gpu or auto), CPU threads (0: every core),
+/// and whether progress lines go to stderr.
+type Asked<'a> = (&'a str, usize, bool);
+
+/// Registers `source` (with `labels`) to `target`, three images handed over as arrays, with
+/// `settings` a settings file's content as JSON (the keys `posereg register --help` lists). Returns
+/// a dict of flat arrays (x-fastest; fields 3 LPS values per voxel) and JSON texts
+/// (transforms, kinematics, report).
 #[pyfunction]
 #[pyo3(signature = (source, labels, target, settings, device, threads, progress))]
 #[allow(clippy::too_many_arguments)] // the Python wrapper's one call
@@ -79,16 +89,73 @@ fn register_flat<'py>(
         labels: Path::new("source_labels"),
         target: Path::new("target"),
     };
-    let options: RegisterOptions =
-        parse_options(Path::new("settings.json"), settings).map_err(failed)?;
-    let pair = check_pair(
-        image(source)?,
-        image(labels)?,
-        image(target)?,
-        names,
-        &options.init.chain,
+    let options = settings_of(settings)?;
+    let source = image(names.source, source)?;
+    let labels = image(names.labels, labels)?;
+    let target = image(names.target, target)?;
+    let pair = check_pair(source, labels, target, names, &options.init.chain).map_err(failed)?;
+    registered(
+        py,
+        &pair,
+        (&options, names, false),
+        (device, threads, progress),
     )
-    .map_err(failed)?;
+}
+
+/// Registers the scans in three NIfTI files, read and checked as `posereg register` reads
+/// them (headers against each other first, then the voxels). Returns what `register_flat`
+/// returns, with each scan's grid: `source_grid` and `target_grid`, (dims, RAS affine).
+#[pyfunction]
+#[pyo3(signature = (source, labels, target, settings, device, threads, progress))]
+#[allow(clippy::too_many_arguments)] // the Python wrapper's one call
+fn register_files<'py>(
+    py: Python<'py>,
+    source: &str,
+    labels: &str,
+    target: &str,
+    settings: &str,
+    device: &str,
+    threads: usize,
+    progress: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let names = PairPaths {
+        source: Path::new(source),
+        labels: Path::new(labels),
+        target: Path::new(target),
+    };
+    let options = settings_of(settings)?;
+    let pair = load_pair(names, &options.init.chain).map_err(failed)?;
+    let out = registered(
+        py,
+        &pair,
+        (&options, names, true),
+        (device, threads, progress),
+    )?;
+    for (key, grid) in [
+        ("source_grid", &pair.source.grid),
+        ("target_grid", &pair.target.grid),
+    ] {
+        let affine: Vec<Vec<f64>> = (0..4)
+            .map(|r| (0..4).map(|c| grid.affine[(r, c)]).collect())
+            .collect();
+        out.set_item(key, (grid.dims.to_vec(), affine))?;
+    }
+    Ok(out)
+}
+
+/// The settings the keyword arguments hold, checked, errors naming them as such.
+fn settings_of(settings: &str) -> PyResult<RegisterOptions> {
+    options_from_json("the settings keyword arguments", settings).map_err(failed)
+}
+
+/// Runs the registration of a checked pair on the device asked for, without the GIL, and
+/// turns what it gives back into a dict.
+fn registered<'py>(
+    py: Python<'py>,
+    pair: &Pair,
+    (options, names, from_files): (&RegisterOptions, PairPaths, bool),
+    (device, threads, progress): Asked,
+) -> PyResult<Bound<'py, PyDict>> {
     let kind = match device {
         "cpu" => DeviceChoice::Cpu,
         "gpu" => DeviceChoice::Gpu,
@@ -104,7 +171,7 @@ fn register_flat<'py>(
         .build()
         .map_err(failed)?;
     let done = py
-        .detach(|| pool.install(|| run(&pair, (&options, names), &wanted, progress)))
+        .detach(|| pool.install(|| run(pair, (options, names, from_files), &wanted, progress)))
         .map_err(failed)?;
     let out = PyDict::new(py);
     out.set_item("warped", done.warped.into_pyarray(py))?;
@@ -121,7 +188,7 @@ fn register_flat<'py>(
 /// line's), without the GIL.
 fn run(
     pair: &Pair,
-    (options, names): (&RegisterOptions, PairPaths),
+    (options, names, from_files): (&RegisterOptions, PairPaths, bool),
     wanted: &DeviceWanted,
     progress: bool,
 ) -> posereg::Result<Done> {
@@ -134,7 +201,10 @@ fn run(
         start: None,
         target_mask: None,
         side: None,
-        inputs: serde_json::json!({ "python": "arrays handed to posereg.register" }),
+        inputs: match from_files {
+            true => inputs_of(names),
+            false => serde_json::json!({ "python": "arrays handed to posereg.register" }),
+        },
         keep_initial_field: false,
     };
     let done = register_pair(&opened, request, shown)?;
@@ -153,9 +223,22 @@ fn run(
     })
 }
 
+/// report.json's `inputs` for files, as `posereg register` writes it.
+fn inputs_of(files: PairPaths) -> serde_json::Value {
+    serde_json::json!({
+        "source": files.source,
+        "source_labels": files.labels,
+        "target": files.target,
+        "bones": null,
+        "target_mask": null,
+        "start": Start::describe(None),
+    })
+}
+
 /// The native module.
 #[pymodule]
 fn _posereg(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(register_flat, m)?)?;
+    m.add_function(wrap_pyfunction!(register_files, m)?)?;
     Ok(())
 }

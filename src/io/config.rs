@@ -24,14 +24,43 @@ pub fn parse_options<T: Settings>(path: &Path, text: &str) -> Result<T> {
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase());
     let parsed = match extension.as_deref() {
-        Some("toml") => toml::from_str(text).map_err(|e| e.message().to_string()),
-        Some("json") => serde_json::from_str(text).map_err(|e| e.to_string()),
+        Some("toml") => from_toml(text),
+        Some("json") => from_json(text),
         _ => Err("a settings file must end in .toml or .json".to_string()),
     };
     let options: T = parsed.map_err(|problem| Error::bad_file(path, problem))?;
     options
         .check()
         .map_err(|problem| Error::bad_file(path, problem.to_string()))?;
+    Ok(options)
+}
+
+/// Settings from TOML text; a problem names the key it is at (`adaptive.iterations: ...`).
+fn from_toml<T: Settings>(text: &str) -> std::result::Result<T, String> {
+    let document = toml::Deserializer::parse(text).map_err(|e| e.message().to_string())?;
+    serde_path_to_error::deserialize(document).map_err(|e| at_key(e.path(), e.inner().message()))
+}
+
+/// Settings from JSON text; a problem names the key it is at.
+fn from_json<T: Settings>(text: &str) -> std::result::Result<T, String> {
+    let mut document = serde_json::Deserializer::from_str(text);
+    serde_path_to_error::deserialize(&mut document).map_err(|e| at_key(e.path(), e.inner()))
+}
+
+/// "key.path: problem", or the problem alone at the top.
+fn at_key(path: &serde_path_to_error::Path, problem: impl std::fmt::Display) -> String {
+    match path.to_string().as_str() {
+        "." => problem.to_string(),
+        key => format!("{key}: {problem}"),
+    }
+}
+
+/// Settings from JSON text handed over rather than read from a file (the Python package's
+/// keyword arguments), checked; errors name `what`.
+pub fn options_from_json<T: Settings>(what: &str, text: &str) -> Result<T> {
+    let problem = |p: String| Error::InvalidInput(format!("{what}: {p}"));
+    let options: T = from_json(text).map_err(problem)?;
+    options.check().map_err(|e| problem(e.to_string()))?;
     Ok(options)
 }
 

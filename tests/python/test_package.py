@@ -132,3 +132,103 @@ def test_nan_voxels_are_refused_as_the_command_line_refuses_them(pair):
     with pytest.raises(ValueError, match="source.*non-finite"):
         posereg.register(source, np.asarray(lab.dataobj), tgt.get_fdata(dtype=np.float32),
                          source_affine=src.affine, target_affine=tgt.affine)
+
+
+def test_paths_are_read_as_the_command_line_reads_them(pair):
+    paths, cli_field, cli_report = pair
+    r = posereg.register(paths["source"], paths["labels"], str(paths["target"]), threads=2, **FAST)
+    assert r.field.dtype == np.float32 and r.field.shape == cli_field.shape
+    assert r.field.tobytes() == np.ascontiguousarray(cli_field).tobytes()
+    assert np.allclose(r.target_affine, nib.load(paths["target"]).affine, atol=1e-5)
+    ours, dropped = without_timings({**r.report, "inputs": None})
+    theirs, _ = without_timings({**cli_report, "inputs": None})
+    assert ours == theirs
+    assert r.report["inputs"] == {**cli_report["inputs"]}
+
+
+def bad_input_cases(paths, tmp):
+    """(name, arguments, exception, words the message holds) for posereg.register."""
+    src, lab, tgt = (nib.load(paths[k]) for k in ("source", "labels", "target"))
+    s, l, t = src.get_fdata(dtype=np.float32), np.asarray(lab.dataobj), tgt.get_fdata(dtype=np.float32)
+    A, B = src.affine, tgt.affine
+
+    def arrays(source=s, labels=l, target=t, source_affine=A, target_affine=B, **kw):
+        return dict(source=source, source_labels=labels, target=target,
+                    source_affine=source_affine, target_affine=target_affine, **kw)
+
+    def with_value(array, index, value):
+        array = array.copy()
+        array[index] = value
+        return array
+
+    singular = A.copy()
+    singular[:3, 0] = 0
+    corrupt = tmp / "corrupt.nii.gz"
+    corrupt.write_bytes(b"not a nifti file at all")
+    truncated = tmp / "truncated.nii.gz"
+    truncated.write_bytes(paths["source"].read_bytes()[:300])
+    return [
+        ("source 2-D", arrays(source=s[:, :, 0]), ValueError, ["source", "3-D"]),
+        ("target 4-D", arrays(target=t[..., None]), ValueError, ["target", "3-D"]),
+        ("labels 2-D", arrays(labels=l[:, :, 0]), ValueError, ["source_labels", "3-D"]),
+        ("source NaN", arrays(source=with_value(s, (3, 4, 5), np.nan)), ValueError, ["source", "non-finite"]),
+        ("source +Inf", arrays(source=with_value(s, (0, 0, 0), np.inf)), ValueError, ["source", "non-finite"]),
+        ("target -Inf", arrays(target=with_value(t, (1, 2, 3), -np.inf)), ValueError, ["target", "non-finite"]),
+        ("target NaN everywhere", arrays(target=np.full_like(t, np.nan)), ValueError, ["target", "non-finite"]),
+        ("labels fractional", arrays(labels=l + 0.5), ValueError, ["source_labels", "whole"]),
+        ("labels negative", arrays(labels=with_value(l.astype(np.int32), (0, 0, 0), -1)), ValueError, ["source_labels"]),
+        ("labels above 65535", arrays(labels=with_value(l.astype(np.int64), (0, 0, 0), 70000)), ValueError, ["source_labels"]),
+        ("labels without bones", arrays(labels=np.zeros_like(l)), ValueError, ["source_labels"]),
+        ("labels on another grid", arrays(labels=l[:-1]), ValueError, ["source_labels", "grid"]),
+        ("source constant", arrays(source=np.zeros_like(s)), ValueError, ["source"]),
+        ("target constant", arrays(target=np.ones_like(t)), ValueError, ["target"]),
+        ("source affine missing", arrays(source_affine=None), ValueError, ["source", "affine"]),
+        ("target affine missing", arrays(target_affine=None), ValueError, ["target", "affine"]),
+        ("source affine 3x3", arrays(source_affine=A[:3, :3]), ValueError, ["source", "affine"]),
+        ("source affine singular", arrays(source_affine=singular), ValueError, ["source", "zero axis"]),
+        ("target affine NaN", arrays(target_affine=with_value(B, (0, 3), np.nan)), ValueError, ["finite"]),
+        ("scans apart", arrays(target_affine=with_value(B, (0, 3), 1e6)), ValueError, ["target", "overlap"]),
+        ("unknown section", arrays(nonsense={"a": 1}), ValueError, ["settings keyword arguments", "nonsense"]),
+        ("unknown key", arrays(adaptive={"nonsense": 1}), ValueError, ["settings keyword arguments", "nonsense"]),
+        ("threshold below 1", arrays(adaptive={"threshold": "0.5"}), ValueError, ["adaptive.threshold"]),
+        ("iterations text", arrays(adaptive={"iterations": "many"}), ValueError, ["iterations"]),
+        ("dense step 0", arrays(dense={"step_voxels": 0.0}), ValueError, ["dense.step_voxels"]),
+        ("levels 9", arrays(adaptive={"levels": 9}), ValueError, ["adaptive.levels"]),
+        ("bones naming soft tissue", arrays(init={"bones": [1]}), ValueError, ["init.bones"]),
+        ("bone absent", arrays(init={"bones": [77]}), ValueError, ["source_labels", "77"]),
+        ("threads -1", arrays(threads=-1), ValueError, ["threads"]),
+        ("threads text", arrays(threads="2"), TypeError, ["threads"]),
+        ("threads 1.5", arrays(threads=1.5), TypeError, ["threads"]),
+        ("threads True", arrays(threads=True), TypeError, ["threads"]),
+        ("device tpu", arrays(device="tpu"), ValueError, ["device"]),
+        ("device 3", arrays(device=3), TypeError, ["device"]),
+        ("progress text", arrays(progress="yes"), TypeError, ["progress"]),
+        ("paths mixed with arrays", dict(source=paths["source"], source_labels=l, target=t,
+                                         target_affine=B), TypeError, ["paths"]),
+        ("path missing", dict(source=tmp / "absent.nii.gz", source_labels=paths["labels"],
+                              target=paths["target"]), ValueError, ["absent.nii.gz"]),
+        ("path corrupt", dict(source=corrupt, source_labels=paths["labels"],
+                              target=paths["target"]), ValueError, ["corrupt.nii.gz"]),
+        ("path truncated", dict(source=truncated, source_labels=paths["labels"],
+                                target=paths["target"]), ValueError, ["truncated.nii.gz"]),
+        ("labels path is the target", dict(source=paths["source"], source_labels=paths["target"],
+                                          target=paths["target"]), ValueError, ["image.nii.gz"]),
+    ]
+
+
+def test_bad_input_table(pair, tmp_path):
+    paths, _, _ = pair
+    cases = bad_input_cases(paths, tmp_path)
+    assert len(cases) >= 30
+    failures = []
+    for name, arguments, exception, words in cases:
+        try:
+            posereg.register(**arguments)
+            failures.append(f"{name}: no error")
+        except exception as e:
+            missing = [w for w in words if w not in str(e)]
+            if missing:
+                failures.append(f"{name}: {e!r} does not name {missing}")
+        except Exception as e:  # noqa: BLE001 - any other kind is a failure of the table
+            failures.append(f"{name}: {type(e).__name__} {e}")
+    assert not failures, "\n".join(failures)
