@@ -499,12 +499,12 @@ mod tests {
             .to_string()
             .contains("dense.fluid_sigma"));
         let bad = DenseOptions {
-            levels: 3,
+            levels: 2,
             ..Default::default()
         };
         let err = bad.check().unwrap_err().to_string();
         assert!(
-            err.contains("dense.iterations") && err.contains("3 pyramid levels"),
+            err.contains("dense.iterations") && err.contains("2 pyramid levels"),
             "{err}"
         );
     }
