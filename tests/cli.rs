@@ -1043,3 +1043,65 @@ fn a_reader_that_goes_away_ends_the_command_without_a_panic() {
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(stderr.is_empty(), "{stderr}");
 }
+
+#[test]
+fn a_folder_another_run_writes_into_is_refused_and_a_killed_runs_lock_is_taken_over() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    let lock = out.join(posereg::io::lock::LOCK_NAME);
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+    let host = match host.trim() {
+        "" => "this-host".to_string(),
+        name => name.to_string(),
+    };
+    let phantom = || posereg(&["phantom", "--size", "quarter", "-o", s(&out)]);
+    // A run that is alive (this test's own process) holds the folder.
+    std::fs::write(&lock, format!("{} {host}\n", std::process::id())).unwrap();
+    let refused = phantom();
+    assert_fails_naming(&refused, "in use by another posereg run");
+    assert!(!out.join("image.nii.gz").exists());
+    assert!(lock.exists(), "the other run's lock is left alone");
+    // A run that was killed: its process is gone, its lock is taken over and removed after.
+    let mut gone = std::process::Command::new("true").spawn().unwrap();
+    let pid = gone.id();
+    gone.wait().unwrap();
+    std::fs::write(&lock, format!("{pid} {host}\n")).unwrap();
+    let done = phantom();
+    assert!(
+        done.status.success(),
+        "{}",
+        String::from_utf8_lossy(&done.stderr)
+    );
+    assert!(out.join("image.nii.gz").exists());
+    assert!(!lock.exists(), "the lock goes with the run");
+}
+
+/// `posereg series` whose last target is damaged stops before any pose is registered: no
+/// pose folder, no table, the damaged file named.
+#[test]
+fn series_checks_every_target_before_registering_the_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let [source, labels, thirty] = quarter_pair(dir.path());
+    let damaged = dir.path().join("damaged.nii.gz");
+    let whole = std::fs::read(&thirty).unwrap();
+    std::fs::write(&damaged, &whole[..whole.len() / 2]).unwrap();
+    let out = dir.path().join("series");
+    let ran = posereg(&[
+        "series",
+        "--source",
+        s(&source),
+        "--source-labels",
+        s(&labels),
+        "--targets",
+        s(&thirty),
+        s(&damaged),
+        "-o",
+        s(&out),
+        "--device",
+        "cpu",
+        "-q",
+    ]);
+    assert_fails_naming(&ran, "damaged.nii.gz");
+    assert!(!out.exists(), "the series wrote {out:?} before failing");
+}

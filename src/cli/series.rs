@@ -13,6 +13,8 @@ use clap::Args;
 use posereg::device::DeviceWanted;
 use posereg::joints::anatomy::Side;
 use posereg::joints::kinematics::KneeKinematics;
+use posereg::pipeline::inputs::{check_settings, load_pair};
+use posereg::pipeline::register::RegisterOptions;
 use posereg::pipeline::series::{chain_step, Reached};
 use posereg::report::quicklook::chart::{save_chart, Chart, Curve, Plot};
 use posereg::Error;
@@ -81,6 +83,7 @@ impl SeriesArgs {
 /// Registers every pose in order and writes series.csv.
 pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.pose(0).options()?;
+    check_every_pose(args, &options)?;
     let _folder = posereg::io::prepare_output_folder(&args.output)?;
     let mut opened = None;
     let mut previous: Option<Written> = None;
@@ -136,6 +139,17 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
         args.targets.len(),
         args.output.display()
     ));
+    Ok(())
+}
+
+/// Reads and checks every pose's inputs and the settings against them before any work: a
+/// damaged last target stops the series before its first pose is registered or written.
+fn check_every_pose(args: &SeriesArgs, options: &RegisterOptions) -> anyhow::Result<()> {
+    for index in 0..args.targets.len() {
+        let pose = args.pose(index);
+        let pair = load_pair(pose.pair.paths(), &options.init.chain)?;
+        check_settings(options, &pair, pose.pair.paths())?;
+    }
     Ok(())
 }
 

@@ -5,6 +5,7 @@ pub mod config;
 pub mod field;
 pub mod itk_transform;
 pub mod kinematics;
+pub mod lock;
 pub mod memory;
 pub mod nifti;
 pub mod points;
@@ -59,10 +60,14 @@ where
 pub struct OutputFolder {
     /// Folders created, deepest first.
     created: Vec<PathBuf>,
+    /// The folder's lock while the run writes there.
+    lock: Option<lock::FolderLock>,
 }
 
 impl Drop for OutputFolder {
     fn drop(&mut self) {
+        // The lock goes first: a folder holding only it is empty of outputs.
+        drop(self.lock.take());
         for dir in &self.created {
             // remove_dir removes only empty folders: a run that wrote its outputs keeps them.
             if std::fs::remove_dir(dir).is_err() {
@@ -72,8 +77,9 @@ impl Drop for OutputFolder {
     }
 }
 
-/// Creates the output folder `dir` (and its parents) and proves it writable by creating and
-/// removing a file in it, so an unusable folder is refused before any computation.
+/// Creates the output folder `dir` (and its parents), proves it writable by creating and
+/// removing a file in it, and takes its lock (lock.rs), so an unusable folder or one another
+/// run is writing into is refused before any computation.
 pub fn prepare_output_folder(dir: &Path) -> Result<OutputFolder> {
     if dir.exists() && !dir.is_dir() {
         return Err(Error::bad_file(
@@ -86,9 +92,13 @@ pub fn prepare_output_folder(dir: &Path) -> Result<OutputFolder> {
         .take_while(|d| !d.as_os_str().is_empty() && !d.exists())
         .map(Path::to_path_buf)
         .collect();
-    let folder = OutputFolder { created };
+    let mut folder = OutputFolder {
+        created,
+        lock: None,
+    };
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     probe_writable(dir, dir)?;
+    folder.lock = Some(lock::lock_folder(dir)?);
     Ok(folder)
 }
 
