@@ -365,8 +365,8 @@ fn norm_max_and_combine_parity() {
 /// there and exp(0) is the identity; every level ends no worse than it began and exp(v) stays
 /// invertible. Whether the field comes closer to the truth is tested on the real knee
 /// (tests/independent_pairs.rs): on this phantom, whose smooth, noisy soft tissue gives the
-/// local correlation little to hold, it does not (measured: soft tissue 0.66 -> 1.90 mm,
-/// correlation 0.836 -> 0.809; BENCHMARKS.md, twenty-seventh session), so the figures are
+/// local correlation little to hold, it does not (measured: soft tissue 0.66 -> 2.56 mm,
+/// correlation 0.836 -> 0.800; BENCHMARKS.md, twenty-seventh session), so the figures are
 /// printed, not held to a bar.
 #[test]
 fn the_refinement_leaves_the_bones_as_they_were_and_stays_invertible() {

@@ -296,7 +296,7 @@ fn the_real_knee_bent_20_degrees_independently_meets_the_bar_on_both_backends() 
         );
     }
     // The dense refinement on the same pair (CPU): soft tissue closer (measured 0.437 ->
-    // 0.432 mm; on this generator's 45° and 90° pairs 0.93 -> 0.74 and 2.09 -> 1.66 mm), the
+    // 0.42 mm; on this generator's 45° and 90° pairs 0.93 -> 0.77 and 2.09 -> 1.68 mm), the
     // bones' motions exactly as without it, still no fold.
     let plain = register_and_score(&pair, &dir.path().join("cpu"), "cpu");
     let dense = register_and_score_with(&pair, &dir.path().join("dense"), "cpu", &["--dense"]);

@@ -33,9 +33,9 @@ pub struct DenseOptions {
     pub enabled: bool,
     /// Pyramid levels of the target it runs on, counted from the finest: 1 the target's own
     /// grid only, 2 a level at half the resolution first, and so on. Three levels, wider fluid
-    /// smoothing (3x3x2) and a step of a whole voxel (from two levels, 1.5 and half a voxel)
-    /// lowered soft-tissue error on four of the six 2 mm pairs by 0.06-1.6 mm and left the
-    /// other two within 0.02 mm (BENCHMARKS.md, twenty-seventh session).
+    /// smoothing (3x3x2), less elastic (0.75) and a step of a whole voxel (from two levels,
+    /// 1.5, 1 and half a voxel) lowered soft-tissue error on five of the six 2 mm pairs by
+    /// 0.0-1.9 mm and raised it on one by 0.03 mm (BENCHMARKS.md, twenty-seventh session).
     pub levels: usize,
     /// Iterations per level, coarse to fine.
     pub iterations: PerLevel<usize>,
@@ -64,7 +64,7 @@ impl Default for DenseOptions {
             similarity: PerLevel::all(Similarity::Lncc),
             lncc_radius: PerLevel::all(2),
             fluid_sigma: PerLevel::coarse_to_fine(vec![3.0, 3.0, 2.0]).expect("three values"),
-            elastic_sigma: PerLevel::all(1.0),
+            elastic_sigma: PerLevel::all(0.75),
             step_voxels: 1.0,
             bone_margin_mm: 4.0,
         }
