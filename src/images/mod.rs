@@ -9,3 +9,4 @@ pub mod points;
 pub mod pyramid;
 pub mod regions;
 pub mod similarity;
+pub mod unfold;

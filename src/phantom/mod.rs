@@ -13,7 +13,8 @@ pub mod shapes;
 
 use crate::backend::Backend;
 use crate::error::{Error, Result};
-use crate::images::fold_repair::{host_determinant, unfold, Held};
+use crate::images::fold_repair::host_determinant;
+use crate::images::unfold::{unfold, Held};
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
 use acquisition::{add_rician_noise, BiasField};

@@ -2,5 +2,6 @@
 //! non-rigid stage, composition, fold check, resampling), pose series through their neighbours.
 
 pub mod inputs;
+pub mod options;
 pub mod register;
 pub mod series;
