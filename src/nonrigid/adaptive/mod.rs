@@ -16,15 +16,15 @@
 //! the initialised source I0 on the target grid; the final field is composed with the initial
 //! field, u = R + u0 ∘ (id + R), and the source resampled once through it.
 
+mod evaluator;
 mod options;
 
 pub use options::AdaptiveOptions;
 
-use crate::abi::{
-    lattice_geometry, spline_buffer, EnergyParams, RbfGradParams, RbfLatticeParams, SplatParams,
-    SsdParams, SumParams,
-};
-use crate::backend::{total, Backend, CostImages, DeviceImage, Traffic};
+use evaluator::{Evaluator, Lattice, Level};
+
+use crate::abi::{RbfGradParams, SsdParams, SumParams};
+use crate::backend::{total, Backend, DeviceImage, Traffic};
 use crate::error::Result;
 use crate::images::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::images::pyramid;
@@ -32,7 +32,6 @@ use crate::images::similarity::{LnccCost, Similarity};
 use crate::nonrigid::gain::gain;
 use crate::nonrigid::optim::lbfgs;
 use crate::nonrigid::rbf::{RbfCoefficients, RbfSystem};
-use crate::nonrigid::regularise::energy_params;
 use crate::progress::Progress;
 use crate::volume::Grid;
 use nalgebra::Vector3;
@@ -138,171 +137,6 @@ pub fn lattice_steps(grid: &Grid, options: &AdaptiveOptions, prealigned: bool) -
         let half_cell = grid.dims[a] as f64 / cells[a] as f64 / 2.0;
         finest.max(half_cell.round() as usize)
     })
-}
-
-/// A lattice of nodes every `step` voxels (per axis) over a grid, lattice where the backend
-/// computes: the warp is evaluated at its nodes and interpolated at the grid's voxels.
-struct Lattice<B: Backend> {
-    dims: [usize; 3],
-    step: [usize; 3],
-    spacing_mm: [f64; 3],
-    geometry: B::Buffer<f64>,
-    /// Parameters of the kernels that interpolate it at the grid's voxels.
-    voxel_params: RbfGradParams,
-}
-
-impl<B: Backend> Lattice<B> {
-    fn new(backend: &B, grid: &Grid, step: [usize; 3]) -> Result<Self> {
-        let dims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);
-        let spacing = grid.spacing();
-        Ok(Lattice {
-            dims,
-            step,
-            spacing_mm: std::array::from_fn(|a| spacing[a] * step[a] as f64),
-            geometry: backend.upload("lattice geometry", lattice_geometry(grid))?,
-            voxel_params: RbfGradParams::new(grid, dims, step),
-        })
-    }
-
-    /// The RBF `coef` (centres `centres`) at the nodes (rbf_lattice), with the uploaded
-    /// spline and the kernel's shape, for the adjoint to reuse.
-    fn warp(
-        &self,
-        backend: &B,
-        coef: &RbfCoefficients,
-        centres: &[Vector3<f64>],
-    ) -> Result<NodeWarp<B>> {
-        let positions: Vec<[f64; 3]> = centres.iter().map(|c| [c.x, c.y, c.z]).collect();
-        let spline = backend.upload(
-            "RBF coefficients",
-            spline_buffer(&coef.affine, &positions, &coef.lambda),
-        )?;
-        let shape = RbfLatticeParams::new(self.dims, self.step, centres.len());
-        let values = backend.rbf_lattice(&shape, &self.geometry, &spline)?;
-        Ok(NodeWarp {
-            spline,
-            shape,
-            values,
-        })
-    }
-}
-
-/// A warp evaluated at a lattice's nodes.
-struct NodeWarp<B: Backend> {
-    spline: B::Buffer<f64>,
-    shape: RbfLatticeParams,
-    /// 3 floats (R, mm) per node.
-    values: B::Buffer<f32>,
-}
-
-/// One pyramid level's images where the backend computes.
-struct Level<B: Backend> {
-    fixed: DeviceImage<B>,
-    moving: DeviceImage<B>,
-    covered: DeviceImage<B>,
-    /// [`Moving::mask_share`].
-    mask_share: f64,
-}
-
-impl<B: Backend> Level<B> {
-    fn images<'a>(&'a self, moving: &'a B::Buffer<f32>) -> CostImages<'a, B::Buffer<f32>> {
-        CostImages {
-            moving,
-            fixed: &self.fixed.data,
-            covered: &self.covered.data,
-        }
-    }
-}
-
-/// The optimiser's view of one pyramid level: each evaluation uploads the RBF's coefficients,
-/// runs the cost's kernels, and reads back only the gradient with respect to the coefficients
-/// and a few partial sums.
-struct Evaluator<'a, B: Backend> {
-    backend: &'a B,
-    lattice: &'a Lattice<B>,
-    images: CostImages<'a, B::Buffer<f32>>,
-    /// None for SSD.
-    lncc: Option<LnccCost>,
-    splat: SplatParams,
-    energy: EnergyParams,
-    voxels: f64,
-}
-
-impl<'a, B: Backend> Evaluator<'a, B> {
-    /// `weights` are the membrane's and the bending energy's at this level.
-    fn new(
-        backend: &'a B,
-        lattice: &'a Lattice<B>,
-        images: CostImages<'a, B::Buffer<f32>>,
-        lncc: Option<LnccCost>,
-        grid: &Grid,
-        weights: [f64; 2],
-    ) -> Self {
-        let voxels = grid.len() as f64;
-        Evaluator {
-            backend,
-            lattice,
-            images,
-            lncc,
-            splat: SplatParams::new(lattice.dims, lattice.step, grid.dims),
-            energy: energy_params(
-                lattice.dims,
-                lattice.spacing_mm,
-                weights[0],
-                weights[1],
-                (1.0 / voxels) as f32,
-            ),
-            voxels,
-        }
-    }
-
-    /// The cost of the warp `coef` (centres `centres`): the mean masked squared residual plus
-    /// the lattice energies; and its gradient with respect to the coefficients, per control
-    /// point and per affine row.
-    fn evaluate(&self, coef: &RbfCoefficients, centres: &[Vector3<f64>]) -> Result<Evaluated> {
-        let b = self.backend;
-        let warp = self.lattice.warp(b, coef, centres)?;
-        let voxel_params = &self.lattice.voxel_params;
-        let (per_voxel, rows) = match &self.lncc {
-            None => b.warp_cost(voxel_params, &warp.values, &self.images)?,
-            Some(lncc) => lncc.evaluate(b, voxel_params, &warp.values, &self.images)?,
-        };
-        let splat = b.lattice_splat(&self.splat, &per_voxel)?;
-        let (node_gradient, energy) = b.lattice_energy(&self.energy, &warp.values, &splat)?;
-        let partials = b.rbf_adjoint(
-            &warp.shape,
-            &self.lattice.geometry,
-            &warp.spline,
-            &node_gradient,
-        )?;
-        let adjoint = b.sum_partials(&partials, 3 * warp.shape.rows())?;
-        let sum = |v: &B::Buffer<f32>, n| b.sum_chunks(&SumParams::new(n), v);
-        let rows = sum(&rows, self.lattice.voxel_params.rows())?;
-        let energy = sum(&energy, self.energy.nodes())?;
-        let [adjoint, rows, energy]: [Vec<f64>; 3] = b
-            .download(&[&adjoint, &rows, &energy])?
-            .try_into()
-            .expect("three buffers asked for");
-        let cost = rows.iter().sum::<f64>() / self.voxels + energy.iter().sum::<f64>();
-        let rows: Vec<Vector3<f64>> = adjoint
-            .chunks_exact(3)
-            .map(|v| Vector3::new(v[0], v[1], v[2]))
-            .collect();
-        Ok(Evaluated {
-            cost,
-            affine: std::array::from_fn(|k| rows[centres.len() + k]),
-            points: rows[..centres.len()].to_vec(),
-        })
-    }
-}
-
-/// One evaluation's cost and its gradient with respect to the RBF's coefficients.
-struct Evaluated {
-    cost: f64,
-    /// Per control point (its λ).
-    points: Vec<Vector3<f64>>,
-    /// Per affine row (1, x, y, z).
-    affine: [Vector3<f64>; 4],
 }
 
 /// Population variance of an image's intensities, reduced where the backend computes: the
