@@ -1,0 +1,62 @@
+//! Fields: the fade off the bones and composition.
+
+use super::*;
+
+/// Keep in sync with `FadeParams` in shaders/fade_warp.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct FadeParams {
+    /// nx, ny, nz of the warp's grid, and the bones (volumes of the distance stack).
+    pub dims: [u32; 4],
+    /// mm over which the warp rises from zero on a bone to its whole, unused ×3.
+    pub margin: [f32; 4],
+}
+
+impl FadeParams {
+    /// For a warp on `grid` faded over `margin_mm` (> 0) from `bones` bones.
+    pub fn new(grid: &Grid, bones: usize, margin_mm: f64) -> Self {
+        FadeParams {
+            dims: dims4(grid, bones as u32),
+            margin: [margin_mm as f32, 0.0, 0.0, 0.0],
+        }
+    }
+
+    /// Voxels of the grid.
+    pub fn voxels(&self) -> usize {
+        count(&self.dims)
+    }
+}
+
+/// Keep in sync with `ComposeParams` in shaders/compose.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ComposeParams {
+    /// nx, ny, nz of the warp's (and the total field's) grid, unused.
+    pub dims: [u32; 4],
+    /// nx, ny, nz of the initial field's grid, unused.
+    pub initial_dims: [u32; 4],
+    /// Rows of (initial world→index) · (warp index→world): a warp voxel → initial index.
+    pub index_to_initial: [[f32; 4]; 3],
+    /// Rows of the linear part of initial world→index: a displacement in mm → index delta.
+    pub mm_to_initial: [[f32; 4]; 3],
+}
+
+impl ComposeParams {
+    /// Voxels of the warp's grid.
+    pub fn voxels(&self) -> usize {
+        count(&self.dims)
+    }
+
+    /// For a warp on `grid` and an initial field on `initial` (the same grid inside one
+    /// registration; the previous pose's grid when `posereg series` chains poses). The rows
+    /// are resampling's, so one grid maps every voxel exactly onto itself.
+    pub fn new(grid: &Grid, initial: &Grid) -> Self {
+        let rows = ResampleParams::new(initial, grid, 0.0, Interpolation::Linear);
+        ComposeParams {
+            dims: rows.target_dims,
+            initial_dims: rows.source_dims,
+            index_to_initial: rows.index_to_source,
+            mm_to_initial: rows.mm_to_source,
+        }
+    }
+}

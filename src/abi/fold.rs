@@ -1,0 +1,102 @@
+//! Folds: thresholds, the Jacobian determinant and its statistics, the field's inverse.
+
+use super::*;
+
+/// Voxels per chunk of the fold statistics and the moments.
+pub const STATS_CHUNK: usize = 1024;
+/// Floats of fold statistics per chunk (shaders/fold_stats.wgsl): minimum, folded, at most the
+/// threshold, of those not held, folded bone contacts.
+pub const FOLD_STATS_WIDTH: usize = 5;
+
+/// Keep in sync with `ThresholdParams` in shaders/threshold.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ThresholdParams {
+    /// nx, ny, nz, unused.
+    pub dims: [u32; 4],
+    /// Voxels, voxels per chunk ([`STATS_CHUNK`]), chunks, unused.
+    pub chunks: [u32; 4],
+    /// The threshold (det J for the folds, mm for a distance), unused ×3.
+    pub threshold: [f32; 4],
+}
+
+impl ThresholdParams {
+    /// For a value per voxel of `grid` compared with `threshold`.
+    pub fn new(grid: &Grid, threshold: f32) -> Self {
+        ThresholdParams {
+            dims: dims4(grid, 0),
+            chunks: chunking(grid.len(), STATS_CHUNK, 0),
+            threshold: [threshold, 0.0, 0.0, 0.0],
+        }
+    }
+
+    /// Voxels of the grid.
+    pub fn voxels(&self) -> usize {
+        self.chunks[0] as usize
+    }
+
+    /// Chunks fold_stats writes [`FOLD_STATS_WIDTH`] floats for.
+    pub fn chunks(&self) -> usize {
+        self.chunks[2] as usize
+    }
+}
+
+/// Keep in sync with `JacobianParams` in shaders/jacobian.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct JacobianParams {
+    /// nx, ny, nz of the field's grid, unused.
+    pub dims: [u32; 4],
+    /// Rows of the inverse of the grid's linear part: d(index)/d(world mm).
+    pub mm_to_index: [[f32; 4]; 3],
+}
+
+impl JacobianParams {
+    /// Voxels of the field's grid.
+    pub fn voxels(&self) -> usize {
+        count(&self.dims)
+    }
+
+    /// Parameters for the Jacobian of a field on `grid`.
+    pub fn new(grid: &Grid) -> Self {
+        JacobianParams {
+            dims: dims4(grid, 0),
+            mm_to_index: mm_to_index_rows(grid),
+        }
+    }
+}
+
+/// Keep in sync with `InvertParams` in shaders/invert_field.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct InvertParams {
+    /// nx, ny, nz of the grid the inverse is sampled on (the source's), unused.
+    pub out_dims: [u32; 4],
+    /// nx, ny, nz of the field's grid (the target's), unused.
+    pub field_dims: [u32; 4],
+    /// Rows of (field world→index) · (out index→world): an output voxel → field index.
+    pub index_to_field: [[f32; 4]; 3],
+    /// Rows of the field grid's world→index linear part: mm → index delta.
+    pub mm_to_index: [[f32; 4]; 3],
+    /// Rows of the field grid's index→world linear part: index delta → mm.
+    pub index_to_mm: [[f32; 4]; 3],
+}
+
+impl InvertParams {
+    /// To invert a field on `field` onto the grid `out`.
+    pub fn new(field: &Grid, out: &Grid) -> Self {
+        let combined = snap_to_integers(&(field.world_to_voxel_affine() * out.affine));
+        InvertParams {
+            out_dims: dims4(out, 0),
+            field_dims: dims4(field, 0),
+            index_to_field: rows(&combined),
+            mm_to_index: mm_to_index_rows(field),
+            index_to_mm: linear_rows(&field.affine.fixed_view::<3, 3>(0, 0).into_owned()),
+        }
+    }
+
+    /// Voxels of the output grid.
+    pub fn voxels(&self) -> usize {
+        count(&self.out_dims)
+    }
+}

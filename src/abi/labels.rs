@@ -1,0 +1,114 @@
+//! Label maps: codes, lookups of a bone at a point, dilation.
+
+use super::*;
+
+/// Keep in sync with `LabelCodes` in shaders/labels.wgsl: the label codes a kernel compares
+/// labels with (up to [`MAX_SKIN_BONES`]: one per bone).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct LabelCodes {
+    /// Codes in the list, unused ×3.
+    pub count: [u32; 4],
+    /// The codes, 4 per row.
+    pub list: [[u32; 4]; 2],
+}
+
+impl LabelCodes {
+    /// The codes `codes`, in order.
+    pub fn new(codes: &[u16]) -> Result<Self> {
+        if codes.len() > MAX_SKIN_BONES {
+            return Err(Error::InvalidInput(format!(
+                "a label lookup takes at most {MAX_SKIN_BONES} codes, got {}",
+                codes.len()
+            )));
+        }
+        let mut list = [[0u32; 4]; 2];
+        for (c, &code) in codes.iter().enumerate() {
+            list[c / 4][c % 4] = code as u32;
+        }
+        Ok(LabelCodes {
+            count: [codes.len() as u32, 0, 0, 0],
+            list,
+        })
+    }
+}
+
+/// Keep in sync with `LabelParams` in shaders/label_index.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct LabelParams {
+    /// nx, ny, nz of the label map, unused.
+    pub dims: [u32; 4],
+    /// The codes whose positions the kernel writes.
+    pub codes: LabelCodes,
+}
+
+impl LabelParams {
+    /// For a label map on `grid`, indexing `codes`.
+    pub fn new(grid: &Grid, codes: &[u16]) -> Result<Self> {
+        Ok(LabelParams {
+            dims: dims4(grid, 0),
+            codes: LabelCodes::new(codes)?,
+        })
+    }
+
+    /// Voxels of the label map.
+    pub fn voxels(&self) -> usize {
+        count(&self.dims)
+    }
+}
+
+/// Keep in sync with `BoneLookupParams` in shaders/bone_lookup.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct BoneLookupParams {
+    /// Target grid → source label grid, nearest voxel, background −1.
+    pub geometry: ResampleParams,
+    /// The bones' codes.
+    pub codes: LabelCodes,
+    /// Largest residual (mm) bone_at_source counts, unused ×3.
+    pub limit: [f32; 4],
+}
+
+impl BoneLookupParams {
+    /// For target voxels on `target` looking up `bones` in a label map on `labels`, counting
+    /// voxels whose residual is at most `residual_limit`.
+    pub fn new(labels: &Grid, target: &Grid, bones: &[u16], residual_limit: f32) -> Result<Self> {
+        Ok(BoneLookupParams {
+            geometry: ResampleParams::new(labels, target, -1.0, Interpolation::Nearest),
+            codes: LabelCodes::new(bones)?,
+            limit: [residual_limit, 0.0, 0.0, 0.0],
+        })
+    }
+
+    /// Voxels of the target grid.
+    pub fn voxels(&self) -> usize {
+        self.geometry.voxels()
+    }
+}
+
+/// Keep in sync with `DilateParams` in shaders/dilate.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct DilateParams {
+    /// nx, ny, nz, and the margin (voxels).
+    pub dims: [u32; 4],
+    /// Axis (0 x, 1 y, 2 z), 1 to clear the held voxels, unused ×2.
+    pub axis: [u32; 4],
+}
+
+impl DilateParams {
+    /// The passes dilating a mask on `grid` by `margin` voxels along x, y and z, the last
+    /// clearing the held voxels.
+    pub fn passes(grid: &Grid, margin: usize) -> [DilateParams; 3] {
+        std::array::from_fn(|axis| DilateParams {
+            dims: dims4(grid, margin as u32),
+            axis: [axis as u32, (axis == 2) as u32, 0, 0],
+        })
+    }
+
+    /// Voxels of the grid.
+    pub fn voxels(&self) -> usize {
+        count(&self.dims)
+    }
+}

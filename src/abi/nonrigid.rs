@@ -1,0 +1,311 @@
+//! The adaptive stage's evaluation: the RBF on the lattice, its adjoint, sums and energies.
+
+use super::*;
+
+/// Keep in sync with `RbfGradParams` in shaders/lattice_warp.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct RbfGradParams {
+    /// Target nx, ny, nz, unused.
+    pub dims: [u32; 4],
+    /// Lattice nodes along x, y, z, unused.
+    pub lattice_dims: [u32; 4],
+    /// Lattice step along x, y, z (voxels: node a sits on voxel a · step), unused.
+    pub lattice_step: [u32; 4],
+    /// Rows of the inverse linear part of the grid: a displacement in mm → index delta.
+    pub mm_to_index: [[f32; 4]; 3],
+    /// Index-space gradient → world gradient ((L⁻¹)ᵀ).
+    pub gradient_to_world: [[f32; 4]; 3],
+}
+
+impl RbfGradParams {
+    /// For a target `grid` with a lattice of `lattice_dims` nodes every `steps` voxels.
+    pub fn new(grid: &Grid, lattice_dims: [usize; 3], steps: [usize; 3]) -> Self {
+        let l: nalgebra::Matrix3<f64> = grid.affine.fixed_view::<3, 3>(0, 0).into_owned();
+        let inv = l.try_inverse().expect("validated grids are invertible");
+        RbfGradParams {
+            dims: dims4(grid, 0),
+            lattice_dims: padded(lattice_dims, 0),
+            lattice_step: padded(steps, 0),
+            mm_to_index: linear_rows(&inv),
+            gradient_to_world: linear_rows(&inv.transpose()),
+        }
+    }
+
+    /// Voxels of the target grid.
+    pub fn voxels(&self) -> usize {
+        count(&self.dims)
+    }
+
+    /// Rows of x (ny · nz): warp_cost writes one sum per row.
+    pub fn rows(&self) -> usize {
+        (self.dims[1] * self.dims[2]) as usize
+    }
+}
+
+/// Keep in sync with `SplatParams` in shaders/lattice_splat.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SplatParams {
+    /// Lattice lx, ly, lz, unused.
+    pub dims: [u32; 4],
+    /// Lattice step along x, y, z (voxels), unused.
+    pub step: [u32; 4],
+    /// Volume nx, ny, nz, unused.
+    pub volume_dims: [u32; 4],
+}
+
+impl SplatParams {
+    /// For a lattice of `lattice_dims` nodes every `steps` voxels over a volume of `dims`.
+    pub fn new(lattice_dims: [usize; 3], steps: [usize; 3], dims: [usize; 3]) -> Self {
+        SplatParams {
+            dims: padded(lattice_dims, 0),
+            step: padded(steps, 0),
+            volume_dims: padded(dims, 0),
+        }
+    }
+
+    /// Nodes of the lattice.
+    pub fn nodes(&self) -> usize {
+        count(&self.dims)
+    }
+}
+
+/// Keep in sync with `RbfLatticeParams` in shaders/rbf_nodes.wgsl (rbf_lattice, rbf_adjoint).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct RbfLatticeParams {
+    /// Lattice nodes along x, y, z, and the number of control points.
+    pub lattice: [u32; 4],
+    /// Lattice step along x, y, z (voxels), unused.
+    pub step: [u32; 4],
+    /// rbf_adjoint's chunks: nodes, nodes per chunk, chunks, unused.
+    pub chunks: [u32; 4],
+}
+
+/// Lattice nodes one rbf_adjoint invocation sums: about `nodes / 512`, so that a GPU runs
+/// hundreds of chunks side by side (with 4096 nodes a chunk, the paper-size lattice made 37
+/// chunks and each invocation a serial loop of f64 square roots: 2.7 ms of an evaluation's
+/// 4.1 ms on an NVIDIA H200), but at least 256 (fewer partials to add) and at most 4096 (well
+/// below lavapipe's 65 535 loop iterations).
+fn adjoint_chunk(nodes: usize) -> usize {
+    (nodes / 512).clamp(256, 4096)
+}
+
+impl RbfLatticeParams {
+    /// A lattice of `lattice_dims` nodes every `steps` voxels, for a warp of `points` control
+    /// points.
+    pub fn new(lattice_dims: [usize; 3], steps: [usize; 3], points: usize) -> Self {
+        let nodes: usize = lattice_dims.iter().product();
+        RbfLatticeParams {
+            lattice: padded(lattice_dims, points as u32),
+            step: padded(steps, 0),
+            chunks: chunking(nodes, adjoint_chunk(nodes), 0),
+        }
+    }
+
+    /// Nodes per chunk of rbf_adjoint.
+    pub fn chunk_nodes(&self) -> usize {
+        self.chunks[1] as usize
+    }
+
+    /// Chunks of nodes rbf_adjoint sums separately.
+    pub fn chunks(&self) -> usize {
+        self.chunks[2] as usize
+    }
+
+    /// rbf_adjoint's output rows: the control points, then 4 affine rows.
+    pub fn rows(&self) -> usize {
+        self.points() + 4
+    }
+
+    /// Nodes in the lattice.
+    pub fn nodes(&self) -> usize {
+        count(&self.lattice)
+    }
+
+    /// Control points.
+    pub fn points(&self) -> usize {
+        self.lattice[3] as usize
+    }
+}
+
+/// The rows of `grid`'s voxel → world affine as the RBF kernels read them (`geometry`, 12 f64).
+pub fn lattice_geometry(grid: &Grid) -> Vec<f64> {
+    (0..3)
+        .flat_map(|r| (0..4).map(move |c| grid.affine[(r, c)]))
+        .collect()
+}
+
+/// The cubic RBF as the RBF kernels read it (`spline`): the affine part a_kc at 3k + c, then
+/// per control point its position and λ.
+pub fn spline_buffer(
+    affine: &[[f64; 3]; 4],
+    centres: &[[f64; 3]],
+    lambda: &[[f64; 3]],
+) -> Vec<f64> {
+    let mut out: Vec<f64> = affine.iter().flatten().copied().collect();
+    for (c, l) in centres.iter().zip(lambda) {
+        out.extend_from_slice(c);
+        out.extend_from_slice(l);
+    }
+    out
+}
+
+/// Values per chunk of sum_chunks.
+pub const SUM_CHUNK: usize = 1024;
+
+/// Keep in sync with `SumParams` in shaders/sum_chunks.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SumParams {
+    /// Values, values per chunk, chunks, power (1 or 2).
+    pub counts: [u32; 4],
+    /// Shift subtracted from each value before the power, unused ×3.
+    pub shift: [f32; 4],
+}
+
+impl SumParams {
+    /// Sums of `values` values in chunks of [`SUM_CHUNK`].
+    pub fn new(values: usize) -> Self {
+        SumParams {
+            counts: chunking(values, SUM_CHUNK, 1),
+            shift: [0.0; 4],
+        }
+    }
+
+    /// Sums of the squares of `values` values minus `shift`.
+    pub fn squares_about(values: usize, shift: f32) -> Self {
+        let mut p = SumParams::new(values);
+        p.counts[3] = 2;
+        p.shift[0] = shift;
+        p
+    }
+
+    /// Values summed.
+    pub fn values(&self) -> usize {
+        self.counts[0] as usize
+    }
+
+    /// Chunks, hence sums.
+    pub fn chunks(&self) -> usize {
+        self.counts[2] as usize
+    }
+}
+
+/// Most operators of a lattice energy (3 membrane + 6 bending).
+pub const MAX_OPERATORS: usize = 9;
+/// Most taps of one operator.
+pub const MAX_TAPS: usize = 4;
+
+/// One quadratic operator of a lattice energy: taps (node offset, coefficient) and a weight.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Operator {
+    /// Node offsets and coefficients.
+    pub taps: Vec<([i32; 3], f32)>,
+    /// Weight of the squared result.
+    pub weight: f32,
+}
+
+/// Keep in sync with `EnergyParams` in shaders/lattice_energy.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct EnergyParams {
+    /// Lattice nodes along x, y, z, and the number of operators.
+    pub dims: [u32; 4],
+    /// Factor on the splatted image gradient (1 / voxels), unused ×3.
+    pub scale: [f32; 4],
+    /// Operator o's tap t at 4 o + t: node offset, unused.
+    pub taps: [[i32; 4]; MAX_OPERATORS * MAX_TAPS],
+    /// Operator o's tap coefficients.
+    pub coefficients: [[f32; 4]; MAX_OPERATORS],
+    /// Operator o's weight, unused ×3.
+    pub weights: [[f32; 4]; MAX_OPERATORS],
+    /// Operator o's number of taps at [o / 4][o % 4].
+    pub tap_counts: [[u32; 4]; 3],
+}
+
+impl EnergyParams {
+    /// For a lattice of `dims` nodes, splatted gradients scaled by `scale`, and `operators`
+    /// (at most [`MAX_OPERATORS`], each with at most [`MAX_TAPS`] taps).
+    pub fn new(dims: [usize; 3], scale: f32, operators: &[Operator]) -> Self {
+        assert!(
+            operators.len() <= MAX_OPERATORS,
+            "too many energy operators"
+        );
+        let mut p = EnergyParams::zeroed();
+        p.dims = [
+            dims[0] as u32,
+            dims[1] as u32,
+            dims[2] as u32,
+            operators.len() as u32,
+        ];
+        p.scale[0] = scale;
+        for (o, op) in operators.iter().enumerate() {
+            assert!(
+                op.taps.len() <= MAX_TAPS,
+                "too many taps in an energy operator"
+            );
+            // The CPU twin keeps results only for anchors on the lattice.
+            assert!(
+                (0..3).all(|a| {
+                    let span = op.taps.iter().map(|(offset, _)| offset[a]);
+                    span.clone().min() <= Some(0) && span.max() >= Some(0)
+                }),
+                "an energy operator's anchor must lie within its taps' span"
+            );
+            for (t, (offset, c)) in op.taps.iter().enumerate() {
+                p.taps[MAX_TAPS * o + t] = [offset[0], offset[1], offset[2], 0];
+                p.coefficients[o][t] = *c;
+            }
+            p.weights[o][0] = op.weight;
+            p.tap_counts[o / 4][o % 4] = op.taps.len() as u32;
+        }
+        p
+    }
+
+    /// Lattice nodes.
+    pub fn nodes(&self) -> usize {
+        count(&self.dims)
+    }
+}
+
+/// Keep in sync with `PartialsParams` in shaders/sum_partials.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct PartialsParams {
+    /// Values per chunk, chunks, chunks per group, unused.
+    pub counts: [u32; 4],
+}
+
+/// Most chunks one sum_partials invocation adds.
+pub const PARTIALS_GROUP: usize = 1024;
+
+impl PartialsParams {
+    /// The passes that add `chunks` partial results of `values` values each down to one: each
+    /// adds groups of up to [`PARTIALS_GROUP`] chunks, and the next adds its groups.
+    pub fn passes(values: usize, chunks: usize) -> Vec<PartialsParams> {
+        let mut passes = Vec::new();
+        let mut chunks = chunks.max(1);
+        loop {
+            let group = chunks.min(PARTIALS_GROUP);
+            passes.push(PartialsParams {
+                counts: [values as u32, chunks as u32, group as u32, 0],
+            });
+            if group == chunks {
+                return passes;
+            }
+            chunks = chunks.div_ceil(group);
+        }
+    }
+
+    /// Values per chunk.
+    pub fn values(&self) -> usize {
+        self.counts[0] as usize
+    }
+
+    /// Groups this pass writes (values each).
+    pub fn groups(&self) -> usize {
+        (self.counts[1] as usize).div_ceil(self.counts[2].max(1) as usize)
+    }
+}
