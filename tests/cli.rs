@@ -1105,3 +1105,105 @@ fn series_checks_every_target_before_registering_the_first() {
     assert_fails_naming(&ran, "damaged.nii.gz");
     assert!(!out.exists(), "the series wrote {out:?} before failing");
 }
+
+/// Every file of an output folder, by name relative to it (a folder's files inside it).
+fn files_in(dir: &Path) -> Vec<PathBuf> {
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        let path = entry.path();
+        match path.is_dir() {
+            true => found.extend(files_in(&path)),
+            false => found.push(path),
+        }
+    }
+    found.sort();
+    found
+}
+
+/// `posereg register` killed (SIGKILL) at 20 points spread by a seeded generator over a
+/// whole run: every output left under its own name is whole (byte for byte the uninterrupted
+/// run's, or for report.json, whose timings differ, JSON that parses); only a write cut short
+/// may remain, under its hidden temporary name; the killed run's lock never keeps the folder;
+/// and a rerun into the same folder writes the uninterrupted run's bytes.
+#[test]
+fn runs_killed_anywhere_leave_no_half_written_output_and_a_rerun_gives_the_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = quarter_pair(dir.path());
+    let fast = fast_settings(dir.path());
+    let extra = ["--config", s(&fast)];
+    let reference = dir.path().join("reference");
+    let started = std::time::Instant::now();
+    let whole = run_verb("register", &inputs, &reference, &extra);
+    assert!(whole.status.success(), "{whole:?}");
+    let seconds = started.elapsed().as_secs_f64();
+    let timed = |name: &str| name == "report.json" || name == "posereg.log";
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut cut_short = 0;
+    for k in 0..20 {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        let at = seconds * 1.1 * (state % 1000) as f64 / 1000.0;
+        let out = dir.path().join(format!("killed_{k:02}"));
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_posereg"))
+            .args([
+                "register",
+                "--source",
+                s(&inputs[0]),
+                "--source-labels",
+                s(&inputs[1]),
+            ])
+            .args([
+                "--target",
+                s(&inputs[2]),
+                "-o",
+                s(&out),
+                "--device",
+                "cpu",
+                "-q",
+            ])
+            .args(extra)
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_secs_f64(at));
+        let _ = child.kill();
+        child.wait().unwrap();
+        cut_short += usize::from(!out.join("posereg.log").exists());
+        for path in files_in(&out) {
+            let name = path.file_name().unwrap().to_string_lossy().to_string();
+            if name.starts_with(".posereg-tmp-") || name == posereg::io::lock::LOCK_NAME {
+                continue;
+            }
+            let relative = path.strip_prefix(&out).unwrap();
+            let bytes = std::fs::read(&path).unwrap();
+            if name == "report.json" {
+                assert!(
+                    serde_json::from_slice::<serde_json::Value>(&bytes).is_ok(),
+                    "{k}"
+                );
+            } else if !timed(&name) {
+                let want = std::fs::read(reference.join(relative)).unwrap();
+                assert!(
+                    bytes == want,
+                    "kill {k} at {at:.2} s: {relative:?} is not whole"
+                );
+            }
+        }
+        let rerun = run_verb("register", &inputs, &out, &extra);
+        assert!(rerun.status.success(), "rerun after kill {k}: {rerun:?}");
+        for path in files_in(&reference) {
+            let relative = path.strip_prefix(&reference).unwrap();
+            if !timed(&relative.file_name().unwrap().to_string_lossy()) {
+                let again = std::fs::read(out.join(relative)).unwrap();
+                assert!(again == std::fs::read(&path).unwrap(), "{k}: {relative:?}");
+            }
+        }
+    }
+    // Most kill points fall inside the run (the log is its last output).
+    assert!(
+        cut_short >= 10,
+        "only {cut_short} of 20 kills cut a run short"
+    );
+}
