@@ -14,6 +14,7 @@ use crate::pipeline::register::{register_observed, Inputs, RegisterOptions, Regi
 use crate::progress::Progress;
 use crate::report::{report, Report, Run};
 use crate::volume::{Field, Labels};
+use std::path::Path;
 
 /// What one registration is asked to do.
 pub struct Request<'a> {
@@ -33,6 +34,24 @@ pub struct Request<'a> {
     pub inputs: serde_json::Value,
     /// Bring the initialisation's field back too (`posereg demo` measures it).
     pub keep_initial_field: bool,
+}
+
+/// report.json's `inputs` for a pair read from files: where each input came from, the bone
+/// motions given (`--init`) and the target mask, if any, and how the bones' registration
+/// started. One function for every door, so that their reports agree.
+pub fn file_inputs(
+    files: PairPaths,
+    (given, target_mask): (Option<&Path>, Option<&Path>),
+    start: Option<Start>,
+) -> serde_json::Value {
+    serde_json::json!({
+        "source": files.source,
+        "source_labels": files.labels,
+        "target": files.target,
+        "bones": given,
+        "target_mask": target_mask,
+        "start": Start::describe(start),
+    })
 }
 
 /// Everything one registration gives back.

@@ -4,13 +4,12 @@
 
 use numpy::{IntoPyArray, PyReadonlyArray1};
 use posereg::device::{open_backend, DeviceChoice, DeviceWanted};
-use posereg::init::articulated::Start;
 use posereg::io::config::options_from_json;
 use posereg::io::field::flip_ras_lps;
 use posereg::pipeline::inputs::{check_pair, load_pair, Pair, PairPaths};
 use posereg::pipeline::register::RegisterOptions;
 use posereg::progress::{Progress, Silent};
-use posereg::registration::{register_pair, Request};
+use posereg::registration::{file_inputs, register_pair, Request};
 use posereg::{Affine, Field, Grid, Image};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -202,7 +201,7 @@ fn run(
         target_mask: None,
         side: None,
         inputs: match from_files {
-            true => inputs_of(names),
+            true => file_inputs(names, (None, None), None),
             false => serde_json::json!({ "python": "arrays handed to posereg.register" }),
         },
         keep_initial_field: false,
@@ -220,18 +219,6 @@ fn run(
         transforms,
         kinematics,
         report: done.report.json.to_string(),
-    })
-}
-
-/// report.json's `inputs` for files, as `posereg register` writes it.
-fn inputs_of(files: PairPaths) -> serde_json::Value {
-    serde_json::json!({
-        "source": files.source,
-        "source_labels": files.labels,
-        "target": files.target,
-        "bones": null,
-        "target_mask": null,
-        "start": Start::describe(None),
     })
 }
 

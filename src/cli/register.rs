@@ -15,7 +15,7 @@ use posereg::io::transform::BoneTransforms;
 use posereg::levels::PerLevel;
 use posereg::pipeline::inputs::{load_target_mask, Pair};
 use posereg::pipeline::register::RegisterOptions;
-use posereg::registration::{Registered, Request};
+use posereg::registration::{file_inputs, Registered, Request};
 use std::path::PathBuf;
 
 /// Arguments of `posereg register`.
@@ -191,14 +191,11 @@ pub fn register_pair(
         start,
         target_mask: mask.as_ref(),
         side: args.pair.side,
-        inputs: serde_json::json!({
-            "source": args.pair.source,
-            "source_labels": args.pair.source_labels,
-            "target": args.pair.target,
-            "bones": args.init,
-            "target_mask": args.target_mask,
-            "start": Start::describe(start),
-        }),
+        inputs: file_inputs(
+            args.pair.paths(),
+            (args.init.as_deref(), args.target_mask.as_deref()),
+            start,
+        ),
         keep_initial_field: false,
     };
     let registered = posereg::registration::register_pair(opened, request, reporter)?;

@@ -43,12 +43,19 @@ def pair(tmp_path_factory):
     return paths, field, json.loads((d / "cli" / "report.json").read_text())
 
 
-def test_arrays_with_affines_give_the_command_lines_field(pair):
-    paths, cli_field, _ = pair
+@pytest.fixture(scope="module")
+def from_arrays(pair):
+    """The pair registered from nibabel arrays with their affines, as the CLI registered it."""
+    paths, _, _ = pair
     src, lab, tgt = (nib.load(paths[k]) for k in ("source", "labels", "target"))
-    r = posereg.register(src.get_fdata(dtype=np.float32), np.asarray(lab.dataobj),
-                         tgt.get_fdata(dtype=np.float32), source_affine=src.affine,
-                         target_affine=tgt.affine, threads=2, **FAST)
+    return posereg.register(src.get_fdata(dtype=np.float32), np.asarray(lab.dataobj),
+                            tgt.get_fdata(dtype=np.float32), source_affine=src.affine,
+                            target_affine=tgt.affine, threads=2, **FAST)
+
+
+def test_arrays_with_affines_give_the_command_lines_field(pair, from_arrays):
+    paths, cli_field, _ = pair
+    src, tgt, r = nib.load(paths["source"]), nib.load(paths["target"]), from_arrays
     assert r.field.shape == cli_field.shape and r.field.dtype == np.float32
     assert r.field.tobytes() == np.ascontiguousarray(cli_field).tobytes()
     assert r.warped.shape == tgt.shape and np.allclose(r.target_affine, tgt.affine)
@@ -111,13 +118,9 @@ def without_timings(report, at=""):
     return kept, dropped
 
 
-def test_python_writes_the_command_lines_report(pair):
-    paths, _, cli_report = pair
-    src, lab, tgt = (nib.load(paths[k]) for k in ("source", "labels", "target"))
-    r = posereg.register(src.get_fdata(dtype=np.float32), np.asarray(lab.dataobj),
-                         tgt.get_fdata(dtype=np.float32), source_affine=src.affine,
-                         target_affine=tgt.affine, threads=2, **FAST)
-    ours, dropped = without_timings(r.report)
+def test_python_writes_the_command_lines_report(pair, from_arrays):
+    _, _, cli_report = pair
+    ours, dropped = without_timings(from_arrays.report)
     theirs, _ = without_timings(cli_report)
     assert ".seconds" in dropped and ".inputs" in dropped
     assert len(ours) >= 12
