@@ -1050,11 +1050,7 @@ fn a_folder_another_run_writes_into_is_refused_and_a_killed_runs_lock_is_taken_o
     let out = dir.path().join("out");
     std::fs::create_dir(&out).unwrap();
     let lock = out.join(posereg::io::lock::LOCK_NAME);
-    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
-    let host = match host.trim() {
-        "" => "this-host".to_string(),
-        name => name.to_string(),
-    };
+    let host = posereg::io::lock::host();
     let phantom = || posereg(&["phantom", "--size", "quarter", "-o", s(&out)]);
     // A run that is alive (this test's own process) holds the folder.
     std::fs::write(&lock, format!("{} {host}\n", std::process::id())).unwrap();

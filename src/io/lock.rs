@@ -80,8 +80,9 @@ fn in_use(path: &Path, holder: &str) -> Error {
     )
 }
 
-/// This machine's name (a lock from another host on a shared disk cannot be checked).
-fn host() -> String {
+/// This machine's name as a lock records it (a lock from another host on a shared disk cannot
+/// be checked).
+pub fn host() -> String {
     std::fs::read_to_string("/proc/sys/kernel/hostname")
         .map(|h| h.trim().to_string())
         .ok()
