@@ -1128,10 +1128,16 @@ fn runs_killed_anywhere_leave_no_half_written_output_and_a_rerun_gives_the_same_
     let fast = fast_settings(dir.path());
     let extra = ["--config", s(&fast)];
     let reference = dir.path().join("reference");
-    let started = std::time::Instant::now();
-    let whole = run_verb("register", &inputs, &reference, &extra);
-    assert!(whole.status.success(), "{whole:?}");
-    let seconds = started.elapsed().as_secs_f64();
+    // The kill window is the fastest whole run seen so far: the first run
+    // pays for a cold start (page cache, allocator), and a window sized on
+    // it would put most kills after a later run has already finished.
+    let timed_run = |out: &Path| {
+        let started = std::time::Instant::now();
+        let whole = run_verb("register", &inputs, out, &extra);
+        assert!(whole.status.success(), "{whole:?}");
+        started.elapsed().as_secs_f64()
+    };
+    let mut seconds = timed_run(&reference).min(timed_run(&reference));
     let timed = |name: &str| name == "report.json" || name == "posereg.log";
     let mut state = 0x2545_f491_4f6c_dd1du64;
     let mut cut_short = 0;
@@ -1139,7 +1145,7 @@ fn runs_killed_anywhere_leave_no_half_written_output_and_a_rerun_gives_the_same_
         state ^= state << 13;
         state ^= state >> 7;
         state ^= state << 17;
-        let at = seconds * 1.1 * (state % 1000) as f64 / 1000.0;
+        let at = seconds * (state % 1000) as f64 / 1000.0;
         let out = dir.path().join(format!("killed_{k:02}"));
         let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_posereg"))
             .args([
@@ -1187,8 +1193,7 @@ fn runs_killed_anywhere_leave_no_half_written_output_and_a_rerun_gives_the_same_
                 );
             }
         }
-        let rerun = run_verb("register", &inputs, &out, &extra);
-        assert!(rerun.status.success(), "rerun after kill {k}: {rerun:?}");
+        seconds = seconds.min(timed_run(&out));
         for path in files_in(&reference) {
             let relative = path.strip_prefix(&reference).unwrap();
             if !timed(&relative.file_name().unwrap().to_string_lossy()) {
@@ -1197,7 +1202,8 @@ fn runs_killed_anywhere_leave_no_half_written_output_and_a_rerun_gives_the_same_
             }
         }
     }
-    // Most kill points fall inside the run (the log is its last output).
+    // Most kill points fall inside the run (the log is its last output), or
+    // the test would only have checked finished folders.
     assert!(
         cut_short >= 10,
         "only {cut_short} of 20 kills cut a run short"
