@@ -1019,6 +1019,109 @@ fn series_registers_every_pose_and_tabulates_them() {
     assert!(start(&unchained, "pose_02").starts_with("seeded"));
 }
 
+/// `posereg series` run again on its folder resumes after the last pose finished from the same
+/// inputs and settings: the poses after it come out with the bytes of one whole run, the
+/// finished ones are not written again; changed settings register every pose again.
+#[test]
+fn a_series_run_again_resumes_after_its_last_finished_pose_with_the_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let [source, labels, thirty] = quarter_pair(dir.path());
+    let sixty = dir.path().join("sixty");
+    let args = [
+        "phantom",
+        "--size",
+        "quarter",
+        "--flexion",
+        "60",
+        "--seed",
+        "3",
+        "-q",
+        "-o",
+    ];
+    let made = posereg(&[&args[..], &[s(&sixty)]].concat());
+    assert!(made.status.success(), "{made:?}");
+    let fast = fast_settings(dir.path());
+    let sixty = sixty.join("image.nii.gz");
+    let series = |out: &Path, config: &Path| {
+        let ran = posereg(&[
+            "series",
+            "--source",
+            s(&source),
+            "--source-labels",
+            s(&labels),
+            "--targets",
+            s(&thirty),
+            s(&sixty),
+            "-o",
+            s(out),
+            "--device",
+            "cpu",
+            "--config",
+            s(config),
+        ]);
+        assert!(ran.status.success(), "{ran:?}");
+        String::from_utf8_lossy(&ran.stderr).to_string()
+    };
+    let whole = dir.path().join("whole");
+    series(&whole, &fast);
+    // A run stopped after its first pose: series.json holds that pose only, pose_02 is gone.
+    let resumed = dir.path().join("resumed");
+    copy_folder(&whole, &resumed);
+    let path = resumed.join("series.json");
+    let mut record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    record["poses"].as_array_mut().unwrap().truncate(1);
+    std::fs::write(&path, serde_json::to_string_pretty(&record).unwrap()).unwrap();
+    std::fs::remove_dir_all(resumed.join("pose_02")).unwrap();
+    std::fs::remove_file(resumed.join("series.csv")).unwrap();
+    let first = resumed.join("pose_01/field.nii.gz");
+    let written_at = || std::fs::metadata(&first).unwrap().modified().unwrap();
+    let before = written_at();
+    let log = series(&resumed, &fast);
+    assert!(log.contains("resuming after pose 1"), "{log}");
+    assert!(!log.contains("pose 1 of 2"), "{log}");
+    assert_eq!(written_at(), before, "pose 1 was written again");
+    for file in [
+        "field.nii.gz",
+        "inverse_field.nii.gz",
+        "warped.nii.gz",
+        "transform.json",
+    ] {
+        let read = |out: &Path| std::fs::read(out.join("pose_02").join(file)).unwrap();
+        assert!(read(&whole) == read(&resumed), "pose_02/{file} differs");
+    }
+    let table = |out: &Path| std::fs::read_to_string(out.join("series.csv")).unwrap();
+    assert_eq!(table(&whole), table(&resumed));
+    // Finished: nothing registered again.
+    let log = series(&resumed, &fast);
+    assert!(
+        log.contains("resuming after pose 2") && !log.contains("of 2:"),
+        "{log}"
+    );
+    // Other settings: every pose again.
+    let other = dir.path().join("other.toml");
+    std::fs::write(&other, "[adaptive]\niterations = \"2x2x2\"\n").unwrap();
+    let log = series(&resumed, &other);
+    assert!(
+        log.contains("pose 1 of 2") && !log.contains("resuming"),
+        "{log}"
+    );
+    assert_ne!(written_at(), before, "pose 1 was not registered again");
+}
+
+/// Copies the files of `from` and its folders into `to`.
+fn copy_folder(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let (path, copy) = (entry.path(), to.join(entry.file_name()));
+        match path.is_dir() {
+            true => copy_folder(&path, &copy),
+            false => drop(std::fs::copy(&path, &copy).unwrap()),
+        }
+    }
+}
+
 /// A settings file that keeps the adaptive stage short (these tests are about the verbs).
 fn fast_settings(dir: &Path) -> PathBuf {
     let path = dir.join("fast.toml");

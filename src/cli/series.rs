@@ -5,20 +5,26 @@
 //! motions tried first, their step from the previous pose blended there and composed with
 //! its field), or with `--unchained` registered from the source with the previous
 //! pose's bone motions tried first. DIR/series.csv tabulates every pose's kinematics.
+//! DIR/series.json records each pose as it is finished, so a series stopped part way (killed,
+//! a pose's target added) resumes where it stopped when run again.
 
 use super::init::PairArgs;
 use super::progress::Reporter;
-use super::register::{register_pair, RegisterArgs, StartOf, Written};
+use super::register::{register_pair, RegisterArgs, StartOf};
 use clap::Args;
 use posereg::device::DeviceWanted;
+use posereg::io::config::options_toml;
+use posereg::io::field::load_field;
+use posereg::io::transform::BoneTransforms;
 use posereg::joints::anatomy::Side;
-use posereg::joints::kinematics::KneeKinematics;
 use posereg::pipeline::inputs::{check_settings, load_pair};
 use posereg::pipeline::register::RegisterOptions;
 use posereg::pipeline::series::{chain_step, Reached};
-use posereg::report::quicklook::chart::{save_chart, Chart, Curve, Plot};
+use posereg::report::quicklook::chart::save_chart;
+use posereg::report::series::{FileStamp, MadeFrom, PoseRecord, SeriesFile};
+use posereg::volume::{Field, Grid};
 use posereg::Error;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `posereg series`.
 #[derive(Args, Debug)]
@@ -80,16 +86,20 @@ impl SeriesArgs {
     }
 }
 
-/// Registers every pose in order and writes series.csv.
+/// Registers every pose not yet finished in order (resuming after the last one an earlier run
+/// on the folder finished from the same inputs and settings) and writes series.csv.
 pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.pose(0).options()?;
-    check_every_pose(args, &options)?;
+    let grids = check_every_pose(args, &options)?;
     let _folder = posereg::io::prepare_output_folder(&args.output)?;
+    let targets = (args.targets.iter())
+        .map(|t| FileStamp::of(t))
+        .collect::<posereg::Result<Vec<_>>>()?;
+    let mut series = SeriesFile::finished(&args.output, made_from(args, &options)?, &targets);
+    let mut previous = resume(args, &mut series, &grids, reporter);
     let mut opened = None;
-    let mut previous: Option<Written> = None;
-    let mut table = String::from("pose,target,joint,quantity,unit,value,change\n");
-    let mut poses: Vec<(serde_json::Value, Option<KneeKinematics>)> = Vec::new();
-    for index in 0..args.targets.len() {
+    let finished = series.poses.len();
+    for (index, target) in targets.iter().enumerate().skip(finished) {
         let pose = args.pose(index);
         reporter.say(&format!(
             "pose {} of {}: {}",
@@ -102,7 +112,7 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
                 return Ok(None);
             };
             let reached = Reached {
-                field: &p.registered.result.field,
+                field: &p.field,
                 motions: &p.transforms,
             };
             let source = (&pair.source, &pair.labels);
@@ -118,22 +128,21 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
             (seeds, chained),
             reporter,
         )?;
-        table += &kinematics_rows(index, &pose, &done);
-        poses.push((done.summary.clone(), done.registered.kinematics.clone()));
-        previous = Some(done);
+        let kinematics = done.registered.kinematics.as_ref();
+        let pose_of = (index + 1, target.clone());
+        (series.poses).push(PoseRecord::new(pose_of, done.summary, kinematics)?);
+        series.save(&args.output)?;
+        previous = Some(Reachable {
+            field: done.registered.result.field,
+            transforms: done.transforms,
+        });
     }
-    let write = |name: &str, text: &str| {
-        let path = args.output.join(name);
-        posereg::io::write_atomically(&path, |tmp| {
-            std::fs::write(tmp, text).map_err(|e| Error::io(tmp, e))
-        })
-    };
-    write("series.csv", &table)?;
-    write(
-        "series.json",
-        &(serde_json::to_string_pretty(&summary(&poses))? + "\n"),
-    )?;
-    save_chart(&args.output.join("series.png"), &chart(&poses))?;
+    let path = args.output.join("series.csv");
+    let table = series.table();
+    posereg::io::write_atomically(&path, |tmp| {
+        std::fs::write(tmp, table).map_err(|e| Error::io(tmp, e))
+    })?;
+    save_chart(&args.output.join("series.png"), &series.chart())?;
     reporter.result(&format!(
         "{} poses registered; series.csv, series.json, series.png and one folder per pose in {}",
         args.targets.len(),
@@ -142,90 +151,80 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
     Ok(())
 }
 
+/// A finished pose as the next one is reached from: its field and its bone motions.
+struct Reachable {
+    field: Field,
+    transforms: BoneTransforms,
+}
+
+/// What decides the series' poses besides its targets.
+fn made_from(args: &SeriesArgs, options: &RegisterOptions) -> anyhow::Result<MadeFrom> {
+    Ok(MadeFrom {
+        posereg: env!("CARGO_PKG_VERSION").to_string(),
+        source: FileStamp::of(&args.source)?,
+        source_labels: FileStamp::of(&args.source_labels)?,
+        chained: !args.unchained,
+        side: args.side.map(|s| format!("{s:?}").to_lowercase()),
+        settings: options_toml(options),
+    })
+}
+
+/// The last finished pose of `series`, read back from its folder (its field on its target's
+/// grid `grids`, its bone motions); a pose whose outputs cannot be read is dropped from the
+/// series, to be registered again. None when no pose is finished.
+fn resume(
+    args: &SeriesArgs,
+    series: &mut SeriesFile,
+    grids: &[Grid],
+    reporter: &Reporter,
+) -> Option<Reachable> {
+    while let Some(last) = series.poses.last() {
+        let index = last.pose - 1;
+        let folder = args.pose(index).pair.output;
+        match read_pose(&folder, &grids[index]) {
+            Ok(reached) => {
+                reporter.say(&format!(
+                    "resuming after pose {}: the poses up to it were finished by an earlier run \
+                     from the same inputs and settings and are kept",
+                    last.pose
+                ));
+                return Some(reached);
+            }
+            Err(e) => {
+                reporter.warn(&format!(
+                    "pose {} is registered again: its outputs cannot be read back ({e})",
+                    last.pose
+                ));
+                series.poses.pop();
+            }
+        }
+    }
+    None
+}
+
+/// A finished pose's field (on `grid`, its target's) and bone motions, from its `folder`.
+fn read_pose(folder: &Path, grid: &Grid) -> posereg::Result<Reachable> {
+    let path = folder.join("field.nii.gz");
+    let mut field = load_field(&path)?;
+    if !field.grid.same_as(grid, 1e-3) {
+        return Err(Error::bad_file(&path, "is not on its target's grid"));
+    }
+    // The grid as the target's header gives it, not as the field's float32 header rounds it.
+    field.grid = grid.clone();
+    let transforms = BoneTransforms::load(&folder.join("transform.json"))?;
+    Ok(Reachable { field, transforms })
+}
+
 /// Reads and checks every pose's inputs and the settings against them before any work: a
 /// damaged last target stops the series before its first pose is registered or written.
-fn check_every_pose(args: &SeriesArgs, options: &RegisterOptions) -> anyhow::Result<()> {
+/// Returns each target's grid.
+fn check_every_pose(args: &SeriesArgs, options: &RegisterOptions) -> anyhow::Result<Vec<Grid>> {
+    let mut grids = Vec::new();
     for index in 0..args.targets.len() {
         let pose = args.pose(index);
         let pair = load_pair(pose.pair.paths(), &options.init.chain)?;
         check_settings(options, &pair, pose.pair.paths())?;
+        grids.push(pair.target.grid);
     }
-    Ok(())
-}
-
-/// series.csv's rows for pose `index`.
-fn kinematics_rows(index: usize, pose: &RegisterArgs, done: &Written) -> String {
-    let mut rows = String::new();
-    for joint in done.registered.kinematics.iter().flat_map(|k| &k.joints) {
-        for q in &joint.quantities {
-            rows += &format!(
-                "{},{},{},{},{},{:.4},{:.4}\n",
-                index + 1,
-                pose.pair.target.display(),
-                joint.joint,
-                q.name,
-                q.unit,
-                q.target,
-                q.change
-            );
-        }
-    }
-    rows
-}
-
-/// series.json: every pose's headline figures and kinematics, in pose order.
-fn summary(poses: &[(serde_json::Value, Option<KneeKinematics>)]) -> serde_json::Value {
-    let entries: Vec<serde_json::Value> = (poses.iter().enumerate())
-        .map(|(k, (figures, kinematics))| {
-            let mut entry = serde_json::json!({ "pose": k + 1 });
-            entry["registration"] = figures.clone();
-            entry["kinematics"] = serde_json::json!(kinematics.as_ref().map(|k| &k.joints));
-            entry
-        })
-        .collect();
-    serde_json::json!({ "schema": 1, "poses": entries })
-}
-
-/// series.png: each joint's rotations and translations, the source's values first, then each
-/// pose's; the x axis names each pose with its tibiofemoral flexion.
-fn chart(poses: &[(serde_json::Value, Option<KneeKinematics>)]) -> Chart {
-    let joints = poses
-        .iter()
-        .find_map(|p| p.1.as_ref())
-        .map_or(&[][..], |k| &k.joints[..]);
-    let value = |pose: usize, joint: &str, name: &str| -> f64 {
-        let k = poses[pose].1.as_ref();
-        let j = k.and_then(|k| k.joints.iter().find(|j| j.joint == joint));
-        j.and_then(|j| j.quantity(name))
-            .map_or(f64::NAN, |q| q.target)
-    };
-    let mut labels = vec!["source".to_string()];
-    labels.extend(
-        (0..poses.len()).map(|p| match value(p, "tibiofemoral", "flexion") {
-            f if f.is_finite() => format!("{} ({f:.0}°)", p + 1),
-            _ => format!("{}", p + 1),
-        }),
-    );
-    let mut plots = Vec::new();
-    for joint in joints {
-        for (unit, what) in [("deg", "rotations"), ("mm", "translations")] {
-            let curves = (joint.quantities.iter().filter(|q| q.unit == unit))
-                .map(|q| Curve {
-                    name: q.name.replace('_', " "),
-                    values: std::iter::once(q.source)
-                        .chain((0..poses.len()).map(|p| value(p, joint.joint, q.name)))
-                        .collect(),
-                })
-                .collect();
-            plots.push(Plot {
-                title: format!("{} {what}", joint.joint),
-                unit,
-                curves,
-            });
-        }
-    }
-    Chart {
-        poses: labels,
-        plots,
-    }
+    Ok(grids)
 }

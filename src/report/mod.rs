@@ -7,6 +7,7 @@ pub mod evaluate;
 pub mod picture;
 pub mod quicklook;
 pub mod result_checks;
+pub mod series;
 
 use crate::backend::Backend;
 use crate::error::Result;
