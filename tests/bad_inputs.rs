@@ -484,6 +484,14 @@ fn image_cases(x: &Inputs) -> Vec<Case> {
     )
     .unwrap();
     let (src, lab, tgt) = ("source.nii.gz", "labels.nii.gz", "target.nii.gz");
+    let apply = |image: &str| -> Vec<String> {
+        let (transform, target) = (x.s("reg/transform.json"), x.s(tgt));
+        let (image, out) = (x.s(image), x.s("applied.nii.gz"));
+        let args = [
+            "--device", "cpu", "apply", &transform, &image, "--like", &target, "-o", &out,
+        ];
+        args.iter().map(|a| a.to_string()).collect()
+    };
     vec![
         case(
             "NaN voxels in the target",
@@ -554,6 +562,16 @@ fn image_cases(x: &Inputs) -> Vec<Case> {
             "bone absent",
             x.register(src, lab, tgt, &["--bones", "2,7"]),
             &["labels.nii.gz", "bone 7"],
+        ),
+        case(
+            "fractional labels applied --nearest",
+            [apply("frac_labels.nii.gz"), vec!["--nearest".into()]].concat(),
+            &["frac_labels.nii.gz", "whole number"],
+        ),
+        case(
+            "an image far from the source",
+            apply("far.nii.gz"),
+            &["far.nii.gz", "outside the points the field samples"],
         ),
     ]
 }
@@ -903,21 +921,6 @@ fn verb_cases(x: &Inputs) -> Vec<Case> {
             given,
         ])
     };
-    let apply = |image: &str, nearest: bool| {
-        let mut a = arg(&[
-            "apply",
-            &x.s("reg/transform.json"),
-            &x.s(image),
-            "--like",
-            &tgt,
-            "-o",
-            &x.s("applied.nii.gz"),
-        ]);
-        if nearest {
-            a.push("--nearest".into());
-        }
-        a
-    };
     let cells = x.path("cells.toml");
     std::fs::write(&cells, "[adaptive]\ncell_levels = [16, 8, 4]\n").unwrap();
     vec![
@@ -1014,16 +1017,6 @@ fn verb_cases(x: &Inputs) -> Vec<Case> {
             &["init.bones", "twice"],
         ),
         case(
-            "fractional labels applied --nearest",
-            apply("frac_labels.nii.gz", true),
-            &["frac_labels.nii.gz", "whole number"],
-        ),
-        case(
-            "an image far from the source",
-            apply("far.nii.gz", false),
-            &["far.nii.gz", "outside the points the field samples"],
-        ),
-        case(
             "resample background NaN",
             arg(&[
                 "resample",
@@ -1047,6 +1040,334 @@ fn verb_cases(x: &Inputs) -> Vec<Case> {
                 &["--runs"],
             )
         },
+    ]
+}
+
+/// Damaged and unusual inputs for the verbs' table, beside the valid ones, by name.
+fn verb_inputs(x: &Inputs) {
+    let grid = oblique_grid([32, 32, 32]);
+    let mut nan = smooth_volume(&grid, 5);
+    nan.data[100] = f32::NAN;
+    save_volume(&x.path("v_nan.nii.gz"), &nan, DataType::F32).unwrap();
+    let source = std::fs::read(x.path("source.nii.gz")).unwrap();
+    std::fs::write(x.path("v_cut.nii.gz"), &source[..source.len() / 2]).unwrap();
+    std::fs::write(x.path("v_text.nii"), "not an image\n").unwrap();
+    let small = oblique_grid([6, 5, 4]);
+    save_labels(
+        &x.path("v_small_labels.nii.gz"),
+        &block_labels(&small, &[], 2),
+    )
+    .unwrap();
+    save_labels(&x.path("v_no_bones.nii.gz"), &block_labels(&grid, &[], 6)).unwrap();
+    let mut field = smooth_field(&grid, 6, 2.0);
+    field.data[7] = [f32::NAN, 0.0, 0.0];
+    save_field(&x.path("v_nan_field.nii.gz"), &field).unwrap();
+    save_field(
+        &x.path("v_small_field.nii.gz"),
+        &smooth_field(&small, 7, 1.0),
+    )
+    .unwrap();
+    std::fs::write(x.path("v_broken.json"), "{\"space\": \"RAS\", \"bones\": [").unwrap();
+    std::fs::write(x.path("v_nan_points.csv"), "x,y,z\n1,2,3\nNaN,0,0\n").unwrap();
+    std::fs::write(x.path("v_two_columns.csv"), "x,y\n1,2\n").unwrap();
+    std::fs::write(x.path("v_unknown.toml"), "[adaptive]\nitterations = 3\n").unwrap();
+}
+
+/// Each verb but `register` handed a damaged file, a file on another grid, NaN or a setting
+/// out of range: all are checked before any work.
+fn more_verb_cases(x: &Inputs) -> Vec<Case> {
+    verb_inputs(x);
+    let (src, lab, tgt, field) = (
+        x.s("source.nii.gz"),
+        x.s("labels.nii.gz"),
+        x.s("target.nii.gz"),
+        x.s("reg/field.nii.gz"),
+    );
+    let (out, transform) = (x.s("out"), x.s("reg/transform.json"));
+    let run = |parts: &[&str]| {
+        let mut args: Vec<String> = vec!["--device".into(), "cpu".into()];
+        args.extend(parts.iter().map(|p| p.to_string()));
+        args
+    };
+    let v = |name: &str| x.s(name);
+    let usage = |what, args, says: &[&str]| Case {
+        exit: 2,
+        ..case(what, args, says)
+    };
+    let applied = x.s("applied.nii.gz");
+    let apply = |t: &str, image: &str, like: &str| {
+        run(&["apply", t, image, "--like", like, "-o", &applied])
+    };
+    let points = |t: &str, csv: &str| run(&["apply-points", t, csv, "-o", &x.s("moved.csv")]);
+    let resample = |image: &str, f: &str, like: &str, extra: &[&str]| {
+        let args = [
+            "resample", image, "--field", f, "--like", like, "-o", &applied,
+        ];
+        run(&[&args[..], extra].concat())
+    };
+    let eval = |f: &str, truth: &str, extra: &[&str]| {
+        run(&[&["eval", "--field", f, "--truth", truth][..], extra].concat())
+    };
+    let series = |s: &str, l: &str, last: &str, extra: &[&str]| {
+        let args = [
+            "series",
+            "--source",
+            s,
+            "--source-labels",
+            l,
+            "--targets",
+            &tgt,
+            last,
+        ];
+        run(&[&args[..], &["-o", &out], extra].concat())
+    };
+    let pose = |s: &str, l: &str, extra: &[&str]| {
+        run(&[&["pose", s, "--labels", l, "-o", &out][..], extra].concat())
+    };
+    let init = |s: &str, l: &str, t: &str, extra: &[&str]| {
+        let args = [
+            "init",
+            "--source",
+            s,
+            "--source-labels",
+            l,
+            "--target",
+            t,
+            "-o",
+            &out,
+        ];
+        run(&[&args[..], extra].concat())
+    };
+    let bend = |s: &str, l: &str, degrees: &str| {
+        run(&["bend", s, "--labels", l, "--degrees", degrees, "-o", &out])
+    };
+    let phantom = |extra: &[&str]| run(&[&["phantom", "-o", &out][..], extra].concat());
+    vec![
+        case(
+            "apply: a transform cut short",
+            apply(&v("v_broken.json"), &src, &tgt),
+            &["v_broken.json", "not a bone-transform file"],
+        ),
+        case(
+            "apply: an image cut short",
+            apply(&transform, &v("v_cut.nii.gz"), &tgt),
+            &["v_cut.nii.gz"],
+        ),
+        case(
+            "apply: --like not an image",
+            apply(&transform, &src, &v("v_text.nii")),
+            &["v_text.nii"],
+        ),
+        case(
+            "apply: an image with a NaN voxel",
+            apply(&transform, &v("v_nan.nii.gz"), &tgt),
+            &["v_nan.nii.gz", "NaN"],
+        ),
+        case(
+            "apply: a missing image",
+            apply(&transform, &v("v_none.nii.gz"), &tgt),
+            &["v_none.nii.gz"],
+        ),
+        case(
+            "apply-points: a missing transform",
+            points(&v("v_none.json"), &v("v_nan_points.csv")),
+            &["v_none.json"],
+        ),
+        case(
+            "apply-points: a field for the transform",
+            points(&field, &v("v_nan_points.csv")),
+            &["field.nii.gz", "give the registration's transform.json"],
+        ),
+        case(
+            "apply-points: a NaN coordinate",
+            points(&transform, &v("v_nan_points.csv")),
+            &["v_nan_points.csv", "finite"],
+        ),
+        case(
+            "apply-points: two columns",
+            points(&transform, &v("v_two_columns.csv")),
+            &["v_two_columns.csv"],
+        ),
+        usage(
+            "apply-points: an unknown direction",
+            [
+                points(&transform, &v("v_nan_points.csv")),
+                vec!["--direction".into(), "sideways".into()],
+            ]
+            .concat(),
+            &["--direction"],
+        ),
+        case(
+            "resample: an image cut short",
+            resample(&v("v_cut.nii.gz"), &field, &tgt, &[]),
+            &["v_cut.nii.gz"],
+        ),
+        case(
+            "resample: an image as the field",
+            resample(&src, &tgt, &tgt, &[]),
+            &["target.nii.gz", "not a displacement field"],
+        ),
+        case(
+            "resample: a field with NaN vectors",
+            resample(&src, &v("v_nan_field.nii.gz"), &tgt, &[]),
+            &["v_nan_field.nii.gz", "NaN"],
+        ),
+        case(
+            "resample: --like on another grid than the field",
+            resample(&src, &field, &x.s("small.nii"), &[]),
+            &["small.nii"],
+        ),
+        usage(
+            "resample: an unknown dtype",
+            resample(&src, &field, &tgt, &["--dtype", "f128"]),
+            &["--dtype"],
+        ),
+        case(
+            "resample: a source with a NaN voxel",
+            resample(&v("v_nan.nii.gz"), &field, &tgt, &[]),
+            &["v_nan.nii.gz", "NaN"],
+        ),
+        case(
+            "eval: a truth on another grid",
+            eval(&field, &v("v_small_field.nii.gz"), &[]),
+            &["v_small_field.nii.gz", "grid"],
+        ),
+        case(
+            "eval: a field with NaN vectors",
+            eval(&v("v_nan_field.nii.gz"), &field, &[]),
+            &["v_nan_field.nii.gz", "NaN"],
+        ),
+        case(
+            "eval: a mask on another grid",
+            eval(&field, &field, &["--mask", &x.s("small.nii")]),
+            &["small.nii"],
+        ),
+        case(
+            "eval: a missing field",
+            eval(&v("v_none.nii.gz"), &field, &[]),
+            &["v_none.nii.gz"],
+        ),
+        case(
+            "series: the last target cut short",
+            series(&src, &lab, &v("v_cut.nii.gz"), &[]),
+            &["v_cut.nii.gz"],
+        ),
+        case(
+            "series: labels on another grid",
+            series(&src, &v("v_small_labels.nii.gz"), &tgt, &[]),
+            &["v_small_labels.nii.gz", "grid"],
+        ),
+        case(
+            "series: labels without a bone",
+            series(&src, &v("v_no_bones.nii.gz"), &tgt, &[]),
+            &["v_no_bones.nii.gz", "bone"],
+        ),
+        case(
+            "series: an unknown setting",
+            series(&src, &lab, &tgt, &["--config", &v("v_unknown.toml")]),
+            &["v_unknown.toml", "itterations"],
+        ),
+        case(
+            "series: a source with a NaN voxel",
+            series(&v("v_nan.nii.gz"), &lab, &tgt, &[]),
+            &["v_nan.nii.gz", "NaN"],
+        ),
+        case(
+            "series: the last target with a NaN voxel",
+            series(&src, &lab, &v("v_nan.nii.gz"), &[]),
+            &["v_nan.nii.gz", "NaN"],
+        ),
+        case(
+            "pose: flexion NaN",
+            pose(&src, &lab, &["--flexion", "NaN"]),
+            &["flexion is NaN"],
+        ),
+        case(
+            "pose: compression infinite",
+            pose(&src, &lab, &["--compression", "inf"]),
+            &["compression is inf"],
+        ),
+        case(
+            "pose: labels on another grid",
+            pose(&src, &v("v_small_labels.nii.gz"), &[]),
+            &["v_small_labels.nii.gz", "grid"],
+        ),
+        case(
+            "pose: a source cut short",
+            pose(&v("v_cut.nii.gz"), &lab, &[]),
+            &["v_cut.nii.gz"],
+        ),
+        case(
+            "pose: labels without a bone",
+            pose(&src, &v("v_no_bones.nii.gz"), &[]),
+            &["v_no_bones.nii.gz", "bone"],
+        ),
+        usage(
+            "pose: an unknown side",
+            pose(&src, &lab, &["--side", "middle"]),
+            &["--side"],
+        ),
+        case(
+            "init: a target cut short",
+            init(&src, &lab, &v("v_cut.nii.gz"), &[]),
+            &["v_cut.nii.gz"],
+        ),
+        case(
+            "init: a start cut short",
+            init(&src, &lab, &tgt, &["--init", &v("v_broken.json")]),
+            &["v_broken.json", "not a bone-transform file"],
+        ),
+        case(
+            "init: reach limits falling",
+            init(&src, &lab, &tgt, &["--reach", "2,1"]),
+            &["reach"],
+        ),
+        case(
+            "init: a source with a NaN voxel",
+            init(&v("v_nan.nii.gz"), &lab, &tgt, &[]),
+            &["v_nan.nii.gz", "NaN"],
+        ),
+        case(
+            "bend: degrees NaN",
+            bend(&src, &lab, "NaN"),
+            &["--degrees", "not within"],
+        ),
+        case(
+            "bend: labels without a bone",
+            bend(&src, &v("v_no_bones.nii.gz"), "10"),
+            &["v_no_bones.nii.gz", "label"],
+        ),
+        case(
+            "bend: labels on another grid",
+            bend(&src, &v("v_small_labels.nii.gz"), "10"),
+            &["v_small_labels.nii.gz", "grid"],
+        ),
+        case(
+            "bend: a source that is not an image",
+            bend(&v("v_text.nii"), &lab, "10"),
+            &["v_text.nii"],
+        ),
+        case(
+            "bend: a source with a NaN voxel",
+            bend(&v("v_nan.nii.gz"), &lab, "10"),
+            &["v_nan.nii.gz", "NaN"],
+        ),
+        case(
+            "phantom: flexion 500",
+            phantom(&["--flexion", "500"]),
+            &["flexion"],
+        ),
+        usage(
+            "phantom: an unknown size",
+            phantom(&["--size", "huge"]),
+            &["--size"],
+        ),
+        case("phantom: bias NaN", phantom(&["--bias", "NaN"]), &["bias"]),
+        usage(
+            "phantom: a negative seed",
+            phantom(&["--seed=-1"]),
+            &["--seed"],
+        ),
     ]
 }
 
@@ -1119,7 +1440,6 @@ fn every_bad_input_is_refused_clearly() {
         settings_cases(&x),
         field_and_output_cases(&x),
         points_cases(&x),
-        verb_cases(&x),
         usage_cases(&x),
     ]
     .into_iter()
@@ -1128,6 +1448,44 @@ fn every_bad_input_is_refused_clearly() {
     assert!(cases.len() >= 40, "{} cases", cases.len());
     let failures: Vec<String> = cases.iter().filter_map(|c| check(&x, c)).collect();
     println!("{} bad inputs refused", cases.len());
+    assert!(
+        failures.is_empty(),
+        "{} of {} cases failed:\n{}",
+        failures.len(),
+        cases.len(),
+        failures.join("\n")
+    );
+    assert_eq!(stray_files(x.dir.path()), Vec::<PathBuf>::new());
+}
+
+/// Every verb besides `register` checks its inputs before any work (issue 53's table).
+#[test]
+fn every_verb_refuses_bad_input_clearly() {
+    let x = Inputs::new();
+    let cases: Vec<Case> = [verb_cases(&x), more_verb_cases(&x)]
+        .into_iter()
+        .flatten()
+        .collect();
+    let verbs = [
+        "apply",
+        "apply-points",
+        "resample",
+        "eval",
+        "series",
+        "pose",
+        "init",
+        "bend",
+        "phantom",
+    ];
+    for verb in verbs {
+        assert!(
+            cases.iter().any(|c| c.args.iter().any(|a| a == verb)),
+            "no case for {verb}"
+        );
+    }
+    assert!(cases.len() >= 40, "{} cases", cases.len());
+    let failures: Vec<String> = cases.iter().filter_map(|c| check(&x, c)).collect();
+    println!("{} bad inputs to the verbs refused", cases.len());
     assert!(
         failures.is_empty(),
         "{} of {} cases failed:\n{}",

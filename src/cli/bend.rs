@@ -7,12 +7,12 @@ use posereg::abi::Blending;
 use posereg::abi::Interpolation;
 use posereg::backend::resample_volume;
 use posereg::device::{open_backend, DeviceWanted};
-use posereg::init::repose::{bend, Posed};
+use posereg::init::repose::{bend, check_bend_degrees, Posed};
 use posereg::io::field::save_field;
 use posereg::io::nifti::{load_labels, load_volume, save_labels, save_volume, DataType};
-use posereg::joints::joint::JointAxis;
-use posereg::Error;
-use std::path::PathBuf;
+use posereg::joints::joint::{flexion_axis, JointAxis, KneeBones};
+use posereg::{Error, Labels, Volume};
+use std::path::{Path, PathBuf};
 
 /// Arguments of `posereg bend`.
 #[derive(Args, Debug)]
@@ -65,17 +65,13 @@ fn given_axis(a: &[f64], source: &posereg::volume::Grid) -> anyhow::Result<Joint
 /// Bends and writes target.nii.gz, target_labels.nii.gz, truth_field.nii.gz, truth.json and
 /// picture.png (three planes through the knee).
 pub fn run(args: &BendArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
+    check_bend_degrees(args.degrees).map_err(|e| anyhow::anyhow!("--degrees: {e}"))?;
     let _folder = posereg::io::prepare_output_folder(&args.output)?;
-    let source = load_volume(&args.source)?;
-    let labels = load_labels(&args.labels)?;
-    if !labels.grid.same_as(&source.grid, 1e-3) {
-        return Err(
-            Error::bad_file(&args.labels, "label map is not on the source image's grid").into(),
-        );
-    }
+    let (source, labels) = load_posable(&args.source, &args.labels)?;
     let axis = match &args.axis {
-        Some(a) => Some(given_axis(a, &source.grid)?),
-        None => None,
+        Some(a) => given_axis(a, &source.grid)?,
+        None => flexion_axis(&labels, KneeBones::default())
+            .map_err(|e| Error::bad_file(&args.labels, e.to_string()))?,
     };
     let (opened, line) = open_backend(device)?;
     reporter.say(&line);
@@ -84,7 +80,7 @@ pub fn run(args: &BendArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         &source,
         &labels,
         args.degrees,
-        axis,
+        Some(axis),
         args.blending,
     ))?;
     let knee = [axis.point.x, axis.point.y, axis.point.z];
@@ -97,6 +93,17 @@ pub fn run(args: &BendArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         args.output.display()
     );
     Ok(())
+}
+
+/// The scan `pose` and `bend` move and its bone labels, read and checked before any work: the
+/// labels on the scan's grid.
+pub fn load_posable(source: &Path, labels: &Path) -> anyhow::Result<(Volume, Labels)> {
+    let volume = load_volume(source)?;
+    let label_map = load_labels(labels)?;
+    if !label_map.grid.same_as(&volume.grid, 1e-3) {
+        return Err(Error::bad_file(labels, "label map is not on the source image's grid").into());
+    }
+    Ok((volume, label_map))
 }
 
 /// Writes a synthetic pose of `source` and its `labels` into `folder`: target.nii.gz,

@@ -13,6 +13,12 @@ use std::path::{Path, PathBuf};
 /// (which is read first, so a wrong file is refused by name), or with `inverse` its
 /// inverse_field.nii.gz. Returns the field's path too.
 pub fn registration_field(transform: &Path, inverse: bool) -> anyhow::Result<(PathBuf, Field)> {
+    let name = transform.to_string_lossy();
+    if name.ends_with(".nii") || name.ends_with(".nii.gz") {
+        let problem = "is an image; give the registration's transform.json (its field.nii.gz \
+                       and inverse_field.nii.gz are read from the same folder)";
+        return Err(Error::bad_file(transform, problem).into());
+    }
     BoneTransforms::load(transform)?;
     let folder = transform
         .parent()

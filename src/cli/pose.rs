@@ -3,14 +3,14 @@
 //! kinematics.csv reports them), with its exact truth: for checking a result, and for making
 //! test pairs whose motion is not a rotation about one axis.
 
-use super::bend::write_posed;
+use super::bend::{load_posable, write_posed};
 use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
 use posereg::device::{open_backend, DeviceWanted};
-use posereg::init::repose::pose;
-use posereg::io::nifti::{load_labels, load_volume};
-use posereg::joints::anatomy::Side;
+use posereg::init::repose::{check_pose_change, pose};
+use posereg::joints::anatomy::{knee_frames, Side};
+use posereg::joints::joint::KneeBones;
 use posereg::joints::kinematics::JointPose;
 use posereg::Error;
 use std::path::PathBuf;
@@ -55,13 +55,6 @@ pub struct PoseArgs {
 /// Poses and writes target.nii.gz, target_labels.nii.gz, truth_field.nii.gz, truth.json and
 /// picture.png.
 pub fn run(args: &PoseArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
-    let _folder = posereg::io::prepare_output_folder(&args.output)?;
-    let source = load_volume(&args.source)?;
-    let labels = load_labels(&args.labels)?;
-    if !labels.grid.same_as(&source.grid, 1e-3) {
-        let problem = "label map is not on the source image's grid";
-        return Err(Error::bad_file(&args.labels, problem).into());
-    }
     let change = JointPose {
         flexion_deg: args.flexion,
         about_e2_deg: args.varus,
@@ -70,6 +63,11 @@ pub fn run(args: &PoseArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         anterior_mm: args.anterior_drawer,
         proximal_mm: args.compression,
     };
+    check_pose_change(change)?;
+    let _folder = posereg::io::prepare_output_folder(&args.output)?;
+    let (source, labels) = load_posable(&args.source, &args.labels)?;
+    knee_frames(&labels, KneeBones::default())
+        .map_err(|e| Error::bad_file(&args.labels, e.to_string()))?;
     let (opened, line) = open_backend(device)?;
     reporter.say(&line);
     let posed = posereg::on_backend!(opened, backend => pose(

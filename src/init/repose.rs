@@ -90,11 +90,7 @@ pub fn bend<B: Backend>(
     axis: Option<JointAxis>,
     blending: Blending,
 ) -> Result<(Posed, JointAxis)> {
-    if !degrees.is_finite() || degrees.abs() > 150.0 {
-        return Err(Error::InvalidInput(format!(
-            "bend angle {degrees}° is outside -150..150"
-        )));
-    }
+    check_bend_degrees(degrees)?;
     let axis = match axis {
         Some(a) => a,
         None => flexion_axis(labels, KneeBones::default())?,
@@ -117,6 +113,48 @@ pub fn bend<B: Backend>(
         }),
     );
     Ok((posed, axis))
+}
+
+/// The largest flexion `pose` and `bend` make, either way (degrees).
+pub const MAX_POSED_FLEXION: f64 = 150.0;
+
+/// Refuses a pose change with a value that is not finite or a flexion beyond
+/// [`MAX_POSED_FLEXION`], naming the value.
+pub fn check_pose_change(change: JointPose) -> Result<()> {
+    let names = [
+        "flexion",
+        "varus",
+        "internal rotation",
+        "lateral shift",
+        "anterior drawer",
+        "compression",
+    ];
+    if let Some((name, value)) = names
+        .iter()
+        .zip(change.values())
+        .find(|(_, v)| !v.is_finite())
+    {
+        return Err(Error::InvalidInput(format!(
+            "pose: {name} is {value}, not a finite number"
+        )));
+    }
+    if change.flexion_deg.abs() > MAX_POSED_FLEXION {
+        return Err(Error::InvalidInput(format!(
+            "pose: flexion {}° is not within -{MAX_POSED_FLEXION}..{MAX_POSED_FLEXION}°",
+            change.flexion_deg
+        )));
+    }
+    Ok(())
+}
+
+/// Refuses a bend angle that is not finite or beyond [`MAX_POSED_FLEXION`].
+pub fn check_bend_degrees(degrees: f64) -> Result<()> {
+    if !degrees.is_finite() || degrees.abs() > MAX_POSED_FLEXION {
+        return Err(Error::InvalidInput(format!(
+            "bend angle {degrees}° is not within -{MAX_POSED_FLEXION}..{MAX_POSED_FLEXION}°"
+        )));
+    }
+    Ok(())
 }
 
 /// The rigid motion carrying frame `from` onto frame `to`.
@@ -142,11 +180,7 @@ pub fn pose<B: Backend>(
     side: Option<Side>,
     blending: Blending,
 ) -> Result<Posed> {
-    if change.flexion_deg.abs() > 150.0 || change.values().iter().any(|v| !v.is_finite()) {
-        return Err(Error::InvalidInput(
-            "pose: every value must be finite, flexion within -150..150°".into(),
-        ));
-    }
+    check_pose_change(change)?;
     let frames = knee_frames(labels, KneeBones::default())?;
     let side = side.or(frames.side_from_fibula).ok_or_else(|| {
         Error::InvalidInput("pose: no fibula labelled to tell the side; give --side".into())
