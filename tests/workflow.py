@@ -4,9 +4,15 @@ profile; then again (nothing to do), after deleting one pair (only that pair red
 same bytes), and a dry run with the Slurm profile (every job listed with its resources).
 
     POSEREG=target/release/posereg SNAKEMAKE=.venv-workflow/bin/snakemake python3 tests/workflow.py
+
+With --slurm (scripts/slurm-cohort starts a single-node Slurm first) the same cohort then runs
+again through that Slurm with the Slurm profile: every field the same bytes as the local run's;
+and one pair as a GPU job (one GPU asked of Slurm, the job on whatever Vulkan adapter the node
+has).
 """
 
 import csv
+import json
 import os
 import shutil
 import subprocess
@@ -30,11 +36,57 @@ def phantom(out, flexion, seed):
     return os.path.join(out, "image.nii.gz")
 
 
-def snakemake(d, profile, *extra):
+def snakemake(d, profile, *extra, results="results", manifest="manifest.csv", config=()):
     return run([SNAKEMAKE, "-s", os.path.join(ROOT, "workflow", "Snakefile"),
                 "--profile", os.path.join(ROOT, "workflow", "profiles", profile),
-                "--cores", "2", "--config", f"manifest={d}/manifest.csv",
-                f"posereg={POSEREG}", f"results={d}/results", *extra], cwd=d)
+                "--cores", "2", "--config", f"manifest={d}/{manifest}",
+                f"posereg={POSEREG}", f"results={d}/{results}", *config, *extra], cwd=d)
+
+
+# The Slurm executor plugin's settings for a cluster without accounting: job states from squeue
+# (the cluster keeps finished jobs for a day, MinJobAge), no account, the one partition.
+SLURM = ["--slurm-status-command", "squeue", "--slurm-no-account",
+         "--default-resources", "slurm_partition=main", "runtime=30", "mem_mb=2000",
+         "--latency-wait", "5"]
+
+
+def fields(results):
+    """Every field.nii.gz under `results`, by its path there, with its bytes."""
+    found = {}
+    for folder, _, files in os.walk(results):
+        for name in files:
+            if name == "field.nii.gz":
+                with open(os.path.join(folder, name), "rb") as f:
+                    found[os.path.relpath(os.path.join(folder, name), results)] = f.read()
+    return found
+
+
+def through_slurm(d, source, labels, fast):
+    """The cohort again through Slurm: the same field bytes as the local run; then one pair as
+    a GPU job."""
+    try:
+        snakemake(d, "slurm", *SLURM, results="slurm")
+    except AssertionError:
+        for folder, _, files in os.walk(f"{d}/.snakemake/slurm_logs"):
+            for name in files:
+                with open(os.path.join(folder, name)) as f:
+                    print(f"--- {name}\n{f.read()[-3000:]}", file=sys.stderr)
+        raise
+    local, slurm = fields(f"{d}/results"), fields(f"{d}/slurm")
+    assert sorted(local) == sorted(slurm) and len(local) == 4, (sorted(local), sorted(slurm))
+    differ = [k for k in local if local[k] != slurm[k]]
+    assert not differ, f"fields differ between the local and the Slurm run: {differ}"
+    with open(f"{d}/gpu.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["subject", "source", "source_labels", "targets", "settings", "mode"])
+        w.writerow(["g", source, labels, f"{d}/a/image.nii.gz", fast, "register"])
+    listed = snakemake(d, "slurm", *SLURM, "--verbose", results="gpu", manifest="gpu.csv",
+                       config=["device=gpu"])
+    assert "--gpus=1" in listed, listed[-3000:]
+    with open(f"{d}/gpu/g/pose_01/report.json") as f:
+        device = json.load(f)["device"]
+    assert device.startswith("gpu"), device
+    print(f"slurm: 4 fields as the local run's; the GPU job ran on {device}")
 
 
 def stamps(d):
@@ -103,6 +155,8 @@ def main():
         for job in ("subject=a, name=pose_01", "subject=c, name=series", "subject=d, name=pose_01"):
             assert job in listed, f"{job} not listed:\n{listed[-3000:]}"
         assert "mem_mb=" in listed and "slurm_partition=" in listed, listed[-3000:]
+        if "--slurm" in sys.argv:
+            through_slurm(d, source, labels, fast)
         print("workflow: ok")
     finally:
         shutil.rmtree(d, ignore_errors=True)
