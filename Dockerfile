@@ -6,13 +6,27 @@
 #   docker run --rm -v "$PWD:/data" -w /data posereg demo
 #
 # For Apptainer on a cluster, posereg.def builds a .sif from this image (README, "On a cluster").
-# BASE is any Debian bookworm image (a local one where Docker Hub cannot be reached).
+# BASE is any Debian bookworm image (a local one where Docker Hub cannot be reached). Behind a
+# proxy that re-signs TLS (common on hospital networks), give its CA certificates:
+#   docker build --build-arg EXTRA_CA_CERTS="$(cat proxy-ca.pem)" -t posereg .
 ARG BASE=debian:bookworm-slim
 
-FROM ${BASE} AS build
+FROM ${BASE} AS base
+ARG EXTRA_CA_CERTS=""
+RUN apt-get update \
+    && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends ca-certificates \
+    && rm -rf /var/lib/apt/lists/* \
+    && printf '%s\n' "$EXTRA_CA_CERTS" >/usr/local/share/ca-certificates/extra.crt \
+    && update-ca-certificates
+# rustup, cargo and pip trust the system's certificates (so the ones above count too).
+ENV SSL_CERT_FILE=/etc/ssl/certs/ca-certificates.crt \
+    CARGO_HTTP_CAINFO=/etc/ssl/certs/ca-certificates.crt \
+    PIP_CERT=/etc/ssl/certs/ca-certificates.crt
+
+FROM base AS build
 RUN apt-get update \
     && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends \
-        ca-certificates curl gcc libc6-dev python3 python3-venv \
+        curl gcc libc6-dev python3 python3-venv \
     && rm -rf /var/lib/apt/lists/*
 RUN curl -sSfo /tmp/rustup-init \
         https://static.rust-lang.org/rustup/dist/x86_64-unknown-linux-gnu/rustup-init \
@@ -27,7 +41,7 @@ RUN cargo build --release --locked --bin posereg \
     && /opt/maturin/bin/pip install --quiet 'maturin>=1.5,<2' \
     && /opt/maturin/bin/maturin build --release --locked --out /wheels
 
-FROM ${BASE}
+FROM base
 RUN apt-get update \
     && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends \
         libvulkan1 mesa-vulkan-drivers python3 python3-venv \
