@@ -918,14 +918,37 @@ fn pose_writes_a_posed_pair_with_its_truth() {
     assert!(!far.exists());
 }
 
-/// `posereg series` registers each pose into its own folder, the second reached through the
-/// first, and tabulates and plots the kinematics of every pose (series.csv, series.json,
-/// series.png).
-#[test]
-fn series_registers_every_pose_and_tabulates_them() {
-    let dir = tempfile::tempdir().unwrap();
-    let [source, labels, thirty] = quarter_pair(dir.path());
-    let sixty = dir.path().join("sixty");
+/// `posereg series` of `inputs` (quarter_series') into `out` on the CPU with the settings
+/// file `config` and `extra` flags; fails the test unless it succeeds, returns its stderr.
+fn run_series(inputs: &[PathBuf; 4], out: &Path, config: &Path, extra: &[&str]) -> String {
+    let [source, labels, thirty, sixty] = inputs;
+    let args = [
+        "series",
+        "--source",
+        s(source),
+        "--source-labels",
+        s(labels),
+        "--targets",
+    ];
+    let rest = [
+        s(thirty),
+        s(sixty),
+        "-o",
+        s(out),
+        "--device",
+        "cpu",
+        "--config",
+        s(config),
+    ];
+    let ran = posereg(&[&args[..], &rest, extra].concat());
+    assert!(ran.status.success(), "{ran:?}");
+    String::from_utf8_lossy(&ran.stderr).to_string()
+}
+
+/// quarter_pair's source, labels and 30° target, and a 60° target: a series of two poses.
+fn quarter_series(dir: &Path) -> [PathBuf; 4] {
+    let [source, labels, thirty] = quarter_pair(dir);
+    let sixty = dir.join("sixty");
     let args = [
         "phantom",
         "--size",
@@ -937,28 +960,20 @@ fn series_registers_every_pose_and_tabulates_them() {
         "-q",
         "-o",
     ];
-    assert!(posereg(&[&args[..], &[s(&sixty)]].concat())
-        .status
-        .success());
-    let out = dir.path().join("series");
-    let ran = posereg(&[
-        "series",
-        "--source",
-        s(&source),
-        "--source-labels",
-        s(&labels),
-        "--targets",
-        s(&thirty),
-        s(&sixty.join("image.nii.gz")),
-        "-o",
-        s(&out),
-        "--device",
-        "cpu",
-        "-q",
-        "--config",
-        s(&fast_settings(dir.path())),
-    ]);
-    assert!(ran.status.success(), "{ran:?}");
+    let made = posereg(&[&args[..], &[s(&sixty)]].concat());
+    assert!(made.status.success(), "{made:?}");
+    [source, labels, thirty, sixty.join("image.nii.gz")]
+}
+
+/// `posereg series` registers each pose into its own folder, the second reached through the
+/// first, and tabulates and plots the kinematics of every pose (series.csv, series.json,
+/// series.png).
+#[test]
+fn series_registers_every_pose_and_tabulates_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = quarter_series(dir.path());
+    let (out, fast) = (dir.path().join("series"), fast_settings(dir.path()));
+    run_series(&inputs, &out, &fast, &["-q"]);
     for pose in ["pose_01", "pose_02"] {
         assert!(out.join(pose).join("kinematics.csv").exists(), "no {pose}");
     }
@@ -996,26 +1011,7 @@ fn series_registers_every_pose_and_tabulates_them() {
     // --unchained: the second pose registered from the source, the first pose's bones tried
     // first.
     let unchained = dir.path().join("unchained");
-    let sixty_image = sixty.join("image.nii.gz");
-    let second = [s(&thirty), s(&sixty_image)];
-    let ran = posereg(
-        &[
-            &[
-                "series",
-                "--unchained",
-                "--source",
-                s(&source),
-                "--source-labels",
-                s(&labels),
-            ][..],
-            &["--targets"],
-            &second,
-            &["-o", s(&unchained), "--device", "cpu", "-q"],
-            &["--config", s(&fast_settings(dir.path()))],
-        ]
-        .concat(),
-    );
-    assert!(ran.status.success(), "{ran:?}");
+    run_series(&inputs, &unchained, &fast, &["--unchained", "-q"]);
     assert!(start(&unchained, "pose_02").starts_with("seeded"));
 }
 
@@ -1025,43 +1021,9 @@ fn series_registers_every_pose_and_tabulates_them() {
 #[test]
 fn a_series_run_again_resumes_after_its_last_finished_pose_with_the_same_bytes() {
     let dir = tempfile::tempdir().unwrap();
-    let [source, labels, thirty] = quarter_pair(dir.path());
-    let sixty = dir.path().join("sixty");
-    let args = [
-        "phantom",
-        "--size",
-        "quarter",
-        "--flexion",
-        "60",
-        "--seed",
-        "3",
-        "-q",
-        "-o",
-    ];
-    let made = posereg(&[&args[..], &[s(&sixty)]].concat());
-    assert!(made.status.success(), "{made:?}");
+    let inputs = quarter_series(dir.path());
     let fast = fast_settings(dir.path());
-    let sixty = sixty.join("image.nii.gz");
-    let series = |out: &Path, config: &Path| {
-        let ran = posereg(&[
-            "series",
-            "--source",
-            s(&source),
-            "--source-labels",
-            s(&labels),
-            "--targets",
-            s(&thirty),
-            s(&sixty),
-            "-o",
-            s(out),
-            "--device",
-            "cpu",
-            "--config",
-            s(config),
-        ]);
-        assert!(ran.status.success(), "{ran:?}");
-        String::from_utf8_lossy(&ran.stderr).to_string()
-    };
+    let series = |out: &Path, config: &Path| run_series(&inputs, out, config, &[]);
     let whole = dir.path().join("whole");
     series(&whole, &fast);
     // A run stopped after its first pose: series.json holds that pose only, pose_02 is gone.
