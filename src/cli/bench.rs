@@ -5,15 +5,13 @@
 
 use anyhow::bail;
 use clap::{Args, ValueEnum};
-use posereg::backend::{Backend, Core};
+use posereg::backend::Core;
 use posereg::cpu::CpuBackend;
 use posereg::device::{DeviceChoice, DeviceWanted};
 use posereg::gpu::context::GpuContext;
 use posereg::gpu::GpuBackend;
-use posereg::nonrigid::adaptive::Evaluations;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
-use posereg::pipeline::register::{register, Inputs, RegisterOptions, StageTimes, StageTraffic};
-use posereg::progress::Silent;
+use posereg::pipeline::bench::{peak_rss_mib, time_registrations, Sizes, Timed};
 
 /// Which backends to time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -65,77 +63,16 @@ fn flag_value(value: impl ValueEnum) -> String {
         .map_or_else(|| "?".into(), |v| v.get_name().to_string())
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-/// Peak resident memory of this process so far (Linux), in MiB.
-fn peak_rss_mib() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib / 1024.0)
-}
-
-/// Median seconds per stage (initialisation, adaptive, dense, finish, total) and the traffic of the
-/// last run (the same every run: the work is deterministic).
-struct Timed {
-    seconds: [f64; 5],
-    traffic: StageTraffic,
-    evaluations: Evaluations,
-}
-
-fn time<B: Backend>(
-    backend: &B,
-    runs: u64,
-    pair: &(posereg::phantom::Phantom, posereg::phantom::Phantom),
-) -> anyhow::Result<Timed> {
-    let mut all: Vec<StageTimes> = Vec::new();
-    let mut traffic = StageTraffic::default();
-    let mut evaluations = Evaluations::default();
-    for _ in 0..runs {
-        let r = register(
-            backend,
-            Inputs::new(&pair.0.image, &pair.0.labels, &pair.1.image),
-            &RegisterOptions::default(),
-            &Silent,
-        )?;
-        all.push(r.timings);
-        (traffic, evaluations) = (r.traffic, r.adaptive.evaluations);
-    }
-    let m = |f: fn(&StageTimes) -> f64| median(all.iter().map(f).collect());
-    Ok(Timed {
-        seconds: [
-            m(|t| t.initialisation),
-            m(|t| t.adaptive),
-            m(|t| t.dense),
-            m(|t| t.finish),
-            m(|t| t.total()),
-        ],
-        traffic,
-        evaluations,
-    })
-}
-
 fn mib(bytes: u64) -> f64 {
     bytes as f64 / (1024.0 * 1024.0)
 }
 
-/// Bytes of a registration's input volumes (source, labels, target as f32) and of the volumes it
-/// writes (field, warped source and Jacobian on the target's grid; the inverse field on the
-/// source's).
-struct Sizes {
-    inputs: u64,
-    outputs: u64,
-}
-
 /// One backend's row of the table and its traffic lines.
 fn print_row(describe: &str, timed: &Timed, sizes: &Sizes) {
-    let t = timed.seconds;
+    let t = &timed.stages;
     println!(
         "{describe:<52} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2}",
-        t[0], t[1], t[2], t[3], t[4]
+        t.initialisation, t.adaptive, t.dense, t.finish, timed.total
     );
     let stages = &timed.traffic;
     for (stage, traffic) in [
@@ -191,11 +128,8 @@ pub fn run(args: &BenchArgs, device: &DeviceWanted) -> anyhow::Result<()> {
         args.flexion,
         args.runs
     );
-    let voxels = |p: &posereg::phantom::Phantom| p.image.grid.len() as u64;
-    let sizes = Sizes {
-        inputs: 4 * (2 * voxels(&pair.0) + voxels(&pair.1)),
-        outputs: 20 * voxels(&pair.1) + 12 * voxels(&pair.0),
-    };
+    let pair = (&pair.0, &pair.1);
+    let sizes = Sizes::of(pair);
     println!(
         "inputs (source, labels, target as f32): {:.2} MiB; outputs (field, warped, Jacobian, inverse field): {:.2} MiB",
         mib(sizes.inputs),
@@ -207,31 +141,37 @@ pub fn run(args: &BenchArgs, device: &DeviceWanted) -> anyhow::Result<()> {
     );
     let mut totals = Vec::new();
     if which != Which::Gpu {
-        let t = time(&CpuBackend, args.runs, &pair)?;
+        let t = time_registrations(&CpuBackend, args.runs, pair)?;
         print_row(&CpuBackend.describe(), &t, &sizes);
         println!(
             "  peak host memory (process so far): {:.0} MiB",
             peak_rss_mib().unwrap_or(f64::NAN)
         );
-        totals.push(t.seconds);
+        totals.push(t);
     }
     if which != Which::Cpu {
         let gpu = GpuBackend::with_context(GpuContext::open(device.adapter.as_ref())?)?;
-        let t = time(&gpu, args.runs, &pair)?;
+        let t = time_registrations(&gpu, args.runs, pair)?;
         print_row(&gpu.describe(), &t, &sizes);
         println!(
             "  peak host memory (process so far): {:.0} MiB; largest set of device buffers bound at once: {:.1} MiB",
             peak_rss_mib().unwrap_or(f64::NAN),
             gpu.peak_dispatch_bytes() as f64 / (1024.0 * 1024.0)
         );
-        totals.push(t.seconds);
+        totals.push(t);
     }
     if let [cpu, gpu] = totals.as_slice() {
+        let (c, g) = (&cpu.stages, &gpu.stages);
+        let ratio = |g: f64, c: f64| match c > 0.0 {
+            true => format!("{:.2}×", g / c),
+            false => "–".into(),
+        };
         println!(
-            "GPU/CPU time: init {:.2}×, adaptive {:.2}×, total {:.2}×",
-            gpu[0] / cpu[0],
-            gpu[1] / cpu[1],
-            gpu[3] / cpu[3]
+            "GPU/CPU time: init {}, adaptive {}, dense {}, total {}",
+            ratio(g.initialisation, c.initialisation),
+            ratio(g.adaptive, c.adaptive),
+            ratio(g.dense, c.dense),
+            ratio(gpu.total, cpu.total)
         );
     }
     Ok(())
