@@ -1,6 +1,7 @@
 //! `posereg init --source S --source-labels L --target T -o DIR`: the articulated
 //! initialisation alone (per-bone rigid, skinning weights, volume skeletal deformation).
 
+use super::outputs::write_kinematics;
 use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
@@ -15,15 +16,14 @@ use posereg::io::config::load_options;
 use posereg::io::field::save_field;
 use posereg::io::itk_transform::save_bone_tfms;
 use posereg::io::nifti::{save_volume, DataType};
-use posereg::io::transform::BoneTransforms;
 use posereg::io::{prepare_output_folder, OutputFolder};
 use posereg::joints::anatomy::Side;
 use posereg::joints::chain::{self, Link};
 use posereg::joints::joint::rotation_degrees;
 use posereg::joints::kinematics::KneeKinematics;
-use posereg::pipeline::inputs::{check_bones, load_pair, Pair, PairPaths};
+use posereg::pipeline::inputs::{check_bones, load_given_motions, load_pair, Pair, PairPaths};
 use posereg::pipeline::register::{unregistered, RegisterOptions};
-use posereg::{Error, Volume};
+use posereg::Volume;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `posereg init`.
@@ -138,56 +138,6 @@ fn kinematics(
     Ok(kinematics)
 }
 
-/// Writes kinematics.json and kinematics.csv into `folder` and prints each joint's change.
-pub fn write_kinematics(
-    folder: &Path,
-    kinematics: &KneeKinematics,
-    reporter: &Reporter,
-) -> anyhow::Result<()> {
-    posereg::io::kinematics::save_kinematics(folder, kinematics)?;
-    for joint in &kinematics.joints {
-        let each: Vec<String> = joint
-            .quantities
-            .iter()
-            .map(|q| format!("{} {:+.1} {}", q.name, q.change, q.unit))
-            .collect();
-        let side = kinematics.side;
-        reporter.result(&format!(
-            "  {} ({side:?} knee): {}",
-            joint.joint,
-            each.join(", ")
-        ));
-    }
-    Ok(())
-}
-
-/// The bone motions of `--init`: rigid, each for a bone present in the labels, and one for
-/// every bone `options` registers.
-pub fn load_given(
-    path: &Path,
-    labels: &posereg::Labels,
-    options: &InitOptions,
-) -> anyhow::Result<BoneTransforms> {
-    let given = BoneTransforms::load(path)?;
-    given.check_rigid(path)?;
-    let present = chain::present(&options.chain, labels);
-    if let Some(b) = given.bones.iter().find(|b| !present.contains(&b.label)) {
-        let problem = format!(
-            "bone {} ({}) is not among the labels' bones {present:?}",
-            b.label, b.name
-        );
-        return Err(Error::bad_file(path, problem).into());
-    }
-    if let Some(b) = options
-        .bones_in(labels)
-        .iter()
-        .find(|b| !given.bones.iter().any(|g| g.label == **b))
-    {
-        return Err(Error::bad_file(path, format!("has no transform for bone label {b}")).into());
-    }
-    Ok(given)
-}
-
 impl InitArgs {
     /// The settings file's `[init]`, overridden by the flags, checked before any voxel is read.
     fn options(&self) -> anyhow::Result<InitOptions> {
@@ -216,7 +166,7 @@ pub fn run(args: &InitArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     let (_folder, pair) = args.pair.load(reporter, &options.chain)?;
     check_bones(&options, &pair.labels, args.pair.paths())?;
     let given = match &args.init {
-        Some(path) => Some(load_given(path, &pair.labels, &options)?),
+        Some(path) => Some(load_given_motions(path, &pair.labels, &options)?),
         None => None,
     };
     let (opened, line) = open_backend(device)?;

@@ -2,12 +2,12 @@
 //! source, the field and its inverse, the Jacobian, the bone transforms (JSON and ITK .tfm),
 //! the figure, report.json, the kinematics and the log.
 
-use super::init::write_kinematics;
 use super::progress::Reporter;
 use posereg::io::field::save_field;
 use posereg::io::itk_transform::save_bone_tfms;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::joints::anatomy::Frame;
+use posereg::joints::kinematics::KneeKinematics;
 use posereg::pipeline::inputs::Pair;
 use posereg::pipeline::register::RegisterOptions;
 use posereg::registration::Registered;
@@ -88,4 +88,27 @@ fn save_quicklook(
         correlations: done.report.correlations,
     };
     Ok(posereg::report::quicklook::save(path, &figure)?)
+}
+
+/// Writes kinematics.json and kinematics.csv into `folder` and prints each joint's change.
+pub fn write_kinematics(
+    folder: &Path,
+    kinematics: &KneeKinematics,
+    reporter: &Reporter,
+) -> anyhow::Result<()> {
+    posereg::io::kinematics::save_kinematics(folder, kinematics)?;
+    for joint in &kinematics.joints {
+        let each: Vec<String> = joint
+            .quantities
+            .iter()
+            .map(|q| format!("{} {:+.1} {}", q.name, q.change, q.unit))
+            .collect();
+        let side = kinematics.side;
+        reporter.result(&format!(
+            "  {} ({side:?} knee): {}",
+            joint.joint,
+            each.join(", ")
+        ));
+    }
+    Ok(())
 }

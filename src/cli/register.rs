@@ -2,7 +2,7 @@
 //! pipeline, writing warped.nii.gz, field.nii.gz, inverse_field.nii.gz, transform.json,
 //! bones/*.tfm, jacobian.nii.gz, report.json and quicklook.png.
 
-use super::init::{load_given, PairArgs};
+use super::init::PairArgs;
 use super::outputs::write_registration;
 use super::progress::Reporter;
 use clap::Args;
@@ -13,7 +13,7 @@ use posereg::init::articulated::{Chained, Start};
 use posereg::io::config::{load_options, options_toml};
 use posereg::io::transform::BoneTransforms;
 use posereg::levels::PerLevel;
-use posereg::pipeline::inputs::{load_target_mask, Pair};
+use posereg::pipeline::inputs::{load_given_motions, load_target_mask, Pair};
 use posereg::pipeline::register::RegisterOptions;
 use posereg::registration::{file_inputs, Registered, Request};
 use std::path::PathBuf;
@@ -163,7 +163,7 @@ pub fn register_pair(
 ) -> anyhow::Result<Written> {
     let (_folder, pair) = args.pair.load(reporter, &options.init.chain)?;
     let given = match &args.init {
-        Some(path) => Some(load_given(path, &pair.labels, &options.init)?),
+        Some(path) => Some(load_given_motions(path, &pair.labels, &options.init)?),
         None => None,
     };
     let mask = match &args.target_mask {

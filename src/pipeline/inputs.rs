@@ -12,6 +12,7 @@ use crate::io::memory;
 use crate::io::nifti::{
     check_finite, labels_from_raw, read_header, read_raw, spatial_grid, volume_from_raw,
 };
+use crate::io::transform::BoneTransforms;
 use crate::joints::chain::{self, Link};
 use crate::pipeline::register::RegisterOptions;
 use crate::volume::{Grid, Labels, Volume};
@@ -126,6 +127,37 @@ fn checked_content(
         target,
         warnings,
     })
+}
+
+/// The bone motions given to start from (`--init`: transform.json or init.json of an earlier
+/// run) read from `path`: rigid, each for a bone present in `labels`, and one for every bone
+/// `options` registers.
+pub fn load_given_motions(
+    path: &Path,
+    labels: &Labels,
+    options: &InitOptions,
+) -> Result<BoneTransforms> {
+    let given = BoneTransforms::load(path)?;
+    given.check_rigid(path)?;
+    let present = chain::present(&options.chain, labels);
+    if let Some(b) = given.bones.iter().find(|b| !present.contains(&b.label)) {
+        let problem = format!(
+            "bone {} ({}) is not among the labels' bones {present:?}",
+            b.label, b.name
+        );
+        return Err(Error::bad_file(path, problem));
+    }
+    let registered = options.bones_in(labels);
+    if let Some(b) = registered
+        .iter()
+        .find(|b| !given.bones.iter().any(|g| g.label == **b))
+    {
+        return Err(Error::bad_file(
+            path,
+            format!("has no transform for bone label {b}"),
+        ));
+    }
+    Ok(given)
 }
 
 /// Reads a target mask (`--target-mask`): a label map on the target's grid whose non-zero
