@@ -28,8 +28,8 @@ fn pair(size: PhantomSize, flexion: f64) -> (Phantom, Phantom) {
         ..Default::default()
     };
     (
-        generate(&posereg::cpu::CpuBackend, &spec(0.0, 1)).unwrap(),
-        generate(&posereg::cpu::CpuBackend, &spec(flexion, 2)).unwrap(),
+        generate(&spec(0.0, 1)).unwrap(),
+        generate(&spec(flexion, 2)).unwrap(),
     )
 }
 

@@ -21,16 +21,13 @@ use std::sync::OnceLock;
 /// brightness, which at 2.5 mm voxels costs the small bones a few tenths of a degree; the
 /// paper-resolution test below keeps it on.
 fn phantom(degrees: f64, seed: u64) -> Phantom {
-    generate(
-        &posereg::cpu::CpuBackend,
-        &PhantomSpec {
-            size: PhantomSize::Half,
-            flexion_degrees: degrees,
-            seed,
-            bias: 0.0,
-            ..Default::default()
-        },
-    )
+    generate(&PhantomSpec {
+        size: PhantomSize::Half,
+        flexion_degrees: degrees,
+        seed,
+        bias: 0.0,
+        ..Default::default()
+    })
     .unwrap()
 }
 
@@ -245,15 +242,12 @@ fn at_the_papers_resolution_bones_overlap_the_target_labels() {
     // the patella, 8 voxels thick, falls to 0.94-0.95 however well it is placed: its
     // truth-moved Dice above is ≥ 0.97).
     let paper = |degrees: f64, seed: u64| {
-        generate(
-            &posereg::cpu::CpuBackend,
-            &PhantomSpec {
-                size: PhantomSize::Paper,
-                flexion_degrees: degrees,
-                seed,
-                ..Default::default()
-            },
-        )
+        generate(&PhantomSpec {
+            size: PhantomSize::Paper,
+            flexion_degrees: degrees,
+            seed,
+            ..Default::default()
+        })
         .unwrap()
     };
     let s = paper(0.0, 100);

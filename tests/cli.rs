@@ -490,8 +490,8 @@ fn apply_apply_points_and_eval_use_a_registration_folder() {
         seed,
         ..Default::default()
     };
-    let straight = posereg::phantom::generate(&posereg::cpu::CpuBackend, &spec(0.0, 1)).unwrap();
-    let bent = posereg::phantom::generate(&posereg::cpu::CpuBackend, &spec(30.0, 2)).unwrap();
+    let straight = posereg::phantom::generate(&spec(0.0, 1)).unwrap();
+    let bent = posereg::phantom::generate(&spec(30.0, 2)).unwrap();
     let reg = dir.path().join("reg");
     std::fs::create_dir_all(&reg).unwrap();
     save_field(&reg.join("field.nii.gz"), &bent.truth_field).unwrap();

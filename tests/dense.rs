@@ -382,8 +382,8 @@ fn the_refinement_leaves_the_bones_as_they_were_and_stays_invertible() {
         ..Default::default()
     };
     let (source, target) = (
-        generate(&CpuBackend, &spec(0.0, 1)).unwrap(),
-        generate(&CpuBackend, &spec(30.0, 2)).unwrap(),
+        generate(&spec(0.0, 1)).unwrap(),
+        generate(&spec(30.0, 2)).unwrap(),
     );
     let inputs = Inputs::new(&source.image, &source.labels, &target.image);
     let plain = RegisterOptions::default();

@@ -103,10 +103,9 @@ fn recovered_on<B: Backend>(backend: &B, size: PhantomSize, angles: &[f64], name
         seed,
         ..Default::default()
     };
-    let cpu = posereg::cpu::CpuBackend;
-    let source = generate(&cpu, &spec(0.0, 1)).unwrap();
+    let source = generate(&spec(0.0, 1)).unwrap();
     for &angle in angles {
-        let target = generate(&cpu, &spec(angle, 2)).unwrap();
+        let target = generate(&spec(angle, 2)).unwrap();
         let options = InitOptions::default();
         let (init, _) = initialise_volumes(
             backend,
@@ -206,7 +205,7 @@ fn pose_sets_the_joint_change_asked_for() {
         size: PhantomSize::Small,
         ..Default::default()
     };
-    let source = generate(&cpu, &spec).unwrap();
+    let source = generate(&spec).unwrap();
     let change = JointPose {
         flexion_deg: 40.0,
         about_e2_deg: 3.0,

@@ -8,9 +8,10 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
-/// Modules that may import `crate::cpu`: the CPU backend itself and the module that opens a
-/// backend for the command line.
-const MAY_USE_CPU: &[&str] = &["cpu", "device"];
+/// Modules that may import `crate::cpu`: the CPU backend itself, the module that opens a
+/// backend for every door, and the phantom, which is made on the host so that its bytes do not
+/// depend on the caller's device.
+const MAY_USE_CPU: &[&str] = &["cpu", "device", "phantom"];
 
 /// The layers, bottom up: the kernel vocabulary (ABI structs, the Backend trait, shared types
 /// and settings), the two backends, operations the stages share, files on disk, the stages,
@@ -229,6 +230,32 @@ fn only_the_cpu_backend_and_the_backend_chooser_import_src_cpu() {
     assert!(
         offenders.is_empty(),
         "these modules import src/cpu; stages reach kernels through the Backend: {offenders:?}"
+    );
+}
+
+/// The doors (the command line, the Python package) open a backend through the device chooser
+/// only: none names a backend's type, so every door runs on the device the user asked for.
+#[test]
+fn the_command_line_and_the_python_package_name_no_backend() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut offences = Vec::new();
+    for folder in ["src/cli", "python/src"] {
+        for entry in std::fs::read_dir(root.join(folder)).unwrap() {
+            let path = entry.unwrap().path();
+            let code = code_of(&path);
+            let code: Vec<&str> = (code.lines())
+                .filter(|l| !l.trim_start().starts_with("//"))
+                .collect();
+            for name in ["CpuBackend", "GpuBackend", "GpuContext"] {
+                if code.iter().any(|l| l.contains(name)) {
+                    offences.push(format!("{} names {name}", path.display()));
+                }
+            }
+        }
+    }
+    assert!(
+        offences.is_empty(),
+        "open backends with posereg::device::open_backend: {offences:?}"
     );
 }
 

@@ -13,16 +13,13 @@ use rayon::prelude::*;
 use std::sync::OnceLock;
 
 fn clean(size: PhantomSize, flexion: f64) -> Phantom {
-    generate(
-        &posereg::cpu::CpuBackend,
-        &PhantomSpec {
-            size,
-            flexion_degrees: flexion,
-            bias: 0.0,
-            noise: 0.0,
-            seed: 1,
-        },
-    )
+    generate(&PhantomSpec {
+        size,
+        flexion_degrees: flexion,
+        bias: 0.0,
+        noise: 0.0,
+        seed: 1,
+    })
     .unwrap()
 }
 
@@ -309,15 +306,12 @@ fn same_seed_gives_bit_identical_files() {
         assert!(a == b, "{file} differs between runs");
     }
     // A different seed changes the noise.
-    let other = generate(
-        &posereg::cpu::CpuBackend,
-        &PhantomSpec {
-            size: PhantomSize::Small,
-            flexion_degrees: 30.0,
-            seed: 8,
-            ..Default::default()
-        },
-    )
+    let other = generate(&PhantomSpec {
+        size: PhantomSize::Small,
+        flexion_degrees: 30.0,
+        seed: 8,
+        ..Default::default()
+    })
     .unwrap();
     let first = posereg::io::nifti::load_volume(&dir.path().join("a/image.nii.gz")).unwrap();
     assert_ne!(first.data, other.image.data);
@@ -367,6 +361,6 @@ fn bad_specs_are_refused() {
             ..Default::default()
         },
     ] {
-        assert!(generate(&posereg::cpu::CpuBackend, &spec).is_err());
+        assert!(generate(&spec).is_err());
     }
 }

@@ -19,7 +19,7 @@ fn phantom(flexion_degrees: f64, seed: u64) -> posereg::phantom::Phantom {
         seed,
         ..Default::default()
     };
-    generate(&CpuBackend, &spec).unwrap()
+    generate(&spec).unwrap()
 }
 
 fn registered(inputs: Inputs, options: &RegisterOptions) -> Registration {

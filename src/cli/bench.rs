@@ -6,10 +6,8 @@
 use anyhow::bail;
 use clap::{Args, ValueEnum};
 use posereg::backend::Core;
-use posereg::cpu::CpuBackend;
-use posereg::device::{DeviceChoice, DeviceWanted};
-use posereg::gpu::context::GpuContext;
-use posereg::gpu::GpuBackend;
+use posereg::device::{open_backend, DeviceChoice, DeviceWanted, Opened};
+use posereg::on_backend;
 use posereg::phantom::{generate, PhantomSize, PhantomSpec};
 use posereg::pipeline::bench::{peak_rss_mib, time_registrations, Sizes, Timed};
 
@@ -117,10 +115,7 @@ pub fn run(args: &BenchArgs, device: &DeviceWanted) -> anyhow::Result<()> {
         seed,
         ..Default::default()
     };
-    let pair = (
-        generate(&posereg::cpu::CpuBackend, &spec(0.0, 1))?,
-        generate(&posereg::cpu::CpuBackend, &spec(args.flexion, 2))?,
-    );
+    let pair = (generate(&spec(0.0, 1))?, generate(&spec(args.flexion, 2))?);
     println!(
         "{:?} phantom {:?}, {}° flexion, median of {} runs",
         args.size,
@@ -140,24 +135,33 @@ pub fn run(args: &BenchArgs, device: &DeviceWanted) -> anyhow::Result<()> {
         "backend", "init s", "adaptive s", "dense s", "finish s", "total s"
     );
     let mut totals = Vec::new();
-    if which != Which::Gpu {
-        let t = time_registrations(&CpuBackend, args.runs, pair)?;
-        print_row(&CpuBackend.describe(), &t, &sizes);
-        println!(
-            "  peak host memory (process so far): {:.0} MiB",
-            peak_rss_mib().unwrap_or(f64::NAN)
+    let kinds = [
+        (Which::Cpu, DeviceChoice::Cpu),
+        (Which::Gpu, DeviceChoice::Gpu),
+    ];
+    for (_, kind) in kinds
+        .into_iter()
+        .filter(|(w, _)| which == *w || which == Which::Both)
+    {
+        let wanted = DeviceWanted {
+            kind,
+            adapter: device.adapter.clone(),
+        };
+        let (opened, _) = open_backend(&wanted)?;
+        let t = on_backend!(opened, backend => time_registrations(backend, args.runs, pair))?;
+        print_row(
+            &on_backend!(opened, backend => backend.describe()),
+            &t,
+            &sizes,
         );
-        totals.push(t);
-    }
-    if which != Which::Cpu {
-        let gpu = GpuBackend::with_context(GpuContext::open(device.adapter.as_ref())?)?;
-        let t = time_registrations(&gpu, args.runs, pair)?;
-        print_row(&gpu.describe(), &t, &sizes);
-        println!(
-            "  peak host memory (process so far): {:.0} MiB; largest set of device buffers bound at once: {:.1} MiB",
-            peak_rss_mib().unwrap_or(f64::NAN),
-            gpu.peak_dispatch_bytes() as f64 / (1024.0 * 1024.0)
-        );
+        let peak = peak_rss_mib().unwrap_or(f64::NAN);
+        match &opened {
+            Opened::Cpu(_) => println!("  peak host memory (process so far): {peak:.0} MiB"),
+            Opened::Gpu(gpu) => println!(
+                "  peak host memory (process so far): {peak:.0} MiB; largest set of device buffers bound at once: {:.1} MiB",
+                mib(gpu.peak_dispatch_bytes())
+            ),
+        }
         totals.push(t);
     }
     if let [cpu, gpu] = totals.as_slice() {

@@ -61,8 +61,8 @@ pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         "making a {:?} knee phantom straight and bent {}° ...",
         args.size, args.flexion
     ));
-    let source = generate(&posereg::cpu::CpuBackend, &spec(0.0, 1))?;
-    let target = generate(&posereg::cpu::CpuBackend, &spec(args.flexion, 2))?;
+    let source = generate(&spec(0.0, 1))?;
+    let target = generate(&spec(args.flexion, 2))?;
     let truth = (target.truth_field, target.truth, target.labels);
     let pair = Pair {
         source: source.image,

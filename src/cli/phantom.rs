@@ -42,7 +42,7 @@ pub fn run(args: &PhantomArgs) -> anyhow::Result<()> {
         seed: args.seed,
     };
     let _folder = posereg::io::prepare_output_folder(&args.output)?;
-    let phantom = generate(&posereg::cpu::CpuBackend, &spec)?;
+    let phantom = generate(&spec)?;
     let out = |name: &str| args.output.join(name);
     save_volume(&out("image.nii.gz"), &phantom.image, DataType::F32)?;
     save_labels(&out("labels.nii.gz"), &phantom.labels)?;

@@ -12,6 +12,7 @@ pub mod flexion;
 pub mod shapes;
 
 use crate::backend::Backend;
+use crate::cpu::CpuBackend;
 use crate::error::{Error, Result};
 use crate::images::fold_repair::host_determinant;
 use crate::images::unfold::{unfold, Held};
@@ -108,9 +109,10 @@ pub struct Phantom {
 /// Brightest tissue intensity; the noise level is relative to it.
 const INTENSITY_SCALE: f32 = 1000.0;
 
-/// Builds a phantom; `backend` computes the Jacobians of its truth field's unfolding (callers pass
-/// the CPU backend, so the truth does not depend on the device).
-pub fn generate<B: Backend>(backend: &B, spec: &PhantomSpec) -> Result<Phantom> {
+/// Builds a phantom. It is made on the host (the CPU backend computes the Jacobians of its truth
+/// field's unfolding), so that a spec gives the same bytes whatever device the caller uses.
+pub fn generate(spec: &PhantomSpec) -> Result<Phantom> {
+    let backend = &CpuBackend;
     if !(0.0..=120.0).contains(&spec.flexion_degrees) {
         return Err(Error::InvalidInput(format!(
             "flexion {}° is outside 0..120",
