@@ -919,7 +919,7 @@ fn pose_writes_a_posed_pair_with_its_truth() {
 }
 
 /// `posereg series` of `inputs` (quarter_series') into `out` on the CPU with the settings
-/// file `config` and `extra` flags; fails the test unless it succeeds, returns its stderr.
+/// file `config` and `extra` flags; fails the test unless it succeeds, returns what it printed.
 fn run_series(inputs: &[PathBuf; 4], out: &Path, config: &Path, extra: &[&str]) -> String {
     let [source, labels, thirty, sixty] = inputs;
     let args = [
@@ -942,7 +942,7 @@ fn run_series(inputs: &[PathBuf; 4], out: &Path, config: &Path, extra: &[&str]) 
     ];
     let ran = posereg(&[&args[..], &rest, extra].concat());
     assert!(ran.status.success(), "{ran:?}");
-    String::from_utf8_lossy(&ran.stderr).to_string()
+    String::from_utf8_lossy(&[ran.stdout, ran.stderr].concat()).to_string()
 }
 
 /// quarter_pair's source, labels and 30° target, and a 60° target: a series of two poses.
@@ -1060,6 +1060,8 @@ fn a_series_run_again_resumes_after_its_last_finished_pose_with_the_same_bytes()
         log.contains("resuming after pose 2") && !log.contains("of 2:"),
         "{log}"
     );
+    let kept = "2 poses registered (2 kept from an earlier run)";
+    assert!(log.contains(kept), "{log}");
     // Other settings: every pose again.
     let other = dir.path().join("other.toml");
     std::fs::write(&other, "[adaptive]\niterations = \"2x2x2\"\n").unwrap();

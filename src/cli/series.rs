@@ -143,8 +143,12 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
         std::fs::write(tmp, table).map_err(|e| Error::io(tmp, e))
     })?;
     save_chart(&args.output.join("series.png"), &series.chart())?;
+    let kept = match finished {
+        0 => String::new(),
+        n => format!(" ({n} kept from an earlier run)"),
+    };
     reporter.result(&format!(
-        "{} poses registered; series.csv, series.json, series.png and one folder per pose in {}",
+        "{} poses registered{kept}; series.csv, series.json, series.png and one folder per pose in {}",
         args.targets.len(),
         args.output.display()
     ));
