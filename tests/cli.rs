@@ -1062,6 +1062,27 @@ fn a_series_run_again_resumes_after_its_last_finished_pose_with_the_same_bytes()
     );
     let kept = "2 poses registered (2 kept from an earlier run)";
     assert!(log.contains(kept), "{log}");
+    // One target fewer: the first pose is kept, the second's folder is said to be stale.
+    let ran = posereg(&[
+        "series",
+        "--source",
+        s(&inputs[0]),
+        "--source-labels",
+        s(&inputs[1]),
+        "--targets",
+        s(&inputs[2]),
+        "-o",
+        s(&resumed),
+        "--device",
+        "cpu",
+        "--config",
+        s(&fast),
+    ]);
+    let log = String::from_utf8_lossy(&ran.stderr);
+    assert!(
+        ran.status.success() && log.contains("pose_02 and any later pose folder"),
+        "{log}"
+    );
     // Other settings: every pose again.
     let other = dir.path().join("other.toml");
     std::fs::write(&other, "[adaptive]\niterations = \"2x2x2\"\n").unwrap();

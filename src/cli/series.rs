@@ -58,6 +58,11 @@ pub struct SeriesArgs {
 }
 
 impl SeriesArgs {
+    /// The output folder of pose `index` (from 0).
+    fn folder(&self, index: usize) -> PathBuf {
+        self.output.join(format!("pose_{:02}", index + 1))
+    }
+
     /// `register`'s arguments for pose `index` (from 0).
     fn pose(&self, index: usize) -> RegisterArgs {
         RegisterArgs {
@@ -65,7 +70,7 @@ impl SeriesArgs {
                 source: self.source.clone(),
                 source_labels: self.source_labels.clone(),
                 target: self.targets[index].clone(),
-                output: self.output.join(format!("pose_{:02}", index + 1)),
+                output: self.folder(index),
                 label_map: self.label_map.clone(),
                 side: self.side,
             },
@@ -143,6 +148,15 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
         std::fs::write(tmp, table).map_err(|e| Error::io(tmp, e))
     })?;
     save_chart(&args.output.join("series.png"), &series.chart())?;
+    let beyond = args.folder(args.targets.len());
+    if beyond.exists() {
+        reporter.warn(&format!(
+            "{} and any later pose folder are from an earlier, longer series: they are not part \
+             of this one (series.csv and series.json list its {} poses); delete them if unwanted",
+            beyond.display(),
+            args.targets.len()
+        ));
+    }
     let kept = match finished {
         0 => String::new(),
         n => format!(" ({n} kept from an earlier run)"),
@@ -184,8 +198,7 @@ fn resume(
 ) -> Option<Reachable> {
     while let Some(last) = series.poses.last() {
         let index = last.pose - 1;
-        let folder = args.pose(index).pair.output;
-        match read_pose(&folder, &grids[index]) {
+        match read_pose(&args.folder(index), &grids[index]) {
             Ok(reached) => {
                 reporter.say(&format!(
                     "resuming after pose {}: the poses up to it were finished by an earlier run \
