@@ -14,17 +14,15 @@ use super::register::{register_pair, RegisterArgs, StartOf};
 use clap::Args;
 use posereg::device::DeviceWanted;
 use posereg::io::config::options_toml;
-use posereg::io::field::load_field;
-use posereg::io::transform::BoneTransforms;
 use posereg::joints::anatomy::Side;
 use posereg::pipeline::inputs::{check_settings, load_pair};
 use posereg::pipeline::register::RegisterOptions;
-use posereg::pipeline::series::{chain_step, Reached};
+use posereg::pipeline::series::{chain_step, Finished};
 use posereg::report::quicklook::chart::save_chart;
 use posereg::report::series::{FileStamp, MadeFrom, PoseRecord, SeriesFile};
-use posereg::volume::{Field, Grid};
+use posereg::volume::Grid;
 use posereg::Error;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Arguments of `posereg series`.
 #[derive(Args, Debug)]
@@ -116,16 +114,12 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
             let Some(p) = previous.as_ref().filter(|_| !args.unchained) else {
                 return Ok(None);
             };
-            let reached = Reached {
-                field: &p.field,
-                motions: &p.transforms,
-            };
             let source = (&pair.source, &pair.labels);
             Ok(Some(posereg::on_backend!(opened, backend => chain_step(
-                backend, source, reached, &pair.target, &options.init, reporter,
+                backend, source, p.reached(), &pair.target, &options.init, reporter,
             ))?))
         };
-        let seeds = previous.as_ref().map(|p| &p.transforms);
+        let seeds = previous.as_ref().map(|p| &p.motions);
         let done = register_pair(
             &pose,
             &options,
@@ -137,9 +131,9 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
         let pose_of = (index + 1, target.clone());
         (series.poses).push(PoseRecord::new(pose_of, done.summary, kinematics)?);
         series.save(&args.output)?;
-        previous = Some(Reachable {
+        previous = Some(Finished {
             field: done.registered.result.field,
-            transforms: done.transforms,
+            motions: done.transforms,
         });
     }
     let path = args.output.join("series.csv");
@@ -169,12 +163,6 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
     Ok(())
 }
 
-/// A finished pose as the next one is reached from: its field and its bone motions.
-struct Reachable {
-    field: Field,
-    transforms: BoneTransforms,
-}
-
 /// What decides the series' poses besides its targets.
 fn made_from(args: &SeriesArgs, options: &RegisterOptions) -> anyhow::Result<MadeFrom> {
     Ok(MadeFrom {
@@ -195,10 +183,10 @@ fn resume(
     series: &mut SeriesFile,
     grids: &[Grid],
     reporter: &Reporter,
-) -> Option<Reachable> {
+) -> Option<Finished> {
     while let Some(last) = series.poses.last() {
         let index = last.pose - 1;
-        match read_pose(&args.folder(index), &grids[index]) {
+        match Finished::read(&args.folder(index), &grids[index]) {
             Ok(reached) => {
                 reporter.say(&format!(
                     "resuming after pose {}: the poses up to it were finished by an earlier run \
@@ -217,19 +205,6 @@ fn resume(
         }
     }
     None
-}
-
-/// A finished pose's field (on `grid`, its target's) and bone motions, from its `folder`.
-fn read_pose(folder: &Path, grid: &Grid) -> posereg::Result<Reachable> {
-    let path = folder.join("field.nii.gz");
-    let mut field = load_field(&path)?;
-    if !field.grid.same_as(grid, 1e-3) {
-        return Err(Error::bad_file(&path, "is not on its target's grid"));
-    }
-    // The grid as the target's header gives it, not as the field's float32 header rounds it.
-    field.grid = grid.clone();
-    let transforms = BoneTransforms::load(&folder.join("transform.json"))?;
-    Ok(Reachable { field, transforms })
 }
 
 /// Reads and checks every pose's inputs and the settings against them before any work: a

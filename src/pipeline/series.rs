@@ -15,9 +15,44 @@ use crate::backend::{resample_volume, Backend, DeviceImage};
 use crate::error::{Error, Result};
 use crate::init::articulated::{blend_motions, bone_motions, Chained, InitOptions};
 use crate::init::reach::Judge;
+use crate::io::field::load_field;
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::progress::Progress;
-use crate::volume::{Field, Image, Labels, Volume};
+use crate::volume::{Field, Grid, Image, Labels, Volume};
+use std::path::Path;
+
+/// A finished pose, owned: what the next pose is reached from, whether it was registered in
+/// this run or read back from an earlier run's folder.
+pub struct Finished {
+    /// Its registered field: its point → source point (RAS mm), on its target's grid.
+    pub field: Field,
+    /// Its bone motions, source → it.
+    pub motions: BoneTransforms,
+}
+
+impl Finished {
+    /// A finished pose read back from its output `folder` (field.nii.gz, transform.json), its
+    /// field put on `grid`, its target's, as the target's header gives it (the field's float32
+    /// header rounds the affine).
+    pub fn read(folder: &Path, grid: &Grid) -> Result<Self> {
+        let path = folder.join("field.nii.gz");
+        let mut field = load_field(&path)?;
+        if !field.grid.same_as(grid, 1e-3) {
+            return Err(Error::bad_file(&path, "is not on its target's grid"));
+        }
+        field.grid = grid.clone();
+        let motions = BoneTransforms::load(&folder.join("transform.json"))?;
+        Ok(Finished { field, motions })
+    }
+
+    /// It as the pose before the next.
+    pub fn reached(&self) -> Reached<'_> {
+        Reached {
+            field: &self.field,
+            motions: &self.motions,
+        }
+    }
+}
 
 /// The pose before the one to reach, as its registration left it.
 #[derive(Clone, Copy)]
