@@ -136,6 +136,17 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
             motions: done.transforms,
         });
     }
+    write_summary(args, &series, finished, reporter)
+}
+
+/// Writes series.csv and series.png from `series`' records and says what the run did
+/// (`kept`: the poses an earlier run had finished).
+fn write_summary(
+    args: &SeriesArgs,
+    series: &SeriesFile,
+    kept: usize,
+    reporter: &Reporter,
+) -> anyhow::Result<()> {
     let path = args.output.join("series.csv");
     let table = series.table();
     posereg::io::write_atomically(&path, |tmp| {
@@ -151,7 +162,7 @@ pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> any
             args.targets.len()
         ));
     }
-    let kept = match finished {
+    let kept = match kept {
         0 => String::new(),
         n => format!(" ({n} kept from an earlier run)"),
     };
