@@ -10,11 +10,13 @@
 //! to millimetres by xyzt_units.
 
 mod datatype;
+mod describe;
 mod header;
 mod read;
 mod write;
 
 pub use datatype::Datatype;
+pub use describe::{describe, Description};
 pub use header::{AffineSource, Header, Version};
 pub use write::{header_for, save_labels, save_volume, write_image, DataType};
 
