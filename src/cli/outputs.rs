@@ -12,7 +12,6 @@ use posereg::pipeline::inputs::Pair;
 use posereg::pipeline::register::RegisterOptions;
 use posereg::registration::Registered;
 use posereg::report::quicklook::Figure;
-use posereg::Error;
 use std::path::Path;
 
 /// Writes every output of `done`, a registration of `pair` with `options`, into `folder`, and
@@ -33,10 +32,7 @@ pub fn write_registration(
     transform.save(&out("transform.json"))?;
     save_bone_tfms(folder, &transform)?;
     save_quicklook(&out("quicklook.png"), (pair, options), done)?;
-    let text = serde_json::to_string_pretty(&done.report.json)? + "\n";
-    posereg::io::write_atomically(&out("report.json"), |tmp| {
-        std::fs::write(tmp, text).map_err(|e| Error::io(tmp, e))
-    })?;
+    posereg::io::save_json(&out("report.json"), &done.report.json)?;
     done.kinematics_warnings
         .iter()
         .for_each(|w| reporter.warn(w));

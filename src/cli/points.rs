@@ -89,9 +89,7 @@ pub fn run(args: &PointsArgs, reporter: &Reporter) -> anyhow::Result<()> {
         cells[cz] = format!("{:.4}", p.z);
         out += &format!("{},{residual:.4}\n", cells.join(","));
     }
-    posereg::io::write_atomically(&args.output, |tmp| {
-        std::fs::write(tmp, &out).map_err(|e| Error::io(tmp, e))
-    })?;
+    posereg::io::write_bytes(&args.output, out)?;
     Ok(())
 }
 

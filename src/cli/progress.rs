@@ -82,9 +82,7 @@ impl Reporter {
             command.join(" "),
             lines.join("\n")
         );
-        posereg::io::write_atomically(path, |tmp| {
-            std::fs::write(tmp, text).map_err(|e| posereg::Error::io(tmp, e))
-        })?;
+        posereg::io::write_bytes(path, text)?;
         Ok(())
     }
 

@@ -21,7 +21,6 @@ use posereg::pipeline::series::{chain_step, Finished};
 use posereg::report::quicklook::chart::save_chart;
 use posereg::report::series::{FileStamp, MadeFrom, PoseRecord, SeriesFile};
 use posereg::volume::Grid;
-use posereg::Error;
 use std::path::PathBuf;
 
 /// Arguments of `posereg series`.
@@ -147,11 +146,7 @@ fn write_summary(
     kept: usize,
     reporter: &Reporter,
 ) -> anyhow::Result<()> {
-    let path = args.output.join("series.csv");
-    let table = series.table();
-    posereg::io::write_atomically(&path, |tmp| {
-        std::fs::write(tmp, table).map_err(|e| Error::io(tmp, e))
-    })?;
+    posereg::io::write_bytes(&args.output.join("series.csv"), series.table())?;
     save_chart(&args.output.join("series.png"), &series.chart())?;
     let beyond = args.folder(args.targets.len());
     if beyond.exists() {

@@ -92,9 +92,7 @@ pub fn save_bone_tfms(folder: &Path, transforms: &BoneTransforms) -> Result<Vec<
             (stem.with_extension("mat"), itk_mat(&motion)?),
         ];
         for (path, bytes) in files {
-            super::write_atomically(&path, |tmp| {
-                std::fs::write(tmp, &bytes).map_err(|e| Error::io(tmp, e))
-            })?;
+            super::write_bytes(&path, bytes)?;
             written.push(path);
         }
     }

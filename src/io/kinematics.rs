@@ -1,7 +1,7 @@
 //! kinematics.json and kinematics.csv: the knee's joint motion in Grood & Suntay's joint
 //! coordinate system (crate::joints::kinematics), as `init` and `register` write it.
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::joints::kinematics::KneeKinematics;
 use std::path::Path;
 
@@ -28,12 +28,7 @@ pub fn save_kinematics(folder: &Path, kinematics: &KneeKinematics) -> Result<()>
         "frames": kinematics.frames,
         "joints": kinematics.joints,
     });
-    let path = folder.join("kinematics.json");
-    let text = serde_json::to_string_pretty(&json)
-        .map_err(|e| Error::bad_file(&path, format!("cannot encode JSON ({e})")))?;
-    super::write_atomically(&path, |tmp| {
-        std::fs::write(tmp, text + "\n").map_err(|e| Error::io(tmp, e))
-    })?;
+    super::save_json(&folder.join("kinematics.json"), &json)?;
     let mut csv = String::from("joint,quantity,unit,source,target,change\n");
     for joint in &kinematics.joints {
         for q in &joint.quantities {
@@ -43,8 +38,5 @@ pub fn save_kinematics(folder: &Path, kinematics: &KneeKinematics) -> Result<()>
             );
         }
     }
-    let path = folder.join("kinematics.csv");
-    super::write_atomically(&path, |tmp| {
-        std::fs::write(tmp, &csv).map_err(|e| Error::io(tmp, e))
-    })
+    super::write_bytes(&folder.join("kinematics.csv"), csv)
 }

@@ -54,6 +54,20 @@ where
     result
 }
 
+/// Writes `bytes` to `path` atomically ([`write_atomically`]).
+pub fn write_bytes(path: &Path, bytes: impl AsRef<[u8]>) -> Result<()> {
+    write_atomically(path, |tmp| {
+        std::fs::write(tmp, bytes).map_err(|e| Error::io(tmp, e))
+    })
+}
+
+/// Writes `value` to `path` as pretty JSON ending in a newline, atomically.
+pub fn save_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)
+        .map_err(|e| Error::bad_file(path, format!("cannot encode JSON ({e})")))?;
+    write_bytes(path, text + "\n")
+}
+
 /// An output folder made ready before any computation. The folders it created are removed
 /// again when it is dropped while still empty, so a run that fails leaves nothing behind.
 #[must_use = "the folder is removed again when this is dropped empty"]

@@ -70,11 +70,7 @@ impl BoneTransforms {
 
     /// Writes pretty JSON atomically.
     pub fn save(&self, path: &Path) -> Result<()> {
-        let text = serde_json::to_string_pretty(self)
-            .map_err(|e| Error::bad_file(path, format!("cannot encode JSON ({e})")))?;
-        super::write_atomically(path, |tmp| {
-            std::fs::write(tmp, text + "\n").map_err(|e| Error::io(path, e))
-        })
+        super::save_json(path, self)
     }
 
     /// Refuses motions that are not rigid (rotation and translation: RᵀR = I to 10⁻³,

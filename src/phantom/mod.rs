@@ -112,7 +112,6 @@ const INTENSITY_SCALE: f32 = 1000.0;
 /// Builds a phantom. It is made on the host (the CPU backend computes the Jacobians of its truth
 /// field's unfolding), so that a spec gives the same bytes whatever device the caller uses.
 pub fn generate(spec: &PhantomSpec) -> Result<Phantom> {
-    let backend = &CpuBackend;
     if !(0.0..=120.0).contains(&spec.flexion_degrees) {
         return Err(Error::InvalidInput(format!(
             "flexion {}° is outside 0..120",
@@ -137,7 +136,7 @@ pub fn generate(spec: &PhantomSpec) -> Result<Phantom> {
             .map(|n| world_of(&grid, n))
             .collect()
     } else {
-        unfolded(backend, &grid, flexion.straight_points(&grid))?
+        unfolded(&CpuBackend, &grid, flexion.straight_points(&grid))?
     };
     // Anti-alias over about one voxel.
     let edge = grid.spacing().iter().cloned().fold(0.0, f64::max) as f32;

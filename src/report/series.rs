@@ -127,8 +127,7 @@ impl PoseRecord {
 
     /// Its value of `joint`'s quantity `name` in its pose, NaN when it has none.
     fn value(&self, joint: &str, name: &str) -> f64 {
-        let joints = self.kinematics.iter().flatten();
-        let joint = joints.into_iter().find(|j| j.joint == joint);
+        let joint = self.kinematics.iter().flatten().find(|j| j.joint == joint);
         let quantity = joint.and_then(|j| j.quantities.iter().find(|q| q.name == name));
         quantity.map_or(f64::NAN, |q| q.target)
     }
@@ -172,12 +171,7 @@ impl SeriesFile {
 
     /// Writes it as `folder`/series.json (atomically).
     pub fn save(&self, folder: &Path) -> Result<()> {
-        let path = folder.join("series.json");
-        let text = serde_json::to_string_pretty(self)
-            .map_err(|e| Error::InvalidInput(format!("series.json: {e}")))?;
-        crate::io::write_atomically(&path, |tmp| {
-            std::fs::write(tmp, text + "\n").map_err(|e| Error::io(tmp, e))
-        })
+        crate::io::save_json(&folder.join("series.json"), self)
     }
 
     /// series.csv: each pose's kinematics, one quantity a row.
