@@ -47,6 +47,7 @@ pub mod gpu;
 pub mod images;
 pub mod init;
 pub mod io;
+pub mod jobs;
 pub mod joints;
 pub mod labels;
 pub mod levels;

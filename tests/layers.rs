@@ -30,12 +30,15 @@ const LAYERS: &[&[&str]] = &[
     &["pipeline"],
     &["report"],
     &["registration"],
+    &["jobs"],
     &["cli"],
 ];
 
 /// Directories under src/ whose files are modules of their own (the stage groups); the other
 /// directories are one module each.
-const GROUPS: &[&str] = &["images", "joints", "init", "nonrigid", "pipeline", "report"];
+const GROUPS: &[&str] = &[
+    "images", "joints", "init", "nonrigid", "pipeline", "report", "jobs",
+];
 
 /// The module of a file under src/ ("init::rigid" for src/init/rigid.rs, "report" for
 /// src/report/mod.rs, "gpu" for src/gpu/run.rs), None for the crate roots.

@@ -6,6 +6,7 @@ use numpy::{IntoPyArray, PyReadonlyArray1};
 use posereg::device::{open_backend, DeviceChoice, DeviceWanted};
 use posereg::io::config::options_from_json;
 use posereg::io::field::flip_ras_lps;
+use posereg::jobs::reporter::Reporter;
 use posereg::pipeline::inputs::{check_pair, load_pair, Pair, PairPaths};
 use posereg::pipeline::register::RegisterOptions;
 use posereg::progress::{Progress, Silent};
@@ -18,19 +19,6 @@ use std::path::Path;
 
 /// An image as Python hands it over: voxels x-fastest, dims, voxel → world RAS affine.
 type Flat<'py, T> = (PyReadonlyArray1<'py, T>, [usize; 3], [[f64; 4]; 4]);
-
-/// Progress as lines on stderr.
-struct Lines;
-
-impl Progress for Lines {
-    fn begin(&self, stage: &str, _steps: usize) {
-        eprintln!("posereg: {stage}");
-    }
-    fn step(&self, detail: &str) {
-        eprintln!("posereg:   {detail}");
-    }
-    fn end(&self) {}
-}
 
 /// The image an argument holds; its problems are named after the argument.
 fn image<T: Clone + numpy::Element>(
@@ -192,7 +180,11 @@ fn run(
     progress: bool,
 ) -> posereg::Result<Done> {
     let (opened, _) = open_backend(wanted)?;
-    let shown: &dyn Progress = if progress { &Lines } else { &Silent };
+    let shown: &dyn Progress = if progress {
+        &Reporter::new(false)
+    } else {
+        &Silent
+    };
     let request = Request {
         pair,
         names,

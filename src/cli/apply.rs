@@ -6,13 +6,14 @@
 //! --inverse, an image on the target's grid is brought back onto the source's grid through
 //! inverse_field.nii.gz.
 
-use super::fields::{check_on_field_grid, interpolation, load_moving, registration_field};
-use super::progress::Reporter;
 use clap::Args;
 use posereg::backend::resample_volume;
 use posereg::device::{open_backend, DeviceWanted};
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::{check_output_file, NIFTI_NAMES};
+use posereg::jobs::fields::{check_on_field_grid, interpolation, load_moving, registration_field};
+use posereg::jobs::reporter::Reporter;
+use posereg::progress::Progress;
 use std::path::PathBuf;
 
 /// Arguments of `posereg apply`.

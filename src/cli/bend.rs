@@ -1,18 +1,16 @@
 //! `posereg bend SOURCE --labels LABELS --degrees D [--axis ...] -o DIR`: the paper's synthetic
 //! experiment — bend a labelled volume with volume skeletal deformation and keep the truth.
 
-use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
-use posereg::abi::Interpolation;
-use posereg::backend::resample_volume;
 use posereg::device::{open_backend, DeviceWanted};
-use posereg::init::repose::{bend, check_bend_degrees, Posed};
-use posereg::io::field::save_field;
-use posereg::io::nifti::{load_labels, load_volume, save_labels, save_volume, DataType};
+use posereg::init::repose::{bend, check_bend_degrees};
+use posereg::jobs::posed::{load_posable, write_posed};
+use posereg::jobs::reporter::Reporter;
 use posereg::joints::joint::{flexion_axis, JointAxis, KneeBones};
-use posereg::{Error, Labels, Volume};
-use std::path::{Path, PathBuf};
+use posereg::progress::Progress;
+use posereg::Error;
+use std::path::PathBuf;
 
 /// Arguments of `posereg bend`.
 #[derive(Args, Debug)]
@@ -92,47 +90,5 @@ pub fn run(args: &BendArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         axis.direction.as_slice(),
         args.output.display()
     );
-    Ok(())
-}
-
-/// The scan `pose` and `bend` move and its bone labels, read and checked before any work: the
-/// labels on the scan's grid.
-pub fn load_posable(source: &Path, labels: &Path) -> anyhow::Result<(Volume, Labels)> {
-    let volume = load_volume(source)?;
-    let label_map = load_labels(labels)?;
-    if !label_map.grid.same_as(&volume.grid, 1e-3) {
-        return Err(Error::bad_file(labels, "label map is not on the source image's grid").into());
-    }
-    Ok((volume, label_map))
-}
-
-/// Writes a synthetic pose of `source` and its `labels` into `folder`: target.nii.gz,
-/// target_labels.nii.gz, truth_field.nii.gz, truth.json and picture.png (three planes through
-/// `knee`).
-pub fn write_posed(
-    opened: &posereg::device::Opened,
-    folder: &std::path::Path,
-    (source, labels): (&posereg::Volume, &posereg::Labels),
-    posed: &Posed,
-    knee: [f64; 3],
-) -> anyhow::Result<()> {
-    let out = |name: &str| folder.join(name);
-    let target = posereg::on_backend!(opened, backend => resample_volume(backend, source, &posed.field, 0.0, Interpolation::Linear))?;
-    let label_values: posereg::Volume = posereg::Image {
-        grid: labels.grid.clone(),
-        data: labels.data.iter().map(|&l| l as f32).collect(),
-    };
-    let target_labels = posereg::on_backend!(opened, backend => resample_volume(backend, &label_values, &posed.field, 0.0, Interpolation::Nearest))?;
-    save_volume(&out("target.nii.gz"), &target, DataType::F32)?;
-    save_labels(
-        &out("target_labels.nii.gz"),
-        &posereg::Image {
-            grid: target_labels.grid,
-            data: target_labels.data.iter().map(|&v| v as u16).collect(),
-        },
-    )?;
-    save_field(&out("truth_field.nii.gz"), &posed.field)?;
-    posed.truth.save(&out("truth.json"))?;
-    posereg::report::picture::save_planes_png(&out("picture.png"), &target, Some(knee))?;
     Ok(())
 }

@@ -6,14 +6,11 @@ pub mod bend;
 pub mod demo;
 pub mod devices;
 pub mod eval;
-pub mod fields;
 pub mod info;
 pub mod init;
-pub mod outputs;
 pub mod phantom;
 pub mod points;
 pub mod pose;
-pub mod progress;
 pub mod register;
 pub mod resample;
 pub mod series;
@@ -21,6 +18,7 @@ pub mod series;
 use clap::{Parser, Subcommand};
 use posereg::device::{DeviceChoice, DeviceWanted};
 use posereg::gpu::context::AdapterChoice;
+use posereg::jobs::reporter::Reporter;
 
 /// Register 3-D MRI of an articulated body across poses (GPU, with a CPU twin).
 #[derive(Parser, Debug)]
@@ -89,7 +87,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     if let Some(threads) = cli.threads {
         pool = pool.num_threads(threads as usize);
     }
-    let reporter = progress::Reporter::new(cli.quiet);
+    let reporter = Reporter::new(cli.quiet);
     let device = DeviceWanted {
         kind: cli.device,
         adapter: cli.gpu,
@@ -99,15 +97,11 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 }
 
 /// Runs one verb.
-fn run_command(
-    command: Command,
-    device: &DeviceWanted,
-    reporter: &progress::Reporter,
-) -> anyhow::Result<()> {
+fn run_command(command: Command, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     match command {
         Command::Apply(args) => apply::run(&args, device, reporter),
         Command::ApplyPoints(args) => points::run(&args, reporter),
-        Command::Bench(args) => bench::run(&args, device),
+        Command::Bench(args) => bench::run(&args, device, reporter),
         Command::Bend(args) => bend::run(&args, device, reporter),
         Command::Demo(args) => demo::run(&args, device, reporter),
         Command::Devices => devices::run(),

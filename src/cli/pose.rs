@@ -3,15 +3,16 @@
 //! kinematics.csv reports them), with its exact truth: for checking a result, and for making
 //! test pairs whose motion is not a rotation about one axis.
 
-use super::bend::{load_posable, write_posed};
-use super::progress::Reporter;
 use clap::Args;
 use posereg::abi::Blending;
 use posereg::device::{open_backend, DeviceWanted};
 use posereg::init::repose::{check_pose_change, pose};
+use posereg::jobs::posed::{load_posable, write_posed};
+use posereg::jobs::reporter::Reporter;
 use posereg::joints::anatomy::{knee_frames, Side};
 use posereg::joints::joint::KneeBones;
 use posereg::joints::kinematics::JointPose;
+use posereg::progress::Progress;
 use posereg::Error;
 use std::path::PathBuf;
 

@@ -2,21 +2,17 @@
 //! pipeline, writing warped.nii.gz, field.nii.gz, inverse_field.nii.gz, transform.json,
 //! bones/*.tfm, jacobian.nii.gz, report.json and quicklook.png.
 
-use super::init::PairArgs;
-use super::outputs::write_registration;
-use super::progress::Reporter;
+use super::init::{with_label_map, PairArgs};
 use clap::Args;
 use posereg::abi::Blending;
-use posereg::device::{open_backend, DeviceWanted, Opened};
+use posereg::device::DeviceWanted;
 use posereg::images::similarity::Similarity;
-use posereg::init::articulated::{Chained, Start};
 use posereg::io::config::{load_options, options_toml};
-use posereg::io::transform::BoneTransforms;
+use posereg::jobs::register::{register_files, RegisterFiles, StartOf};
+use posereg::jobs::reporter::Reporter;
 use posereg::levels::PerLevel;
-use posereg::pipeline::inputs::{load_given_motions, load_target_mask, Pair};
 use posereg::pipeline::register::RegisterOptions;
-use posereg::registration::{file_inputs, Registered, Request};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `posereg register`.
 #[derive(Args, Debug)]
@@ -84,10 +80,7 @@ fn settings_help() -> String {
 impl RegisterArgs {
     /// Defaults, overridden by the config file, overridden by the flags.
     pub fn options(&self) -> anyhow::Result<RegisterOptions> {
-        let mut options = match &self.config {
-            Some(path) => load_options(path)?,
-            None => RegisterOptions::default(),
-        };
+        let mut options = settings_file(self.config.as_deref())?;
         if self.no_init {
             options.initialise = false;
         }
@@ -112,18 +105,29 @@ impl RegisterArgs {
         if let Some(similarity) = &self.similarity {
             options.adaptive.similarity = similarity.clone();
         }
-        options.init.chain = self.pair.chain(&options.init.chain)?;
-        options.check()?;
-        Ok(options)
+        with_label_map(options, &self.pair.label_map)
     }
+}
+
+/// The settings `config` holds, or the defaults without one.
+pub fn settings_file(config: Option<&Path>) -> anyhow::Result<RegisterOptions> {
+    Ok(match config {
+        Some(path) => load_options(path)?,
+        None => RegisterOptions::default(),
+    })
 }
 
 /// Runs the registration and writes its outputs.
 pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
     let options = args.options()?;
-    let unchained: StartOf = &|_, _| Ok(None);
-    let starts = (None, unchained);
-    let written = register_pair(args, &options, (device, &mut None), starts, reporter)?;
+    let files = RegisterFiles {
+        pair: args.pair.files(),
+        target_mask: args.target_mask.clone(),
+        init: args.init.clone(),
+    };
+    let identity: StartOf = &|_, _| Ok(None);
+    let opened = (device, &mut None);
+    let written = register_files(&files, &options, opened, (None, identity), reporter)?;
     let failed = written.registered.failed_checks();
     if args.strict && !failed.is_empty() {
         anyhow::bail!(
@@ -134,101 +138,4 @@ pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> a
         );
     }
     Ok(())
-}
-
-/// What one registration leaves for its caller once its outputs are written.
-pub struct Written {
-    /// The registration and what came with it.
-    pub registered: Registered,
-    /// The bone motions (none without the initialisation).
-    pub transforms: BoneTransforms,
-    /// report.json's headline figures, for a summary over several registrations.
-    pub summary: serde_json::Value,
-}
-
-/// Where the bones' registration of a loaded pair starts: `posereg series` works it out from
-/// the pair and the backend (its previous pose), `register` starts from the identity.
-pub type StartOf<'s> = &'s dyn Fn(&Opened, &Pair) -> anyhow::Result<Option<Chained>>;
-
-/// Loads the pair `args` names, registers it with `options` on the backend `opened` holds
-/// (opening the one `device` asks for the first time), and writes every output into its
-/// folder. The bones start from `args`' given motions, else from a chained pose `chained`
-/// makes, else from `seeds` tried first, else from the identity.
-pub fn register_pair(
-    args: &RegisterArgs,
-    options: &RegisterOptions,
-    (device, opened): (&DeviceWanted, &mut Option<Opened>),
-    (seeds, chained): (Option<&BoneTransforms>, StartOf),
-    reporter: &Reporter,
-) -> anyhow::Result<Written> {
-    let (_folder, pair) = args.pair.load(reporter, &options.init.chain)?;
-    let given = match &args.init {
-        Some(path) => Some(load_given_motions(path, &pair.labels, &options.init)?),
-        None => None,
-    };
-    let mask = match &args.target_mask {
-        Some(path) => Some(load_target_mask(
-            path,
-            &pair.target.grid,
-            &args.pair.target,
-        )?),
-        None => None,
-    };
-    if opened.is_none() {
-        let (backend, line) = open_backend(device)?;
-        reporter.say(&line);
-        *opened = Some(backend);
-    }
-    let opened = opened.as_ref().expect("opened above");
-    let chained = chained(opened, &pair)?;
-    let start = (given.as_ref().map(Start::Given))
-        .or(chained.as_ref().map(Start::Chained))
-        .or(seeds.map(Start::Seeded));
-    let request = Request {
-        pair: &pair,
-        names: args.pair.paths(),
-        options,
-        start,
-        target_mask: mask.as_ref(),
-        side: args.pair.side,
-        inputs: file_inputs(
-            args.pair.paths(),
-            (args.init.as_deref(), args.target_mask.as_deref()),
-            start,
-        ),
-        keep_initial_field: false,
-    };
-    let registered = posereg::registration::register_pair(opened, request, reporter)?;
-    write_registration(&args.pair.output, (&pair, options), &registered, reporter)?;
-    let summary = summary(args, start, &registered);
-    reporter.result(&format!(
-        "registered in {:.1} s: correlation {:.3} -> {:.3}, {} control points, Jacobian min {:.3}; outputs in {}",
-        registered.seconds,
-        registered.report.correlations.before,
-        registered.report.correlations.after,
-        registered.result.adaptive.points.len(),
-        registered.result.min_jacobian,
-        args.pair.output.display()
-    ));
-    reporter.save_log(&args.pair.output.join("posereg.log"))?;
-    Ok(Written {
-        transforms: registered.result.transforms(options),
-        registered,
-        summary,
-    })
-}
-
-/// report.json's headline figures for a summary over several registrations (series.json).
-fn summary(args: &RegisterArgs, start: Option<Start>, done: &Registered) -> serde_json::Value {
-    let correlations = &done.report.correlations;
-    serde_json::json!({
-        "folder": args.pair.output,
-        "target": args.pair.target,
-        "start": Start::describe(start),
-        "seconds": done.seconds,
-        "correlation": { "before": correlations.before, "after": correlations.after },
-        "control_points": done.result.adaptive.points.len(),
-        "jacobian_min": done.result.min_jacobian,
-        "checks_failed": done.failed_checks(),
-    })
 }

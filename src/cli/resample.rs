@@ -1,13 +1,14 @@
 //! `posereg resample SOURCE --field FIELD --like TARGET -o OUT`.
 
-use super::fields::{check_on_field_grid, interpolation, load_moving};
-use super::progress::Reporter;
 use clap::Args;
 use posereg::backend::resample_volume;
 use posereg::device::{open_backend, DeviceWanted};
 use posereg::io::field::load_field;
 use posereg::io::nifti::{save_volume, DataType};
 use posereg::io::{check_output_file, NIFTI_NAMES};
+use posereg::jobs::fields::{check_on_field_grid, interpolation, load_moving};
+use posereg::jobs::reporter::Reporter;
+use posereg::progress::Progress;
 use std::path::PathBuf;
 
 /// Arguments of `posereg resample`.

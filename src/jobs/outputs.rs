@@ -1,17 +1,18 @@
-//! What `register` and `demo` write into their output folder, the same for both: the warped
-//! source, the field and its inverse, the Jacobian, the bone transforms (JSON and ITK .tfm),
-//! the figure, report.json, the kinematics and the log.
+//! What a registration writes into its output folder, the same for `register`, `series` and
+//! `demo`: the warped source, the field and its inverse, the Jacobian, the bone transforms
+//! (JSON and ITK .tfm), the figure, report.json and the kinematics.
 
-use super::progress::Reporter;
-use posereg::io::field::save_field;
-use posereg::io::itk_transform::save_bone_tfms;
-use posereg::io::nifti::{save_volume, DataType};
-use posereg::joints::anatomy::Frame;
-use posereg::joints::kinematics::KneeKinematics;
-use posereg::pipeline::inputs::Pair;
-use posereg::pipeline::register::RegisterOptions;
-use posereg::registration::Registered;
-use posereg::report::quicklook::Figure;
+use crate::error::Result;
+use crate::io::field::save_field;
+use crate::io::itk_transform::save_bone_tfms;
+use crate::io::nifti::{save_volume, DataType};
+use crate::joints::anatomy::Frame;
+use crate::joints::kinematics::KneeKinematics;
+use crate::pipeline::inputs::Pair;
+use crate::pipeline::register::RegisterOptions;
+use crate::progress::Progress;
+use crate::registration::Registered;
+use crate::report::quicklook::Figure;
 use std::path::Path;
 
 /// Writes every output of `done`, a registration of `pair` with `options`, into `folder`, and
@@ -20,8 +21,8 @@ pub fn write_registration(
     folder: &Path,
     (pair, options): (&Pair, &RegisterOptions),
     done: &Registered,
-    reporter: &Reporter,
-) -> anyhow::Result<()> {
+    progress: &dyn Progress,
+) -> Result<()> {
     let result = &done.result;
     let out = |name: &str| folder.join(name);
     save_volume(&out("warped.nii.gz"), &result.warped, DataType::F32)?;
@@ -32,15 +33,15 @@ pub fn write_registration(
     transform.save(&out("transform.json"))?;
     save_bone_tfms(folder, &transform)?;
     save_quicklook(&out("quicklook.png"), (pair, options), done)?;
-    posereg::io::save_json(&out("report.json"), &done.report.json)?;
+    crate::io::save_json(&out("report.json"), &done.report.json)?;
     done.kinematics_warnings
         .iter()
-        .for_each(|w| reporter.warn(w));
+        .for_each(|w| progress.warn(w));
     if let Some(k) = &done.kinematics {
-        write_kinematics(folder, k, reporter)?;
+        write_kinematics(folder, k, progress)?;
     }
     for check in done.report.checks.iter().filter(|c| !c.passed) {
-        reporter.warn(&format!("check {} failed: {}", check.name, check.detail));
+        progress.warn(&format!("check {} failed: {}", check.name, check.detail));
     }
     Ok(())
 }
@@ -51,7 +52,7 @@ fn save_quicklook(
     path: &Path,
     (pair, options): (&Pair, &RegisterOptions),
     done: &Registered,
-) -> anyhow::Result<()> {
+) -> Result<()> {
     let (result, target) = (&done.result, &pair.target);
     let centre = match &result.init {
         Some(init) => [init.axis.point.x, init.axis.point.y, init.axis.point.z],
@@ -59,7 +60,7 @@ fn save_quicklook(
             .grid
             .voxel_to_world(target.grid.dims.map(|d| (d as f64 - 1.0) / 2.0)),
     };
-    let present = posereg::joints::chain::present(&options.init.chain, &pair.labels);
+    let present = crate::joints::chain::present(&options.init.chain, &pair.labels);
     let bones: Vec<(u16, String)> = present
         .into_iter()
         .map(|code| (code, options.init.name_of(code)))
@@ -83,16 +84,16 @@ fn save_quicklook(
         frames: &frames,
         correlations: done.report.correlations,
     };
-    Ok(posereg::report::quicklook::save(path, &figure)?)
+    crate::report::quicklook::save(path, &figure)
 }
 
 /// Writes kinematics.json and kinematics.csv into `folder` and prints each joint's change.
 pub fn write_kinematics(
     folder: &Path,
     kinematics: &KneeKinematics,
-    reporter: &Reporter,
-) -> anyhow::Result<()> {
-    posereg::io::kinematics::save_kinematics(folder, kinematics)?;
+    progress: &dyn Progress,
+) -> Result<()> {
+    crate::io::kinematics::save_kinematics(folder, kinematics)?;
     for joint in &kinematics.joints {
         let each: Vec<String> = joint
             .quantities
@@ -100,7 +101,7 @@ pub fn write_kinematics(
             .map(|q| format!("{} {:+.1} {}", q.name, q.change, q.unit))
             .collect();
         let side = kinematics.side;
-        reporter.result(&format!(
+        progress.result(&format!(
             "  {} ({side:?} knee): {}",
             joint.joint,
             each.join(", ")

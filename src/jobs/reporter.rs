@@ -1,10 +1,11 @@
-//! Progress on the command line: a bar per stage when stderr is a terminal, one log line per
-//! step when it is not (CI logs, pipes), nothing with --quiet. Every line, quiet or not, is
+//! Progress shown to a person (the command line, the Python package with `progress=True`): a
+//! bar per stage when stderr is a terminal, one log line per step when it is not (CI logs,
+//! pipes, notebooks' captured output), nothing when quiet. Every line, quiet or not, is
 //! also kept with its time for the log a verb writes beside its outputs (posereg.log) once
 //! they are written: a failed run leaves no half-written folder, its error is on stderr.
 
+use crate::progress::Progress;
 use indicatif::{ProgressBar, ProgressStyle};
-use posereg::progress::Progress;
 use std::io::IsTerminal;
 use std::sync::Mutex;
 use std::time::Instant;
@@ -49,41 +50,6 @@ impl Reporter {
             started: Instant::now(),
             log: Mutex::new(Vec::new()),
         }
-    }
-
-    /// Prints an informational line unless quiet (the device line, notes).
-    pub fn say(&self, line: &str) {
-        self.keep(line);
-        if !matches!(self.mode, Mode::Quiet) {
-            eprintln!("{line}");
-        }
-    }
-
-    /// Prints a warning, even when quiet: something the user must know about the result.
-    pub fn warn(&self, line: &str) {
-        let line = format!("posereg: warning: {line}");
-        self.keep(&line);
-        eprintln!("{line}");
-    }
-
-    /// Prints the verb's result on stdout.
-    pub fn result(&self, line: &str) {
-        self.keep(line);
-        println!("{line}");
-    }
-
-    /// Writes the log so far, with the command line, to `path`.
-    pub fn save_log(&self, path: &std::path::Path) -> anyhow::Result<()> {
-        let command: Vec<String> = std::env::args().collect();
-        let lines = self.log.lock().unwrap_or_else(|e| e.into_inner());
-        let text = format!(
-            "posereg {}: {}\n{}\n",
-            env!("CARGO_PKG_VERSION"),
-            command.join(" "),
-            lines.join("\n")
-        );
-        posereg::io::write_bytes(path, text)?;
-        Ok(())
     }
 
     /// Keeps `line` for the log, stamped with the seconds since the start.
@@ -164,5 +130,39 @@ impl Progress for Reporter {
                 eprintln!("{line}");
             }
         });
+    }
+
+    /// Prints an informational line unless quiet (the device line, notes).
+    fn say(&self, line: &str) {
+        self.keep(line);
+        if !matches!(self.mode, Mode::Quiet) {
+            eprintln!("{line}");
+        }
+    }
+
+    /// Prints a warning, even when quiet: something the user must know about the result.
+    fn warn(&self, line: &str) {
+        let line = format!("posereg: warning: {line}");
+        self.keep(&line);
+        eprintln!("{line}");
+    }
+
+    /// Prints the verb's result on stdout.
+    fn result(&self, line: &str) {
+        self.keep(line);
+        println!("{line}");
+    }
+
+    /// Writes the log so far, with the command line, to `path`.
+    fn save_log(&self, path: &std::path::Path) -> crate::error::Result<()> {
+        let command: Vec<String> = std::env::args().collect();
+        let lines = self.log.lock().unwrap_or_else(|e| e.into_inner());
+        let text = format!(
+            "posereg {}: {}\n{}\n",
+            env!("CARGO_PKG_VERSION"),
+            command.join(" "),
+            lines.join("\n")
+        );
+        crate::io::write_bytes(path, text)
     }
 }

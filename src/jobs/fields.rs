@@ -1,23 +1,24 @@
-//! Loading the fields the apply, apply-points and resample verbs share: a registration's field
+//! Loading the fields the apply, apply-points and resample jobs share: a registration's field
 //! found beside its transform.json, and the check that a reference image is on a field's grid.
 
-use posereg::abi::Interpolation;
-use posereg::io::field::load_field;
-use posereg::io::nifti::{load_labels, load_volume, read_header};
-use posereg::io::transform::BoneTransforms;
-use posereg::report::evaluate::seen_by_both;
-use posereg::{Error, Field, Image, Volume};
+use crate::abi::Interpolation;
+use crate::error::{Error, Result};
+use crate::io::field::load_field;
+use crate::io::nifti::{load_labels, load_volume, read_header};
+use crate::io::transform::BoneTransforms;
+use crate::report::evaluate::seen_by_both;
+use crate::volume::{Field, Image, Volume};
 use std::path::{Path, PathBuf};
 
 /// The total field of a registration: field.nii.gz in the folder of its `transform.json`
 /// (which is read first, so a wrong file is refused by name), or with `inverse` its
 /// inverse_field.nii.gz. Returns the field's path too.
-pub fn registration_field(transform: &Path, inverse: bool) -> anyhow::Result<(PathBuf, Field)> {
+pub fn registration_field(transform: &Path, inverse: bool) -> Result<(PathBuf, Field)> {
     let name = transform.to_string_lossy();
     if name.ends_with(".nii") || name.ends_with(".nii.gz") {
         let problem = "is an image; give the registration's transform.json (its field.nii.gz \
                        and inverse_field.nii.gz are read from the same folder)";
-        return Err(Error::bad_file(transform, problem).into());
+        return Err(Error::bad_file(transform, problem));
     }
     BoneTransforms::load(transform)?;
     let folder = transform
@@ -35,7 +36,7 @@ pub fn registration_field(transform: &Path, inverse: bool) -> anyhow::Result<(Pa
 
 /// Refuses a reference image `like` whose grid is not the grid `field` (read from
 /// `field_path`) is sampled on, naming both files.
-pub fn check_on_field_grid(like: &Path, field: &Field, field_path: &Path) -> anyhow::Result<()> {
+pub fn check_on_field_grid(like: &Path, field: &Field, field_path: &Path) -> Result<()> {
     let info = read_header(like)?;
     let dims: Vec<usize> = info.header.dims.iter().take(3).copied().collect();
     let affine_gap = (info.affine - field.grid.affine).abs().max();
@@ -48,8 +49,7 @@ pub fn check_on_field_grid(like: &Path, field: &Field, field_path: &Path) -> any
                 field_path.display(),
                 field.grid.dims
             ),
-        )
-        .into());
+        ));
     }
     Ok(())
 }
@@ -57,7 +57,7 @@ pub fn check_on_field_grid(like: &Path, field: &Field, field_path: &Path) -> any
 /// The image `apply` and `resample` move: a label map (whole numbers, so that nearest
 /// neighbour keeps its codes) with `nearest`, else an intensity image; refused when under 1%
 /// of the points the field samples fall inside it (it would come out empty).
-pub fn load_moving(path: &Path, nearest: bool, field: &Field) -> anyhow::Result<Volume> {
+pub fn load_moving(path: &Path, nearest: bool, field: &Field) -> Result<Volume> {
     let image = match nearest {
         true => {
             let labels = load_labels(path)?;
@@ -77,7 +77,7 @@ pub fn load_moving(path: &Path, nearest: bool, field: &Field) -> anyhow::Result<
              in the world frame of the scan the field points into",
             100.0 * share
         );
-        return Err(Error::bad_file(path, problem).into());
+        return Err(Error::bad_file(path, problem));
     }
     Ok(image)
 }
