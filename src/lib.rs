@@ -43,6 +43,7 @@ pub mod check;
 pub mod cpu;
 pub mod device;
 pub mod error;
+pub mod finish;
 pub mod gpu;
 pub mod images;
 pub mod init;

@@ -27,6 +27,7 @@ const LAYERS: &[&[&str]] = &[
     &["device", "images", "joints"],
     &["io"],
     &["init", "nonrigid", "phantom"],
+    &["finish"],
     &["pipeline"],
     &["report"],
     &["registration"],

@@ -3,6 +3,7 @@
 //! (`repose`).
 
 pub mod articulated;
+pub mod pins;
 pub mod reach;
 pub mod repose;
 pub mod rigid;

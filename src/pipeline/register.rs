@@ -1,20 +1,22 @@
-//! The whole pipeline, generic over the backend: articulated initialisation (optional), the
-//! adaptive cubic-RBF stage, the composed field, a fold check, and the source resampled once.
+//! The whole pipeline, generic over the backend, ordering the stages: the articulated
+//! initialisation (optional), the adaptive cubic-RBF stage, the finish's composed field, the
+//! dense refinement (optional), the finish's unfolding and outputs. It times each and counts
+//! the bytes each moves; the kernels are the stages' to dispatch.
 
-use crate::abi::{BoneLookupParams, ComposeParams, FadeParams, Interpolation, ResampleParams};
+use crate::abi::Interpolation;
 use crate::backend::{resample_onto, Backend, DeviceImage, Traffic};
-use crate::error::{Error, Result};
-use crate::images::fold_repair::{
-    bones_at_source, determinant, rigid_bones, unfold_registration, FoldRepair, Folds, SourceLabels,
-};
-use crate::images::inverse::{invert, round_trip, RoundTrip};
-use crate::images::regions;
+use crate::error::Result;
+use crate::finish::{composed, outputs, unfolded};
+use crate::images::coverage::mask_and_coverage;
+use crate::images::fold_repair::{FoldRepair, SourceLabels};
+use crate::images::inverse::{round_trip, RoundTrip};
 use crate::init::articulated::{initialise, InitialImages, Initialisation, PairImages, Start};
+use crate::init::pins::{bone_pins, initial_bones};
 use crate::io::transform::BoneTransforms;
 use crate::nonrigid::adaptive::{self, Adaptive, Moving};
 use crate::nonrigid::dense::{self, DenseInputs, DenseReport};
 use crate::progress::Progress;
-use crate::volume::{Field, Grid, Image, Labels, Volume};
+use crate::volume::{Field, Grid, Labels, Volume};
 use nalgebra::Vector3;
 
 pub use crate::pipeline::options::RegisterOptions;
@@ -91,138 +93,11 @@ impl StageTimes {
     }
 }
 
-/// Up to `per_bone` points on the surface in the target of each of `bones` bones: boundary
-/// voxels of the region whose source point the initial field puts in that bone (`bone_map`,
-/// [`initial_bones`]), spread by farthest-point sampling. The map (one value per voxel) comes
-/// back for the boundaries and the sampling.
-pub fn bone_pins<B: Backend>(
-    backend: &B,
-    bone_map: &DeviceImage<B>,
-    bones: usize,
-    per_bone: usize,
-) -> Result<Vec<Vector3<f64>>> {
-    let grid = &bone_map.grid;
-    let bone_of = backend.download_one(&bone_map.data)?;
-    let mut pins = Vec::new();
-    for index in 1..=bones {
-        let inside: Vec<bool> = bone_of.iter().map(|&b| b == index as f32).collect();
-        pins.extend(spread(&surface_points(grid, &inside), per_bone));
-    }
-    Ok(pins)
-}
-
-/// 1 + the position among `bones` of the bone in which the initial field puts each target
-/// voxel's source point, 0 for soft tissue: where the initialisation moves a bone rigidly.
-pub fn initial_bones<B: Backend>(
-    backend: &B,
-    pair: &PairImages<B>,
-    initial: &InitialImages<B>,
-    bones: &[u16],
-) -> Result<DeviceImage<B>> {
-    let grid = &initial.field.grid;
-    let lookup = BoneLookupParams::new(&pair.labels.grid, grid, bones, f32::MAX)?;
-    let data = backend.bone_at_source(
-        &lookup,
-        &initial.field.data,
-        &initial.residual.data,
-        &pair.labels.data,
-    )?;
-    Ok(DeviceImage {
-        data,
-        grid: grid.clone(),
-    })
-}
-
-/// The adaptive `warp` held off the `bones` bones: zero where the initial field moves a bone
-/// (`bone_map`, [`initial_bones`]), so that
-/// the bones of the total field move exactly by their rigid motions, and rising linearly to
-/// the whole warp `margin_mm` from the nearest bone, so that the field has no step at a bone's
-/// surface. The warp's pins hold it near zero on each bone's surface already, but between
-/// them it bends the bone: by 0.3 mm on average at 90° (the knee at 2 mm), as much as the
-/// rigid stage's own error.
-fn held_off_bones<B: Backend>(
-    backend: &B,
-    bone_map: &DeviceImage<B>,
-    bones: usize,
-    margin_mm: f64,
-    warp: &DeviceImage<B>,
-) -> Result<DeviceImage<B>> {
-    let distance = regions::distance_maps(backend, bone_map, bones)?;
-    let params = FadeParams::new(&warp.grid, bones, margin_mm);
-    Ok(DeviceImage {
-        data: backend.fade_warp(&params, &warp.data, &distance)?,
-        grid: warp.grid.clone(),
-    })
-}
-
-/// World positions of the voxels of `inside` with a 6-neighbour outside it.
-fn surface_points(grid: &Grid, inside: &[bool]) -> Vec<Vector3<f64>> {
-    let d = grid.dims;
-    (0..grid.len())
-        .filter(|&n| {
-            if !inside[n] {
-                return false;
-            }
-            let (i, j, k) = (n % d[0], (n / d[0]) % d[1], n / (d[0] * d[1]));
-            let neighbours = [
-                (i > 0).then(|| n - 1),
-                (i + 1 < d[0]).then(|| n + 1),
-                (j > 0).then(|| n - d[0]),
-                (j + 1 < d[1]).then(|| n + d[0]),
-                (k > 0).then(|| n - d[0] * d[1]),
-                (k + 1 < d[2]).then(|| n + d[0] * d[1]),
-            ];
-            neighbours.iter().any(|m| m.is_some_and(|m| !inside[m]))
-        })
-        .map(|n| grid.world_of(n))
-        .collect()
-}
-
-/// Up to `count` of `points`, each farthest from those chosen before it, from the first.
-fn spread(points: &[Vector3<f64>], count: usize) -> Vec<Vector3<f64>> {
-    let Some(first) = points.first() else {
-        return Vec::new();
-    };
-    let mut chosen = vec![*first];
-    let mut nearest: Vec<f64> = points.iter().map(|p| (p - first).norm()).collect();
-    while chosen.len() < count {
-        let (k, far) = nearest
-            .iter()
-            .enumerate()
-            .fold((0, 0.0), |b, (k, &v)| if v > b.1 { (k, v) } else { b });
-        if far < 1e-6 {
-            break;
-        }
-        chosen.push(points[k]);
-        for (m, p) in points.iter().enumerate() {
-            nearest[m] = nearest[m].min((p - points[k]).norm());
-        }
-    }
-    chosen
-}
-
 /// `source` seen on `grid` without any displacement: the unregistered source on the target's
 /// grid (uploaded, resampled where the backend computes, brought back).
 pub fn unregistered<B: Backend>(backend: &B, source: &Volume, grid: &Grid) -> Result<Volume> {
     let image = DeviceImage::upload(backend, "source", source.clone())?;
     resample_onto(backend, &image, grid, Interpolation::Linear)?.download(backend)
-}
-
-/// The initial images when the articulated initialisation is skipped: no displacement, and
-/// the source just resampled onto the target's grid.
-fn no_initialisation<B: Backend>(backend: &B, pair: &PairImages<B>) -> Result<InitialImages<B>> {
-    let grid = &pair.target.grid;
-    let zeros = |what, per_voxel| -> Result<DeviceImage<B>> {
-        Ok(DeviceImage {
-            data: backend.zeros(what, per_voxel * grid.len())?,
-            grid: grid.clone(),
-        })
-    };
-    Ok(InitialImages {
-        field: zeros("zero displacement", 3)?,
-        residual: zeros("zero residual", 1)?,
-        initialised: resample_onto(backend, &pair.source, grid, Interpolation::Linear)?,
-    })
 }
 
 /// What a registration starts from.
@@ -282,7 +157,9 @@ pub fn register_observed<B: Backend>(
     observe(&start.images)?;
     let (images, bones) = (&start.images, start.bones());
     laps.lap(); // the initialisation
-    let (mask, coverage, mask_share) = coverage(backend, &pair, images, inputs.target_mask)?;
+    let source_grid = &pair.source.grid;
+    let (mask, coverage, mask_share) =
+        mask_and_coverage(backend, source_grid, &images.field, inputs.target_mask)?;
     let moving = Moving {
         image: &images.initialised,
         coverage: &coverage,
@@ -304,13 +181,14 @@ pub fn register_observed<B: Backend>(
         device: &pair.labels,
     };
     let held = (bones, start.bone_map.as_ref());
-    let (field, scale) = composed(backend, &pair, images, &adaptive, held, options)?;
+    let margin = options.bone_margin_mm;
+    let (field, scale) = composed(backend, &pair, images, &adaptive, held, margin)?;
     progress.step(&format!("warp scale {scale}"));
     progress.end();
     let bones_held = start.bone_map.as_ref().map(|map| (map, bones.len()));
     let refinement = (field, &mask);
     let (field, dense) = refined(backend, &pair, refinement, bones_held, options, progress)?;
-    let whole = unfolded(backend, (field, scale), &labels, images, held, options)?;
+    let whole = unfolded(backend, (field, scale), &labels, images, held, margin)?;
     laps.lap(); // the composition, the dense stage and the unfolding
     progress.begin("resampling and inverse", 1);
     let finished = outputs(backend, &pair, &whole.field, &whole.held)?;
@@ -429,7 +307,7 @@ fn initialised<B: Backend>(
                 initialise(backend, pair, inputs.labels, init_options, start, progress)?;
             (Some(found), images)
         }
-        None => (None, no_initialisation(backend, pair)?),
+        None => (None, InitialImages::identity(backend, pair)?),
     };
     let bones = init.as_ref().map_or(&[][..], |i| &i.bones[..]);
     let bone_map = match bones {
@@ -472,167 +350,6 @@ fn refined<B: Backend>(
     };
     let (refined, report) = dense::refine(backend, &inputs, &options.dense, progress)?;
     Ok((refined, Some(report)))
-}
-
-/// The target mask (1 where the target's voxels count, 0 elsewhere: all of the target without
-/// one) and where the initialised source covers it, where the backend computes; and the
-/// mask's share of the target grid.
-fn coverage<B: Backend>(
-    backend: &B,
-    pair: &PairImages<B>,
-    images: &InitialImages<B>,
-    target_mask: Option<&Labels>,
-) -> Result<(DeviceImage<B>, DeviceImage<B>, f64)> {
-    let grid = &pair.target.grid;
-    let mask: Vec<f32> = match target_mask {
-        Some(mask) => {
-            crate::backend::check_grids(&mask.grid, grid)?;
-            mask.data.iter().map(|&m| (m > 0) as u8 as f32).collect()
-        }
-        None => vec![1.0; grid.len()],
-    };
-    let mask_share = mask.iter().filter(|&&m| m > 0.0).count().max(1) as f64 / mask.len() as f64;
-    let mask = DeviceImage {
-        data: backend.upload("target mask", mask)?,
-        grid: grid.clone(),
-    };
-    let params = ResampleParams::new(&pair.source.grid, grid, 0.0, Interpolation::Linear);
-    let coverage = DeviceImage {
-        data: backend.coverage(&params, &images.field.data, &mask.data)?,
-        grid: grid.clone(),
-    };
-    Ok((mask, coverage, mask_share))
-}
-
-/// The whole field where the backend computes, the factor its warp was scaled by, and how
-/// it was unfolded.
-struct TotalField<B: Backend> {
-    field: DeviceImage<B>,
-    /// The bone numbers of the voxels whose source point lies in a bone (fold statistics' held).
-    held: B::Buffer<f32>,
-    scale: f64,
-    unfolding: FoldRepair,
-}
-
-/// The total field of the adaptive warp, held off the bones where the initial field moves them
-/// (`bone_map`), and the `initial` field, and the factor the warp was scaled by.
-///
-/// Step control: the added warp itself must not fold; while it does, it is shrunk. Folds of
-/// the initial field (skinning at large angles) are carried into the total field and
-/// unfolded there ([`unfolded`]), but are not the warp's to undo. (Counting the total field's
-/// folds instead threw away 94% of a good warp at 60° over one voxel sampled differently
-/// inside the initial field's fold: 1.34 → 1.77 mm.)
-fn composed<B: Backend>(
-    backend: &B,
-    pair: &PairImages<B>,
-    initial: &InitialImages<B>,
-    adaptive: &Adaptive,
-    (bones, bone_map): (&[u16], Option<&DeviceImage<B>>),
-    options: &RegisterOptions,
-) -> Result<(DeviceImage<B>, f64)> {
-    let grid = &pair.target.grid;
-    let nothing_held = backend.zeros("nothing held", grid.len())?;
-    let mut scale = 1.0;
-    let warp = loop {
-        let warp = adaptive.warp_field(backend, scale)?;
-        let (_, folds) = determinant(backend, &warp, &nothing_held)?;
-        if folds.folded == 0 || scale < 0.1 {
-            break warp;
-        }
-        scale *= 0.5;
-    };
-    let warp = match bone_map.filter(|_| options.bone_margin_mm > 0.0) {
-        Some(map) => held_off_bones(backend, map, bones.len(), options.bone_margin_mm, &warp)?,
-        None => warp,
-    };
-    let field = DeviceImage {
-        data: backend.compose(
-            &ComposeParams::new(grid, &initial.field.grid),
-            &warp.data,
-            &initial.field.data,
-        )?,
-        grid: grid.clone(),
-    };
-    Ok((field, scale))
-}
-
-/// The whole `field` unfolded where it folds (after the dense refinement, which cannot fold
-/// it but keeps the initial field's folds, where it ran).
-fn unfolded<B: Backend>(
-    backend: &B,
-    (field, scale): (DeviceImage<B>, f64),
-    labels: &SourceLabels<B>,
-    initial: &InitialImages<B>,
-    (bones, bone_map): (&[u16], Option<&DeviceImage<B>>),
-    options: &RegisterOptions,
-) -> Result<TotalField<B>> {
-    let held = bones_at_source(backend, &field, labels, bones)?;
-    let (det, folds) = determinant(backend, &field, &held)?;
-    // Only a field that folds is unfolded: the others keep their bits.
-    let mut whole = TotalField {
-        field,
-        held,
-        scale,
-        unfolding: FoldRepair::default(),
-    };
-    if folds.folded > 0 {
-        // Where the warp is held off the bones, the voxels the initial field moves by a bone's
-        // motion keep it; tissue carried into a bone's label may move.
-        let rigid = bone_map
-            .filter(|_| options.bone_margin_mm > 0.0)
-            .map(|_| rigid_bones(backend, &initial.field, &initial.residual, labels, bones))
-            .transpose()?;
-        let held_rigid = (&whole.held, rigid.as_ref());
-        let repaired = unfold_registration(
-            backend,
-            whole.field,
-            (&det, &folds),
-            held_rigid,
-            labels,
-            bones,
-        )?;
-        (whole.field, whole.unfolding) = repaired;
-    }
-    Ok(whole)
-}
-
-/// The outputs of a registration, on the host.
-struct Finished {
-    field: Field,
-    warped: Volume,
-    jacobian: Volume,
-    inverse: Field,
-    inverse_residual: Vec<f32>,
-    folds: Folds,
-}
-
-/// The whole `field`'s Jacobian and folds (`held` as [`TotalField`]'s), the source resampled
-/// once through it and its inverse; all come back together.
-fn outputs<B: Backend>(
-    backend: &B,
-    pair: &PairImages<B>,
-    field: &DeviceImage<B>,
-    held: &B::Buffer<f32>,
-) -> Result<Finished> {
-    let grid = &pair.target.grid;
-    let (det, folds) = determinant(backend, field, held)?;
-    let resample = ResampleParams::new(&pair.source.grid, grid, 0.0, Interpolation::Linear);
-    let warped = backend.resample(&resample, &pair.source.data, &field.data)?;
-    let source_grid = &pair.source.grid;
-    let (inverse, residual) = invert(backend, field, source_grid)?;
-    let wanted = [&field.data, &warped, &det, &inverse.data, &residual];
-    let [field, warped, jacobian, inverse, residual] = backend
-        .download(&wanted)?
-        .try_into()
-        .map_err(|_| Error::Gpu("a download returned the wrong number of buffers".into()))?;
-    Ok(Finished {
-        field: Image::from_data(grid.clone(), bytemuck::cast_vec(field))?,
-        warped: Image::from_data(grid.clone(), warped)?,
-        jacobian: Image::from_data(grid.clone(), jacobian)?,
-        inverse: Image::from_data(source_grid.clone(), bytemuck::cast_vec(inverse))?,
-        inverse_residual: residual,
-        folds,
-    })
 }
 
 impl Registration {

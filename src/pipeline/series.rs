@@ -10,9 +10,10 @@
 //! motion. The registration from the source then starts from it (`Start::Chained`) and
 //! refines it as it refines any initial field, so each pose's outputs are the source's.
 
-use crate::abi::{ComposeParams, Interpolation};
+use crate::abi::Interpolation;
 use crate::backend::{resample_volume, Backend, DeviceImage};
 use crate::error::{Error, Result};
+use crate::images::compose::compose;
 use crate::init::articulated::{blend_motions, bone_motions, Chained, InitOptions};
 use crate::init::reach::Judge;
 use crate::io::field::load_field;
@@ -86,7 +87,7 @@ pub fn chain_step<B: Backend>(
         &source,
         &DeviceImage::upload(backend, "target", target.clone())?,
     );
-    let to_source = |step: DeviceImage<B>| compose_fields(backend, &step, &before);
+    let to_source = |step: DeviceImage<B>| compose(backend, &step, &before);
     let blended = blend_motions(
         backend,
         &carried,
@@ -97,7 +98,7 @@ pub fn chain_step<B: Backend>(
     )?;
     Ok(Chained {
         motions,
-        field: compose_fields(backend, &blended, &before)?.download_field(backend)?,
+        field: compose(backend, &blended, &before)?.download_field(backend)?,
         reports,
     })
 }
@@ -108,21 +109,6 @@ fn carry_labels<B: Backend>(backend: &B, labels: &Labels, field: &Field) -> Resu
     let codes = Image::from_data(labels.grid.clone(), codes)?;
     let moved = resample_volume(backend, &codes, field, 0.0, Interpolation::Nearest)?;
     Image::from_data(moved.grid, moved.data.iter().map(|&c| c as u16).collect())
-}
-
-/// The field `step` (this pose → the previous one, where the backend computes) followed by
-/// `previous` (the previous pose → the source): u = step + previous ∘ (id + step), on the
-/// step's grid.
-fn compose_fields<B: Backend>(
-    backend: &B,
-    step: &DeviceImage<B>,
-    previous: &DeviceImage<B>,
-) -> Result<DeviceImage<B>> {
-    let params = ComposeParams::new(&step.grid, &previous.grid);
-    Ok(DeviceImage {
-        data: backend.compose(&params, &step.data, &previous.data)?,
-        grid: step.grid.clone(),
-    })
 }
 
 /// Each bone's motion from the previous pose to this one: this pose's after the inverse of the

@@ -1,7 +1,8 @@
 //! The images the initialisation and the pipeline share where the backend computes: the
 //! pair, uploaded once, and the initial field with what it moves.
 
-use crate::backend::{Backend, DeviceImage};
+use crate::abi::Interpolation;
+use crate::backend::{resample_onto, Backend, DeviceImage};
 use crate::error::Result;
 use crate::volume::{Field, Image, Labels, Volume};
 
@@ -13,6 +14,25 @@ pub struct InitialImages<B: Backend> {
     pub residual: DeviceImage<B>,
     /// The source moved by the initial field, on the target grid.
     pub initialised: DeviceImage<B>,
+}
+
+impl<B: Backend> InitialImages<B> {
+    /// The initial images when the articulated initialisation is skipped: no displacement,
+    /// and the source just resampled onto the target's grid.
+    pub fn identity(backend: &B, pair: &PairImages<B>) -> Result<Self> {
+        let grid = &pair.target.grid;
+        let zeros = |what, per_voxel| -> Result<DeviceImage<B>> {
+            Ok(DeviceImage {
+                data: backend.zeros(what, per_voxel * grid.len())?,
+                grid: grid.clone(),
+            })
+        };
+        Ok(InitialImages {
+            field: zeros("zero displacement", 3)?,
+            residual: zeros("zero residual", 1)?,
+            initialised: resample_onto(backend, &pair.source, grid, Interpolation::Linear)?,
+        })
+    }
 }
 
 /// The initialisation's images on the host: what `posereg init` writes.
