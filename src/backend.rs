@@ -5,17 +5,26 @@
 //! compared.
 
 pub mod dense;
+pub mod sampling;
 
-use crate::abi::Interpolation;
+pub use sampling::{resample_onto, resample_volume};
+
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
     InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
-    MomentsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
-    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
-    ThresholdParams,
+    MomentsParams, RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams,
+    SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
+
+/// Every backend trait, for code that calls kernels on a concrete backend
+/// (`use posereg::backend::prelude::*;`): a method is callable only where its trait is in scope.
+pub mod prelude {
+    pub use super::dense::Dense;
+    pub use super::sampling::Sampling;
+    pub use super::{Backend, Core};
+}
 
 /// What a backend has moved between the host and the device, and how much work it launched,
 /// since it was opened. The CPU backend moves nothing and counts nothing.
@@ -179,30 +188,11 @@ pub trait Core {
     }
 }
 
-/// A place kernels run: the core, the dense stage's family ([`dense::Dense`]) and, until
-/// they move into families of their own, the other kernels, one method each. Host code
-/// (registration loops, commands) is written against these traits only, so every stage runs
-/// on either backend and the two can be compared.
-pub trait Backend: Core + dense::Dense {
-    /// `source` sampled at x + u(x) for every voxel x of the target grid (`field`: u, 3 floats
-    /// per voxel), trilinear or nearest; the background where that point is outside the
-    /// source (`params`).
-    fn resample(
-        &self,
-        params: &ResampleParams,
-        source: &Self::Buffer<f32>,
-        field: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// 1 where x + u(x) lies inside the source's field of view (sample.wgsl's rule) and x in
-    /// `mask` (> 0), else 0, for every voxel x of the target grid (`params` as for a resample).
-    fn coverage(
-        &self,
-        params: &ResampleParams,
-        field: &Self::Buffer<f32>,
-        mask: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
+/// A place kernels run: the core, the families moved so far ([`sampling::Sampling`],
+/// [`dense::Dense`]) and, until they move into families of their own, the other kernels, one
+/// method each. Host code (registration loops, commands) is written against these traits only,
+/// so every stage runs on either backend and the two can be compared.
+pub trait Backend: Core + sampling::Sampling + dense::Dense {
     /// Per voxel of a label map: 1 + the position of its label among `params`' codes, 0 for
     /// any other label.
     fn label_index(
@@ -304,14 +294,6 @@ pub trait Backend: Core + dense::Dense {
         field: &Self::Buffer<f32>,
         region: &Self::Buffer<f32>,
         labels: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// One pyramid step: a level smoothed and decimated (see pyramid::next_level_grid) as
-    /// `params` says.
-    fn pyramid_level(
-        &self,
-        params: &PyramidParams,
-        input: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
     /// Per-column Gauss-Newton sums of a bone's rigid registration (abi::RIGID_SUMS per
@@ -534,38 +516,4 @@ pub fn check_grids(a: &Grid, b: &Grid) -> Result<()> {
             a.dims, b.dims
         )))
     }
-}
-
-/// `image` sampled on `grid` without any displacement (0 outside): the unregistered source
-/// seen on the target's grid (trilinear), a mask or a label map on another level (nearest).
-pub fn resample_onto<B: Backend>(
-    backend: &B,
-    image: &DeviceImage<B>,
-    grid: &Grid,
-    interpolation: Interpolation,
-) -> Result<DeviceImage<B>> {
-    let params = ResampleParams::new(&image.grid, grid, 0.0, interpolation);
-    let still = backend.zeros("zero displacement", 3 * grid.len())?;
-    Ok(DeviceImage {
-        data: backend.resample(&params, &image.data, &still)?,
-        grid: grid.clone(),
-    })
-}
-
-/// `source` resampled through `field` (on the target grid) for a command working on volumes
-/// from disk: both go where the backend computes, the result comes back.
-pub fn resample_volume<B: Backend>(
-    backend: &B,
-    source: &Volume,
-    field: &Field,
-    background: f32,
-    interpolation: Interpolation,
-) -> Result<Volume> {
-    let params = ResampleParams::new(&source.grid, &field.grid, background, interpolation);
-    let image = DeviceImage::upload(backend, "volume to resample", source.clone())?;
-    let field_on_device = DeviceImage::upload_field(backend, "displacement field", field.clone())?;
-    Image::from_data(
-        field.grid.clone(),
-        backend.download_one(&backend.resample(&params, &image.data, &field_on_device.data)?)?,
-    )
 }

@@ -35,7 +35,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             SAMPLE,
             GEOMETRY,
-            ("resample.wgsl", include_str!("../shaders/resample.wgsl")),
+            (
+                "sampling/resample.wgsl",
+                include_str!("../shaders/sampling/resample.wgsl"),
+            ),
         ],
     ),
     (
@@ -43,7 +46,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             GEOMETRY,
-            ("coverage.wgsl", include_str!("../shaders/coverage.wgsl")),
+            (
+                "sampling/coverage.wgsl",
+                include_str!("../shaders/sampling/coverage.wgsl"),
+            ),
         ],
     ),
     (
@@ -188,7 +194,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         "pyramid",
         &[
             COMMON,
-            ("pyramid.wgsl", include_str!("../shaders/pyramid.wgsl")),
+            (
+                "sampling/pyramid.wgsl",
+                include_str!("../shaders/sampling/pyramid.wgsl"),
+            ),
         ],
     ),
     (

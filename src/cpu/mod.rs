@@ -13,7 +13,6 @@
 
 pub mod common;
 pub mod compose;
-pub mod coverage;
 pub mod dense;
 pub mod edt;
 pub mod fade_warp;
@@ -26,12 +25,11 @@ pub mod lattice_energy;
 pub mod lattice_splat;
 pub mod lncc;
 pub mod moments;
-pub mod pyramid;
 pub mod rbf_adjoint;
 pub mod rbf_lattice;
-pub mod resample;
 pub mod rigid_gn;
 pub mod rigid_score;
+pub mod sampling;
 pub mod skin_blend;
 pub mod skin_weights;
 pub mod ssd_cells;
@@ -44,9 +42,9 @@ pub mod warp_image;
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
     InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
-    MomentsParams, PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams,
-    RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
-    SumParams, ThresholdParams, FOLD_STATS_WIDTH,
+    MomentsParams, PartialsParams, RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams,
+    SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
+    FOLD_STATS_WIDTH,
 };
 use crate::backend::{Backend, BoneImages, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -128,28 +126,6 @@ impl Core for CpuBackend {
 }
 
 impl Backend for CpuBackend {
-    fn resample(
-        &self,
-        params: &ResampleParams,
-        source: &Arc<Vec<f32>>,
-        field: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.voxels(), |out| {
-            resample::resample(params, source, field, out)
-        })
-    }
-
-    fn coverage(
-        &self,
-        params: &ResampleParams,
-        field: &Arc<Vec<f32>>,
-        mask: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.voxels(), |out| {
-            coverage::coverage(params, field, mask, out)
-        })
-    }
-
     fn label_index(&self, params: &LabelParams, labels: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
         filled(params.voxels(), |out| {
             labels::label_index(params, labels, out)
@@ -249,16 +225,6 @@ impl Backend for CpuBackend {
     ) -> Result<Arc<Vec<f32>>> {
         filled(3 * params.voxels(), |out| {
             fold::fold_smooth(params, field, region, labels, out)
-        })
-    }
-
-    fn pyramid_level(
-        &self,
-        params: &PyramidParams,
-        input: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.output_len(), |out| {
-            pyramid::pyramid(params, input, out)
         })
     }
 

@@ -15,19 +15,17 @@ pub mod kernel;
 pub mod labels;
 pub mod lncc;
 pub mod nonrigid;
-pub mod pyramid;
 pub mod regions;
-pub mod resample;
 pub mod resident;
 pub mod rigid;
+pub mod sampling;
 pub mod skinning;
 
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
     InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
-    MomentsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
-    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
-    ThresholdParams,
+    MomentsParams, RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams,
+    SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use crate::backend::{Backend, BoneImages, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -40,7 +38,6 @@ use resident::GpuBuffer;
 const BASE_BINDINGS: &[KernelBindings] = &[
     ("bone_at_source", labels::BONE_BINDINGS),
     ("compose", field::COMPOSE_BINDINGS),
-    ("coverage", resample::COVERAGE_BINDINGS),
     ("dilate", fold::FOLD_BINDINGS),
     ("edt", regions::EDT_BINDINGS),
     ("fade_warp", field::FADE_BINDINGS),
@@ -60,10 +57,8 @@ const BASE_BINDINGS: &[KernelBindings] = &[
     ("lncc_terms", lncc::TERMS_BINDINGS),
     ("lncc_gradient", lncc::GRADIENT_BINDINGS),
     ("moments", regions::MOMENTS_BINDINGS),
-    ("pyramid", pyramid::BINDINGS),
     ("rbf_adjoint", nonrigid::ADJOINT_BINDINGS),
     ("rbf_lattice", nonrigid::LATTICE_BINDINGS),
-    ("resample", resample::BINDINGS),
     ("rigid_gn", rigid::GN_BINDINGS),
     ("rigid_score", rigid::SCORE_BINDINGS),
     ("skin_blend", skinning::BLEND_BINDINGS),
@@ -82,7 +77,10 @@ pub type KernelBindings = (&'static str, &'static [kernel::Binding]);
 
 /// Every kernel's bind group layout, by name: the families' tables after the others'.
 pub fn bindings() -> impl Iterator<Item = &'static KernelBindings> {
-    BASE_BINDINGS.iter().chain(dense::BINDINGS)
+    BASE_BINDINGS
+        .iter()
+        .chain(sampling::BINDINGS)
+        .chain(dense::BINDINGS)
 }
 
 fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
@@ -95,10 +93,6 @@ fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
 
 /// Every compiled kernel.
 pub struct Kernels {
-    /// shaders/resample.wgsl
-    pub resample: Kernel,
-    /// shaders/coverage.wgsl
-    pub coverage: Kernel,
     /// shaders/label_index.wgsl
     pub label_index: Kernel,
     /// shaders/bone_at_source.wgsl
@@ -127,8 +121,6 @@ pub struct Kernels {
     pub ssd_cells: Kernel,
     /// shaders/jacobian.wgsl
     pub jacobian: Kernel,
-    /// shaders/pyramid.wgsl
-    pub pyramid: Kernel,
     /// shaders/rigid_gn.wgsl
     pub rigid_gn: Kernel,
     /// shaders/rigid_score.wgsl
@@ -169,6 +161,8 @@ pub struct Kernels {
     pub fade_warp: Kernel,
     /// shaders/invert_field.wgsl
     pub invert_field: Kernel,
+    /// The sampling family (shaders/sampling/).
+    pub sampling: sampling::SamplingKernels,
     /// The dense stage's family (shaders/dense/).
     pub dense: dense::DenseKernels,
 }
@@ -193,8 +187,6 @@ impl GpuBackend {
     pub fn with_context(ctx: GpuContext) -> Result<Self> {
         Ok(GpuBackend {
             kernels: Kernels {
-                resample: compile(&ctx, "resample")?,
-                coverage: compile(&ctx, "coverage")?,
                 label_index: compile(&ctx, "label_index")?,
                 bone_at_source: compile(&ctx, "bone_at_source")?,
                 fold_stats: compile(&ctx, "fold_stats")?,
@@ -209,7 +201,6 @@ impl GpuBackend {
                 fold_smooth: compile(&ctx, "fold_smooth")?,
                 ssd_cells: compile(&ctx, "ssd_cells")?,
                 jacobian: compile(&ctx, "jacobian")?,
-                pyramid: compile(&ctx, "pyramid")?,
                 rigid_gn: compile(&ctx, "rigid_gn")?,
                 rigid_score: compile(&ctx, "rigid_score")?,
                 skin_weights: compile(&ctx, "skin_weights")?,
@@ -230,6 +221,7 @@ impl GpuBackend {
                 compose: compile(&ctx, "compose")?,
                 fade_warp: compile(&ctx, "fade_warp")?,
                 invert_field: compile(&ctx, "invert_field")?,
+                sampling: sampling::SamplingKernels::new(&ctx)?,
                 dense: dense::DenseKernels::new(&ctx)?,
             },
             ctx,
@@ -283,24 +275,6 @@ impl Core for GpuBackend {
 }
 
 impl Backend for GpuBackend {
-    fn resample(
-        &self,
-        params: &ResampleParams,
-        source: &GpuBuffer<f32>,
-        field: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_resample(params, source, field)
-    }
-
-    fn coverage(
-        &self,
-        params: &ResampleParams,
-        field: &GpuBuffer<f32>,
-        mask: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_coverage(params, field, mask)
-    }
-
     fn label_index(&self, params: &LabelParams, labels: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
         self.record_label_index(params, labels)
     }
@@ -383,14 +357,6 @@ impl Backend for GpuBackend {
         labels: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
         self.record_fold_smooth(params, field, region, labels)
-    }
-
-    fn pyramid_level(
-        &self,
-        params: &PyramidParams,
-        input: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_pyramid(params, input)
     }
 
     fn rigid_sums(
