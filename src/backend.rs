@@ -5,15 +5,16 @@
 //! compared.
 
 pub mod dense;
+pub mod labels;
 pub mod sampling;
 
 pub use sampling::{resample_onto, resample_volume};
 
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
-    MomentsParams, RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams,
-    SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
+    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, MomentsParams,
+    RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
+    SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
@@ -22,6 +23,7 @@ use crate::volume::{Field, Grid, Image, Labels, Volume};
 /// (`use posereg::backend::prelude::*;`): a method is callable only where its trait is in scope.
 pub mod prelude {
     pub use super::dense::Dense;
+    pub use super::labels::LabelMaps;
     pub use super::sampling::Sampling;
     pub use super::{Backend, Core};
 }
@@ -192,26 +194,7 @@ pub trait Core {
 /// [`dense::Dense`]) and, until they move into families of their own, the other kernels, one
 /// method each. Host code (registration loops, commands) is written against these traits only,
 /// so every stage runs on either backend and the two can be compared.
-pub trait Backend: Core + sampling::Sampling + dense::Dense {
-    /// Per voxel of a label map: 1 + the position of its label among `params`' codes, 0 for
-    /// any other label.
-    fn label_index(
-        &self,
-        params: &LabelParams,
-        labels: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// Per target voxel x: 1 + the position among `params`' bone codes of the source label
-    /// (nearest voxel) at x + u(x), where the voxel's `residual` is within `params`' limit;
-    /// 0 elsewhere.
-    fn bone_at_source(
-        &self,
-        params: &BoneLookupParams,
-        field: &Self::Buffer<f32>,
-        residual: &Self::Buffer<f32>,
-        labels: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
+pub trait Backend: Core + sampling::Sampling + labels::LabelMaps + dense::Dense {
     /// Per-column partial sums of c (a − b)² per cell (layout of shaders/ssd_cells.wgsl, folded
     /// by metric::fold_ssd_partials): a = `images.moving`, b = `images.fixed`, c = 1 where
     /// `images.covered` says the moving image holds data.

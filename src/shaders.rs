@@ -58,8 +58,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             LABELS,
             (
-                "label_index.wgsl",
-                include_str!("../shaders/label_index.wgsl"),
+                "labels/label_index.wgsl",
+                include_str!("../shaders/labels/label_index.wgsl"),
             ),
         ],
     ),
@@ -72,8 +72,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             LABELS,
             BONE_LOOKUP,
             (
-                "bone_at_source.wgsl",
-                include_str!("../shaders/bone_at_source.wgsl"),
+                "labels/bone_at_source.wgsl",
+                include_str!("../shaders/labels/bone_at_source.wgsl"),
             ),
         ],
     ),

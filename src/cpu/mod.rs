@@ -41,10 +41,9 @@ pub mod warp_image;
 
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
-    MomentsParams, PartialsParams, RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams,
-    SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
-    FOLD_STATS_WIDTH,
+    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, MomentsParams,
+    PartialsParams, RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams,
+    SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams, FOLD_STATS_WIDTH,
 };
 use crate::backend::{Backend, BoneImages, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -126,24 +125,6 @@ impl Core for CpuBackend {
 }
 
 impl Backend for CpuBackend {
-    fn label_index(&self, params: &LabelParams, labels: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
-        filled(params.voxels(), |out| {
-            labels::label_index(params, labels, out)
-        })
-    }
-
-    fn bone_at_source(
-        &self,
-        params: &BoneLookupParams,
-        field: &Arc<Vec<f32>>,
-        residual: &Arc<Vec<f32>>,
-        labels: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.voxels(), |out| {
-            labels::bone_at_source(params, field, residual, labels, out)
-        })
-    }
-
     fn ssd_cells(
         &self,
         params: &SsdParams,

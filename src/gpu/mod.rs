@@ -23,9 +23,9 @@ pub mod skinning;
 
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
-    MomentsParams, RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams,
-    SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams,
+    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, MomentsParams,
+    RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
+    SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use crate::backend::{Backend, BoneImages, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -36,7 +36,6 @@ use resident::GpuBuffer;
 /// The bind group layout of every kernel outside the families with tables of their own, by
 /// name (the names of crate::shaders::KERNELS).
 const BASE_BINDINGS: &[KernelBindings] = &[
-    ("bone_at_source", labels::BONE_BINDINGS),
     ("compose", field::COMPOSE_BINDINGS),
     ("dilate", fold::FOLD_BINDINGS),
     ("edt", regions::EDT_BINDINGS),
@@ -49,7 +48,6 @@ const BASE_BINDINGS: &[KernelBindings] = &[
     ("gain_terms", nonrigid::GAIN_TERMS_BINDINGS),
     ("invert_field", field::INVERT_BINDINGS),
     ("jacobian", jacobian::BINDINGS),
-    ("label_index", labels::INDEX_BINDINGS),
     ("lattice_energy", nonrigid::ENERGY_BINDINGS),
     ("lattice_splat", nonrigid::SPLAT_BINDINGS),
     ("local_moments", lncc::MOMENTS_BINDINGS),
@@ -80,6 +78,7 @@ pub fn bindings() -> impl Iterator<Item = &'static KernelBindings> {
     BASE_BINDINGS
         .iter()
         .chain(sampling::BINDINGS)
+        .chain(labels::BINDINGS)
         .chain(dense::BINDINGS)
 }
 
@@ -93,10 +92,6 @@ fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
 
 /// Every compiled kernel.
 pub struct Kernels {
-    /// shaders/label_index.wgsl
-    pub label_index: Kernel,
-    /// shaders/bone_at_source.wgsl
-    pub bone_at_source: Kernel,
     /// shaders/fold_stats.wgsl
     pub fold_stats: Kernel,
     /// shaders/mark_at_most.wgsl
@@ -163,6 +158,8 @@ pub struct Kernels {
     pub invert_field: Kernel,
     /// The sampling family (shaders/sampling/).
     pub sampling: sampling::SamplingKernels,
+    /// The label family (shaders/labels/).
+    pub labels: labels::LabelKernels,
     /// The dense stage's family (shaders/dense/).
     pub dense: dense::DenseKernels,
 }
@@ -187,8 +184,6 @@ impl GpuBackend {
     pub fn with_context(ctx: GpuContext) -> Result<Self> {
         Ok(GpuBackend {
             kernels: Kernels {
-                label_index: compile(&ctx, "label_index")?,
-                bone_at_source: compile(&ctx, "bone_at_source")?,
                 fold_stats: compile(&ctx, "fold_stats")?,
                 mark_at_most: compile(&ctx, "mark_at_most")?,
                 dilate: compile(&ctx, "dilate")?,
@@ -222,6 +217,7 @@ impl GpuBackend {
                 fade_warp: compile(&ctx, "fade_warp")?,
                 invert_field: compile(&ctx, "invert_field")?,
                 sampling: sampling::SamplingKernels::new(&ctx)?,
+                labels: labels::LabelKernels::new(&ctx)?,
                 dense: dense::DenseKernels::new(&ctx)?,
             },
             ctx,
@@ -275,20 +271,6 @@ impl Core for GpuBackend {
 }
 
 impl Backend for GpuBackend {
-    fn label_index(&self, params: &LabelParams, labels: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
-        self.record_label_index(params, labels)
-    }
-
-    fn bone_at_source(
-        &self,
-        params: &BoneLookupParams,
-        field: &GpuBuffer<f32>,
-        residual: &GpuBuffer<f32>,
-        labels: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_bone_at_source(params, field, residual, labels)
-    }
-
     fn ssd_cells(
         &self,
         params: &SsdParams,
