@@ -6,15 +6,16 @@
 
 pub mod dense;
 pub mod labels;
+pub mod regions;
 pub mod sampling;
 
 pub use sampling::{resample_onto, resample_volume};
 
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, MomentsParams,
-    RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
-    SplatParams, SsdParams, SumParams, ThresholdParams,
+    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
+    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, RbfGradParams,
+    RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
+    SsdParams, SumParams, ThresholdParams,
 };
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
@@ -24,6 +25,7 @@ use crate::volume::{Field, Grid, Image, Labels, Volume};
 pub mod prelude {
     pub use super::dense::Dense;
     pub use super::labels::LabelMaps;
+    pub use super::regions::Regions;
     pub use super::sampling::Sampling;
     pub use super::{Backend, Core};
 }
@@ -194,7 +196,9 @@ pub trait Core {
 /// [`dense::Dense`]) and, until they move into families of their own, the other kernels, one
 /// method each. Host code (registration loops, commands) is written against these traits only,
 /// so every stage runs on either backend and the two can be compared.
-pub trait Backend: Core + sampling::Sampling + labels::LabelMaps + dense::Dense {
+pub trait Backend:
+    Core + sampling::Sampling + labels::LabelMaps + regions::Regions + dense::Dense
+{
     /// Per-column partial sums of c (a − b)² per cell (layout of shaders/ssd_cells.wgsl, folded
     /// by metric::fold_ssd_partials): a = `images.moving`, b = `images.fixed`, c = 1 where
     /// `images.covered` says the moving image holds data.
@@ -241,10 +245,6 @@ pub trait Backend: Core + sampling::Sampling + labels::LabelMaps + dense::Dense 
         held: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
-    /// One axis's pass of exact Euclidean distance maps (mm) for a stack of volumes
-    /// (`params`): the first pass reads a label index map, the others the stack.
-    fn edt(&self, params: &EdtParams, input: &Self::Buffer<f32>) -> Result<Self::Buffer<f32>>;
-
     /// One axis's pass of box sums (`params`) for the local correlation of two images: the
     /// first pass sums abi::LOCAL_MOMENTS of the images `input` (a) and `other` (b) along x,
     /// the others sum the stack in `input` along y, then z (`other` unused).
@@ -259,14 +259,6 @@ pub trait Backend: Core + sampling::Sampling + labels::LabelMaps + dense::Dense 
     /// of the squared local correlation and the voxels where it is defined (neither window
     /// flat).
     fn lncc(&self, params: &LnccParams, sums: &Self::Buffer<f32>) -> Result<Self::Buffer<f32>>;
-
-    /// Per chunk of abi::STATS_CHUNK voxels of `values`: how many are at or above `params`'
-    /// threshold and the sum of their world positions (4 f64 each).
-    fn moments(
-        &self,
-        params: &MomentsParams,
-        values: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f64>>;
 
     /// One sweep of local smoothing of `field` over `region`: each voxel there takes the mean
     /// of its 27 neighbours unless that carries its source point into a bone (`labels`,

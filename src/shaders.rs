@@ -101,13 +101,22 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
     ),
     (
         "edt",
-        &[COMMON, ("edt.wgsl", include_str!("../shaders/edt.wgsl"))],
+        &[
+            COMMON,
+            (
+                "regions/edt.wgsl",
+                include_str!("../shaders/regions/edt.wgsl"),
+            ),
+        ],
     ),
     (
         "moments",
         &[
             COMMON,
-            ("moments.wgsl", include_str!("../shaders/moments.wgsl")),
+            (
+                "regions/moments.wgsl",
+                include_str!("../shaders/regions/moments.wgsl"),
+            ),
         ],
     ),
     (

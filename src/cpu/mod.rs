@@ -14,7 +14,6 @@
 pub mod common;
 pub mod compose;
 pub mod dense;
-pub mod edt;
 pub mod fade_warp;
 pub mod fold;
 pub mod gain;
@@ -24,9 +23,9 @@ pub mod labels;
 pub mod lattice_energy;
 pub mod lattice_splat;
 pub mod lncc;
-pub mod moments;
 pub mod rbf_adjoint;
 pub mod rbf_lattice;
+pub mod regions;
 pub mod rigid_gn;
 pub mod rigid_score;
 pub mod sampling;
@@ -40,10 +39,10 @@ pub mod warp_field;
 pub mod warp_image;
 
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, MomentsParams,
-    PartialsParams, RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams,
-    SkinWeightsParams, SplatParams, SsdParams, SumParams, ThresholdParams, FOLD_STATS_WIDTH,
+    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
+    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, PartialsParams,
+    RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
+    SplatParams, SsdParams, SumParams, ThresholdParams, FOLD_STATS_WIDTH,
 };
 use crate::backend::{Backend, BoneImages, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -172,10 +171,6 @@ impl Backend for CpuBackend {
         filled(params.voxels(), |out| fold::dilate(params, mask, held, out))
     }
 
-    fn edt(&self, params: &EdtParams, input: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
-        filled(params.values(), |out| edt::edt(params, input, out))
-    }
-
     fn local_moments(
         &self,
         params: &LocalMomentsParams,
@@ -189,12 +184,6 @@ impl Backend for CpuBackend {
 
     fn lncc(&self, params: &LnccParams, sums: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
         filled(2 * params.chunks(), |out| lncc::lncc(params, sums, out))
-    }
-
-    fn moments(&self, params: &MomentsParams, values: &Arc<Vec<f32>>) -> Result<Arc<Vec<f64>>> {
-        filled(4 * params.chunks(), |out| {
-            moments::moments(params, values, out)
-        })
     }
 
     fn fold_smooth(

@@ -22,10 +22,10 @@ pub mod sampling;
 pub mod skinning;
 
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, MomentsParams,
-    RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
-    SplatParams, SsdParams, SumParams, ThresholdParams,
+    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
+    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, RbfGradParams,
+    RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
+    SsdParams, SumParams, ThresholdParams,
 };
 use crate::backend::{Backend, BoneImages, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -38,7 +38,6 @@ use resident::GpuBuffer;
 const BASE_BINDINGS: &[KernelBindings] = &[
     ("compose", field::COMPOSE_BINDINGS),
     ("dilate", fold::FOLD_BINDINGS),
-    ("edt", regions::EDT_BINDINGS),
     ("fade_warp", field::FADE_BINDINGS),
     ("mark_at_most", fold::FOLD_BINDINGS),
     ("fold_smooth", fold::SMOOTH_BINDINGS),
@@ -54,7 +53,6 @@ const BASE_BINDINGS: &[KernelBindings] = &[
     ("lncc", lncc::LNCC_BINDINGS),
     ("lncc_terms", lncc::TERMS_BINDINGS),
     ("lncc_gradient", lncc::GRADIENT_BINDINGS),
-    ("moments", regions::MOMENTS_BINDINGS),
     ("rbf_adjoint", nonrigid::ADJOINT_BINDINGS),
     ("rbf_lattice", nonrigid::LATTICE_BINDINGS),
     ("rigid_gn", rigid::GN_BINDINGS),
@@ -79,6 +77,7 @@ pub fn bindings() -> impl Iterator<Item = &'static KernelBindings> {
         .iter()
         .chain(sampling::BINDINGS)
         .chain(labels::BINDINGS)
+        .chain(regions::BINDINGS)
         .chain(dense::BINDINGS)
 }
 
@@ -98,10 +97,6 @@ pub struct Kernels {
     pub mark_at_most: Kernel,
     /// shaders/dilate.wgsl
     pub dilate: Kernel,
-    /// shaders/edt.wgsl
-    pub edt: Kernel,
-    /// shaders/moments.wgsl
-    pub moments: Kernel,
     /// shaders/local_moments.wgsl
     pub local_moments: Kernel,
     /// shaders/lncc.wgsl
@@ -160,6 +155,8 @@ pub struct Kernels {
     pub sampling: sampling::SamplingKernels,
     /// The label family (shaders/labels/).
     pub labels: labels::LabelKernels,
+    /// The regions family (shaders/regions/).
+    pub regions: regions::RegionsKernels,
     /// The dense stage's family (shaders/dense/).
     pub dense: dense::DenseKernels,
 }
@@ -187,8 +184,6 @@ impl GpuBackend {
                 fold_stats: compile(&ctx, "fold_stats")?,
                 mark_at_most: compile(&ctx, "mark_at_most")?,
                 dilate: compile(&ctx, "dilate")?,
-                edt: compile(&ctx, "edt")?,
-                moments: compile(&ctx, "moments")?,
                 local_moments: compile(&ctx, "local_moments")?,
                 lncc: compile(&ctx, "lncc")?,
                 lncc_terms: compile(&ctx, "lncc_terms")?,
@@ -218,6 +213,7 @@ impl GpuBackend {
                 invert_field: compile(&ctx, "invert_field")?,
                 sampling: sampling::SamplingKernels::new(&ctx)?,
                 labels: labels::LabelKernels::new(&ctx)?,
+                regions: regions::RegionsKernels::new(&ctx)?,
                 dense: dense::DenseKernels::new(&ctx)?,
             },
             ctx,
@@ -310,10 +306,6 @@ impl Backend for GpuBackend {
         self.record_dilate(params, mask, held)
     }
 
-    fn edt(&self, params: &EdtParams, input: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
-        self.record_edt(params, input)
-    }
-
     fn local_moments(
         &self,
         params: &LocalMomentsParams,
@@ -325,10 +317,6 @@ impl Backend for GpuBackend {
 
     fn lncc(&self, params: &LnccParams, sums: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
         self.record_lncc(params, sums)
-    }
-
-    fn moments(&self, params: &MomentsParams, values: &GpuBuffer<f32>) -> Result<GpuBuffer<f64>> {
-        self.record_moments(params, values)
     }
 
     fn fold_smooth(
