@@ -7,15 +7,17 @@
 pub mod dense;
 pub mod labels;
 pub mod regions;
+pub mod rigid;
 pub mod sampling;
+pub mod skinning;
 
+pub use rigid::BoneImages;
 pub use sampling::{resample_onto, resample_volume};
 
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
     InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, RbfGradParams,
-    RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
-    SsdParams, SumParams, ThresholdParams,
+    RbfLatticeParams, SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
@@ -26,7 +28,9 @@ pub mod prelude {
     pub use super::dense::Dense;
     pub use super::labels::LabelMaps;
     pub use super::regions::Regions;
+    pub use super::rigid::Rigid;
     pub use super::sampling::Sampling;
+    pub use super::skinning::Skinning;
     pub use super::{Backend, Core};
 }
 
@@ -135,16 +139,6 @@ impl<B: Core> DeviceImage<B> {
     }
 }
 
-/// The images one step of a bone's rigid registration compares, at one pyramid level.
-pub struct BoneImages<'a, T: ?Sized> {
-    /// The source S.
-    pub source: &'a T,
-    /// The bone's region on the source grid (≥ 0.5 inside).
-    pub mask: &'a T,
-    /// The target T, sampled through the motion.
-    pub target: &'a T,
-}
-
 /// The images one evaluation of the non-rigid cost compares, on the target grid.
 pub struct CostImages<'a, T: ?Sized> {
     /// I0, sampled through the warp.
@@ -197,7 +191,13 @@ pub trait Core {
 /// method each. Host code (registration loops, commands) is written against these traits only,
 /// so every stage runs on either backend and the two can be compared.
 pub trait Backend:
-    Core + sampling::Sampling + labels::LabelMaps + regions::Regions + dense::Dense
+    Core
+    + sampling::Sampling
+    + labels::LabelMaps
+    + regions::Regions
+    + rigid::Rigid
+    + skinning::Skinning
+    + dense::Dense
 {
     /// Per-column partial sums of c (a − b)² per cell (layout of shaders/ssd_cells.wgsl, folded
     /// by metric::fold_ssd_partials): a = `images.moving`, b = `images.fixed`, c = 1 where
@@ -270,41 +270,6 @@ pub trait Backend:
         region: &Self::Buffer<f32>,
         labels: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
-
-    /// Per-column Gauss-Newton sums of a bone's rigid registration (abi::RIGID_SUMS per
-    /// column of the source, layout of shaders/rigid_gn.wgsl) at the motion in `params`.
-    fn rigid_sums(
-        &self,
-        params: &RigidParams,
-        images: &BoneImages<Self::Buffer<f32>>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// Per-column sums (abi::SCORE_SUMS: Σ r², count and the correlation's) of every candidate
-    /// motion (12 floats each, abi::pack_candidates; layout of shaders/rigid_score.wgsl).
-    fn rigid_scores(
-        &self,
-        params: &ScoreParams,
-        images: &BoneImages<Self::Buffer<f32>>,
-        candidates: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// Skinning weights (bones per voxel) from distance maps (bones per voxel, mm).
-    fn skin_weights(
-        &self,
-        params: &SkinWeightsParams,
-        distances: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// The inverted blend on the target grid: u (3 floats per voxel, mm) and the inversion
-    /// residual (1 float per voxel, mm) for bones moving and blended as `params` says,
-    /// `weights` (bones per voxel) on the weight grid, and `bone_of_voxel` (1 + bone index, 0
-    /// for soft tissue) on the source label grid.
-    fn skin_blend(
-        &self,
-        params: &SkinBlendParams,
-        weights: &Self::Buffer<f32>,
-        bone_of_voxel: &Self::Buffer<f32>,
-    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
 
     /// `moving` seen through the warp `lattice` (3 floats per node) at every voxel of the grid
     /// in `params`: W(x) = I0(x + R(x)), 0 outside.

@@ -367,7 +367,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             SAMPLE,
-            ("rigid_gn.wgsl", include_str!("../shaders/rigid_gn.wgsl")),
+            (
+                "rigid/rigid_gn.wgsl",
+                include_str!("../shaders/rigid/rigid_gn.wgsl"),
+            ),
         ],
     ),
     (
@@ -376,8 +379,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             SAMPLE,
             (
-                "rigid_score.wgsl",
-                include_str!("../shaders/rigid_score.wgsl"),
+                "rigid/rigid_score.wgsl",
+                include_str!("../shaders/rigid/rigid_score.wgsl"),
             ),
         ],
     ),
@@ -387,8 +390,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             SAMPLE,
             (
-                "skin_blend.wgsl",
-                include_str!("../shaders/skin_blend.wgsl"),
+                "skinning/skin_blend.wgsl",
+                include_str!("../shaders/skinning/skin_blend.wgsl"),
             ),
         ],
     ),
@@ -397,8 +400,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             (
-                "skin_weights.wgsl",
-                include_str!("../shaders/skin_weights.wgsl"),
+                "skinning/skin_weights.wgsl",
+                include_str!("../shaders/skinning/skin_weights.wgsl"),
             ),
         ],
     ),

@@ -26,11 +26,9 @@ pub mod lncc;
 pub mod rbf_adjoint;
 pub mod rbf_lattice;
 pub mod regions;
-pub mod rigid_gn;
-pub mod rigid_score;
+pub mod rigid;
 pub mod sampling;
-pub mod skin_blend;
-pub mod skin_weights;
+pub mod skinning;
 pub mod ssd_cells;
 pub mod sum_chunks;
 pub mod sum_partials;
@@ -41,21 +39,12 @@ pub mod warp_image;
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
     InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, PartialsParams,
-    RbfGradParams, RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
-    SplatParams, SsdParams, SumParams, ThresholdParams, FOLD_STATS_WIDTH,
+    RbfGradParams, RbfLatticeParams, SplatParams, SsdParams, SumParams, ThresholdParams,
+    FOLD_STATS_WIDTH,
 };
-use crate::backend::{Backend, BoneImages, Core, CostImages, Element, Traffic};
+use crate::backend::{Backend, Core, CostImages, Element, Traffic};
 use crate::error::Result;
 use std::sync::Arc;
-
-/// The bone images as slices, for the twins.
-fn slices<'a>(images: &BoneImages<'a, Arc<Vec<f32>>>) -> BoneImages<'a, [f32]> {
-    BoneImages {
-        source: images.source.as_slice(),
-        mask: images.mask.as_slice(),
-        target: images.target.as_slice(),
-    }
-}
 
 /// The cost images as slices, for the twins.
 fn as_slices<'a>(images: &CostImages<'a, Arc<Vec<f32>>>) -> CostImages<'a, [f32]> {
@@ -195,49 +184,6 @@ impl Backend for CpuBackend {
     ) -> Result<Arc<Vec<f32>>> {
         filled(3 * params.voxels(), |out| {
             fold::fold_smooth(params, field, region, labels, out)
-        })
-    }
-
-    fn rigid_sums(
-        &self,
-        params: &RigidParams,
-        images: &BoneImages<Arc<Vec<f32>>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.columns() * crate::abi::RIGID_SUMS, |out| {
-            rigid_gn::rigid_gn(params, &slices(images), out)
-        })
-    }
-
-    fn rigid_scores(
-        &self,
-        params: &ScoreParams,
-        images: &BoneImages<Arc<Vec<f32>>>,
-        candidates: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(
-            params.columns() * params.candidates() * crate::abi::SCORE_SUMS,
-            |out| rigid_score::rigid_score(params, &slices(images), candidates, out),
-        )
-    }
-
-    fn skin_weights(
-        &self,
-        params: &SkinWeightsParams,
-        distances: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.values(), |out| {
-            skin_weights::skin_weights(params, distances, out)
-        })
-    }
-
-    fn skin_blend(
-        &self,
-        params: &SkinBlendParams,
-        weights: &Arc<Vec<f32>>,
-        bone_of_voxel: &Arc<Vec<f32>>,
-    ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
-        filled_pair([3 * params.voxels(), params.voxels()], |field, residual| {
-            skin_blend::skin_blend(params, weights, bone_of_voxel, field, residual);
         })
     }
 

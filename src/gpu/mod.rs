@@ -24,10 +24,9 @@ pub mod skinning;
 use crate::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
     InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, RbfGradParams,
-    RbfLatticeParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams,
-    SsdParams, SumParams, ThresholdParams,
+    RbfLatticeParams, SplatParams, SsdParams, SumParams, ThresholdParams,
 };
-use crate::backend::{Backend, BoneImages, Core, CostImages, Element, Traffic};
+use crate::backend::{Backend, Core, CostImages, Element, Traffic};
 use crate::error::Result;
 use context::GpuContext;
 use kernel::Kernel;
@@ -55,10 +54,6 @@ const BASE_BINDINGS: &[KernelBindings] = &[
     ("lncc_gradient", lncc::GRADIENT_BINDINGS),
     ("rbf_adjoint", nonrigid::ADJOINT_BINDINGS),
     ("rbf_lattice", nonrigid::LATTICE_BINDINGS),
-    ("rigid_gn", rigid::GN_BINDINGS),
-    ("rigid_score", rigid::SCORE_BINDINGS),
-    ("skin_blend", skinning::BLEND_BINDINGS),
-    ("skin_weights", skinning::WEIGHTS_BINDINGS),
     ("ssd_cells", nonrigid::SSD_BINDINGS),
     ("sum_chunks", nonrigid::SUM_BINDINGS),
     ("sum_partials", nonrigid::PARTIALS_BINDINGS),
@@ -78,6 +73,8 @@ pub fn bindings() -> impl Iterator<Item = &'static KernelBindings> {
         .chain(sampling::BINDINGS)
         .chain(labels::BINDINGS)
         .chain(regions::BINDINGS)
+        .chain(rigid::BINDINGS)
+        .chain(skinning::BINDINGS)
         .chain(dense::BINDINGS)
 }
 
@@ -111,14 +108,6 @@ pub struct Kernels {
     pub ssd_cells: Kernel,
     /// shaders/jacobian.wgsl
     pub jacobian: Kernel,
-    /// shaders/rigid_gn.wgsl
-    pub rigid_gn: Kernel,
-    /// shaders/rigid_score.wgsl
-    pub rigid_score: Kernel,
-    /// shaders/skin_weights.wgsl
-    pub skin_weights: Kernel,
-    /// shaders/skin_blend.wgsl
-    pub skin_blend: Kernel,
     /// shaders/warp_image.wgsl
     pub warp_image: Kernel,
     /// shaders/gain_terms.wgsl
@@ -157,6 +146,10 @@ pub struct Kernels {
     pub labels: labels::LabelKernels,
     /// The regions family (shaders/regions/).
     pub regions: regions::RegionsKernels,
+    /// The rigid family (shaders/rigid/).
+    pub rigid: rigid::RigidKernels,
+    /// The skinning family (shaders/skinning/).
+    pub skinning: skinning::SkinningKernels,
     /// The dense stage's family (shaders/dense/).
     pub dense: dense::DenseKernels,
 }
@@ -191,10 +184,6 @@ impl GpuBackend {
                 fold_smooth: compile(&ctx, "fold_smooth")?,
                 ssd_cells: compile(&ctx, "ssd_cells")?,
                 jacobian: compile(&ctx, "jacobian")?,
-                rigid_gn: compile(&ctx, "rigid_gn")?,
-                rigid_score: compile(&ctx, "rigid_score")?,
-                skin_weights: compile(&ctx, "skin_weights")?,
-                skin_blend: compile(&ctx, "skin_blend")?,
                 warp_image: compile(&ctx, "warp_image")?,
                 gain_terms: compile(&ctx, "gain_terms")?,
                 gain_ratio: compile(&ctx, "gain_ratio")?,
@@ -214,6 +203,8 @@ impl GpuBackend {
                 sampling: sampling::SamplingKernels::new(&ctx)?,
                 labels: labels::LabelKernels::new(&ctx)?,
                 regions: regions::RegionsKernels::new(&ctx)?,
+                rigid: rigid::RigidKernels::new(&ctx)?,
+                skinning: skinning::SkinningKernels::new(&ctx)?,
                 dense: dense::DenseKernels::new(&ctx)?,
             },
             ctx,
@@ -327,40 +318,6 @@ impl Backend for GpuBackend {
         labels: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
         self.record_fold_smooth(params, field, region, labels)
-    }
-
-    fn rigid_sums(
-        &self,
-        params: &RigidParams,
-        images: &BoneImages<GpuBuffer<f32>>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_rigid_sums(params, images)
-    }
-
-    fn rigid_scores(
-        &self,
-        params: &ScoreParams,
-        images: &BoneImages<GpuBuffer<f32>>,
-        candidates: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_rigid_scores(params, images, candidates)
-    }
-
-    fn skin_weights(
-        &self,
-        params: &SkinWeightsParams,
-        distances: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_skin_weights(params, distances)
-    }
-
-    fn skin_blend(
-        &self,
-        params: &SkinBlendParams,
-        weights: &GpuBuffer<f32>,
-        bone_of_voxel: &GpuBuffer<f32>,
-    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
-        self.record_skin_blend(params, weights, bone_of_voxel)
     }
 
     fn warp_image(
