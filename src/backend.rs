@@ -1,8 +1,8 @@
 //! The backend traits: [`Core`] (buffers and their traffic), one trait per kernel family
-//! (the dense stage's in [`dense`]) and [`Backend`], their sum, implemented by the GPU path
-//! (wgpu compute shaders) and its CPU twin (rayon). Host code (registration loops, commands)
-//! is written against these traits only, so every stage runs on either and the two can be
-//! compared.
+//! (in [`sampling`], [`labels`], [`regions`], [`rigid`], [`skinning`], [`dense`]) and
+//! [`Backend`], their sum, implemented by the GPU path (wgpu compute shaders) and its CPU twin
+//! (rayon). Host code (registration loops, commands) is written against these traits only, so
+//! every stage runs on either and the two can be compared.
 
 pub mod dense;
 pub mod labels;
@@ -187,6 +187,7 @@ pub trait Core {
 }
 
 /// A place kernels run: the core, the families moved so far ([`sampling::Sampling`],
+/// [`labels::LabelMaps`], [`regions::Regions`], [`rigid::Rigid`], [`skinning::Skinning`],
 /// [`dense::Dense`]) and, until they move into families of their own, the other kernels, one
 /// method each. Host code (registration loops, commands) is written against these traits only,
 /// so every stage runs on either backend and the two can be compared.
