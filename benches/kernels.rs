@@ -15,14 +15,14 @@ use posereg::abi::{
     ScoreParams, SkinBlendParams, SkinWeightsParams, SsdParams, SumParams, ThresholdParams,
     RIGID_SUMS, SCORE_SUMS,
 };
-use posereg::backend::dense::{Dense, ForceImages};
-use posereg::backend::{box_sums, BoneImages, Core, CostImages};
+use posereg::backend::dense::ForceImages;
+use posereg::backend::prelude::*;
+use posereg::backend::{box_sums, BoneImages, CostImages};
 use posereg::cpu::CpuBackend;
 use posereg::device::Opened;
 use posereg::gpu::GpuBackend;
 use posereg::images::similarity::LnccCost;
 use posereg::volume::{Affine, Grid, Image};
-use posereg::Backend;
 
 fn sizes() -> Vec<[usize; 3]> {
     match std::env::var("POSEREG_BENCH_SIZES").as_deref() {

@@ -1,6 +1,6 @@
 // bone_lookup.wgsl: which bone a target voxel's source point lands in; prepended (after
 // common, sample, geometry and labels) to the kernels that take BoneLookupParams and whose
-// sampled_value reads the source label map. Mirrored in src/cpu/labels.rs (bone_at).
+// sampled_value reads the source label map. Mirrored in src/cpu/labels/bone_at_source.rs (bone_at).
 
 // Keep in sync with abi::BoneLookupParams.
 struct BoneLookupParams {

@@ -1,7 +1,7 @@
 // labels.wgsl: label codes as the kernels compare them; prepended to the kernels that read a
 // label map (label_index, bone_at_source, fold_smooth), whose parameters hold a LabelCodes
 // named `codes`. Labels are whole numbers stored as f32 (exact to 2^24); a negative value is
-// the background outside the map. Mirrored in src/cpu/labels.rs.
+// the background outside the map. Mirrored in src/cpu/labels/bone_at_source.rs.
 
 // Keep in sync with abi::LabelCodes.
 struct LabelCodes {

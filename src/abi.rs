@@ -15,10 +15,9 @@ mod fold;
 mod labels;
 mod lncc;
 mod nonrigid;
-mod pyramid;
 mod regions;
-mod resample;
 mod rigid;
+mod sampling;
 mod skinning;
 
 pub use field::*;
@@ -26,10 +25,9 @@ pub use fold::*;
 pub use labels::*;
 pub use lncc::*;
 pub use nonrigid::*;
-pub use pyramid::*;
 pub use regions::*;
-pub use resample::*;
 pub use rigid::*;
+pub use sampling::*;
 pub use skinning::*;
 
 /// Rows 0..3 of a 4×4 affine as f32 [x, y, z, w] (w = translation).

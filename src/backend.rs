@@ -1,21 +1,38 @@
 //! The backend traits: [`Core`] (buffers and their traffic), one trait per kernel family
-//! (the dense stage's in [`dense`]) and [`Backend`], their sum, implemented by the GPU path
-//! (wgpu compute shaders) and its CPU twin (rayon). Host code (registration loops, commands)
-//! is written against these traits only, so every stage runs on either and the two can be
-//! compared.
+//! (in [`sampling`], [`labels`], [`regions`], [`rigid`], [`skinning`], [`dense`]) and
+//! [`Backend`], their sum, implemented by the GPU path (wgpu compute shaders) and its CPU twin
+//! (rayon). Host code (registration loops, commands) is written against these traits only, so
+//! every stage runs on either and the two can be compared.
 
 pub mod dense;
+pub mod labels;
+pub mod regions;
+pub mod rigid;
+pub mod sampling;
+pub mod skinning;
 
-use crate::abi::Interpolation;
+pub use rigid::BoneImages;
+pub use sampling::{resample_onto, resample_volume};
+
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
-    MomentsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
-    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
-    ThresholdParams,
+    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
+    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, RbfGradParams,
+    RbfLatticeParams, SplatParams, SsdParams, SumParams, ThresholdParams,
 };
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
+
+/// Every backend trait, for code that calls kernels on a concrete backend
+/// (`use posereg::backend::prelude::*;`): a method is callable only where its trait is in scope.
+pub mod prelude {
+    pub use super::dense::Dense;
+    pub use super::labels::LabelMaps;
+    pub use super::regions::Regions;
+    pub use super::rigid::Rigid;
+    pub use super::sampling::Sampling;
+    pub use super::skinning::Skinning;
+    pub use super::{Backend, Core};
+}
 
 /// What a backend has moved between the host and the device, and how much work it launched,
 /// since it was opened. The CPU backend moves nothing and counts nothing.
@@ -122,16 +139,6 @@ impl<B: Core> DeviceImage<B> {
     }
 }
 
-/// The images one step of a bone's rigid registration compares, at one pyramid level.
-pub struct BoneImages<'a, T: ?Sized> {
-    /// The source S.
-    pub source: &'a T,
-    /// The bone's region on the source grid (≥ 0.5 inside).
-    pub mask: &'a T,
-    /// The target T, sampled through the motion.
-    pub target: &'a T,
-}
-
 /// The images one evaluation of the non-rigid cost compares, on the target grid.
 pub struct CostImages<'a, T: ?Sized> {
     /// I0, sampled through the warp.
@@ -179,49 +186,20 @@ pub trait Core {
     }
 }
 
-/// A place kernels run: the core, the dense stage's family ([`dense::Dense`]) and, until
-/// they move into families of their own, the other kernels, one method each. Host code
-/// (registration loops, commands) is written against these traits only, so every stage runs
-/// on either backend and the two can be compared.
-pub trait Backend: Core + dense::Dense {
-    /// `source` sampled at x + u(x) for every voxel x of the target grid (`field`: u, 3 floats
-    /// per voxel), trilinear or nearest; the background where that point is outside the
-    /// source (`params`).
-    fn resample(
-        &self,
-        params: &ResampleParams,
-        source: &Self::Buffer<f32>,
-        field: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// 1 where x + u(x) lies inside the source's field of view (sample.wgsl's rule) and x in
-    /// `mask` (> 0), else 0, for every voxel x of the target grid (`params` as for a resample).
-    fn coverage(
-        &self,
-        params: &ResampleParams,
-        field: &Self::Buffer<f32>,
-        mask: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// Per voxel of a label map: 1 + the position of its label among `params`' codes, 0 for
-    /// any other label.
-    fn label_index(
-        &self,
-        params: &LabelParams,
-        labels: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// Per target voxel x: 1 + the position among `params`' bone codes of the source label
-    /// (nearest voxel) at x + u(x), where the voxel's `residual` is within `params`' limit;
-    /// 0 elsewhere.
-    fn bone_at_source(
-        &self,
-        params: &BoneLookupParams,
-        field: &Self::Buffer<f32>,
-        residual: &Self::Buffer<f32>,
-        labels: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
+/// A place kernels run: the core, the families moved so far ([`sampling::Sampling`],
+/// [`labels::LabelMaps`], [`regions::Regions`], [`rigid::Rigid`], [`skinning::Skinning`],
+/// [`dense::Dense`]) and, until they move into families of their own, the other kernels, one
+/// method each. Host code (registration loops, commands) is written against these traits only,
+/// so every stage runs on either backend and the two can be compared.
+pub trait Backend:
+    Core
+    + sampling::Sampling
+    + labels::LabelMaps
+    + regions::Regions
+    + rigid::Rigid
+    + skinning::Skinning
+    + dense::Dense
+{
     /// Per-column partial sums of c (a − b)² per cell (layout of shaders/ssd_cells.wgsl, folded
     /// by metric::fold_ssd_partials): a = `images.moving`, b = `images.fixed`, c = 1 where
     /// `images.covered` says the moving image holds data.
@@ -268,10 +246,6 @@ pub trait Backend: Core + dense::Dense {
         held: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
-    /// One axis's pass of exact Euclidean distance maps (mm) for a stack of volumes
-    /// (`params`): the first pass reads a label index map, the others the stack.
-    fn edt(&self, params: &EdtParams, input: &Self::Buffer<f32>) -> Result<Self::Buffer<f32>>;
-
     /// One axis's pass of box sums (`params`) for the local correlation of two images: the
     /// first pass sums abi::LOCAL_MOMENTS of the images `input` (a) and `other` (b) along x,
     /// the others sum the stack in `input` along y, then z (`other` unused).
@@ -287,14 +261,6 @@ pub trait Backend: Core + dense::Dense {
     /// flat).
     fn lncc(&self, params: &LnccParams, sums: &Self::Buffer<f32>) -> Result<Self::Buffer<f32>>;
 
-    /// Per chunk of abi::STATS_CHUNK voxels of `values`: how many are at or above `params`'
-    /// threshold and the sum of their world positions (4 f64 each).
-    fn moments(
-        &self,
-        params: &MomentsParams,
-        values: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f64>>;
-
     /// One sweep of local smoothing of `field` over `region`: each voxel there takes the mean
     /// of its 27 neighbours unless that carries its source point into a bone (`labels`,
     /// `params`' codes) it was not in.
@@ -305,49 +271,6 @@ pub trait Backend: Core + dense::Dense {
         region: &Self::Buffer<f32>,
         labels: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
-
-    /// One pyramid step: a level smoothed and decimated (see pyramid::next_level_grid) as
-    /// `params` says.
-    fn pyramid_level(
-        &self,
-        params: &PyramidParams,
-        input: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// Per-column Gauss-Newton sums of a bone's rigid registration (abi::RIGID_SUMS per
-    /// column of the source, layout of shaders/rigid_gn.wgsl) at the motion in `params`.
-    fn rigid_sums(
-        &self,
-        params: &RigidParams,
-        images: &BoneImages<Self::Buffer<f32>>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// Per-column sums (abi::SCORE_SUMS: Σ r², count and the correlation's) of every candidate
-    /// motion (12 floats each, abi::pack_candidates; layout of shaders/rigid_score.wgsl).
-    fn rigid_scores(
-        &self,
-        params: &ScoreParams,
-        images: &BoneImages<Self::Buffer<f32>>,
-        candidates: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// Skinning weights (bones per voxel) from distance maps (bones per voxel, mm).
-    fn skin_weights(
-        &self,
-        params: &SkinWeightsParams,
-        distances: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// The inverted blend on the target grid: u (3 floats per voxel, mm) and the inversion
-    /// residual (1 float per voxel, mm) for bones moving and blended as `params` says,
-    /// `weights` (bones per voxel) on the weight grid, and `bone_of_voxel` (1 + bone index, 0
-    /// for soft tissue) on the source label grid.
-    fn skin_blend(
-        &self,
-        params: &SkinBlendParams,
-        weights: &Self::Buffer<f32>,
-        bone_of_voxel: &Self::Buffer<f32>,
-    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
 
     /// `moving` seen through the warp `lattice` (3 floats per node) at every voxel of the grid
     /// in `params`: W(x) = I0(x + R(x)), 0 outside.
@@ -534,38 +457,4 @@ pub fn check_grids(a: &Grid, b: &Grid) -> Result<()> {
             a.dims, b.dims
         )))
     }
-}
-
-/// `image` sampled on `grid` without any displacement (0 outside): the unregistered source
-/// seen on the target's grid (trilinear), a mask or a label map on another level (nearest).
-pub fn resample_onto<B: Backend>(
-    backend: &B,
-    image: &DeviceImage<B>,
-    grid: &Grid,
-    interpolation: Interpolation,
-) -> Result<DeviceImage<B>> {
-    let params = ResampleParams::new(&image.grid, grid, 0.0, interpolation);
-    let still = backend.zeros("zero displacement", 3 * grid.len())?;
-    Ok(DeviceImage {
-        data: backend.resample(&params, &image.data, &still)?,
-        grid: grid.clone(),
-    })
-}
-
-/// `source` resampled through `field` (on the target grid) for a command working on volumes
-/// from disk: both go where the backend computes, the result comes back.
-pub fn resample_volume<B: Backend>(
-    backend: &B,
-    source: &Volume,
-    field: &Field,
-    background: f32,
-    interpolation: Interpolation,
-) -> Result<Volume> {
-    let params = ResampleParams::new(&source.grid, &field.grid, background, interpolation);
-    let image = DeviceImage::upload(backend, "volume to resample", source.clone())?;
-    let field_on_device = DeviceImage::upload_field(backend, "displacement field", field.clone())?;
-    Image::from_data(
-        field.grid.clone(),
-        backend.download_one(&backend.resample(&params, &image.data, &field_on_device.data)?)?,
-    )
 }

@@ -35,7 +35,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             SAMPLE,
             GEOMETRY,
-            ("resample.wgsl", include_str!("../shaders/resample.wgsl")),
+            (
+                "sampling/resample.wgsl",
+                include_str!("../shaders/sampling/resample.wgsl"),
+            ),
         ],
     ),
     (
@@ -43,7 +46,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             GEOMETRY,
-            ("coverage.wgsl", include_str!("../shaders/coverage.wgsl")),
+            (
+                "sampling/coverage.wgsl",
+                include_str!("../shaders/sampling/coverage.wgsl"),
+            ),
         ],
     ),
     (
@@ -52,8 +58,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             LABELS,
             (
-                "label_index.wgsl",
-                include_str!("../shaders/label_index.wgsl"),
+                "labels/label_index.wgsl",
+                include_str!("../shaders/labels/label_index.wgsl"),
             ),
         ],
     ),
@@ -66,8 +72,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             LABELS,
             BONE_LOOKUP,
             (
-                "bone_at_source.wgsl",
-                include_str!("../shaders/bone_at_source.wgsl"),
+                "labels/bone_at_source.wgsl",
+                include_str!("../shaders/labels/bone_at_source.wgsl"),
             ),
         ],
     ),
@@ -95,13 +101,22 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
     ),
     (
         "edt",
-        &[COMMON, ("edt.wgsl", include_str!("../shaders/edt.wgsl"))],
+        &[
+            COMMON,
+            (
+                "regions/edt.wgsl",
+                include_str!("../shaders/regions/edt.wgsl"),
+            ),
+        ],
     ),
     (
         "moments",
         &[
             COMMON,
-            ("moments.wgsl", include_str!("../shaders/moments.wgsl")),
+            (
+                "regions/moments.wgsl",
+                include_str!("../shaders/regions/moments.wgsl"),
+            ),
         ],
     ),
     (
@@ -188,7 +203,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         "pyramid",
         &[
             COMMON,
-            ("pyramid.wgsl", include_str!("../shaders/pyramid.wgsl")),
+            (
+                "sampling/pyramid.wgsl",
+                include_str!("../shaders/sampling/pyramid.wgsl"),
+            ),
         ],
     ),
     (
@@ -349,7 +367,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             SAMPLE,
-            ("rigid_gn.wgsl", include_str!("../shaders/rigid_gn.wgsl")),
+            (
+                "rigid/rigid_gn.wgsl",
+                include_str!("../shaders/rigid/rigid_gn.wgsl"),
+            ),
         ],
     ),
     (
@@ -358,8 +379,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             SAMPLE,
             (
-                "rigid_score.wgsl",
-                include_str!("../shaders/rigid_score.wgsl"),
+                "rigid/rigid_score.wgsl",
+                include_str!("../shaders/rigid/rigid_score.wgsl"),
             ),
         ],
     ),
@@ -369,8 +390,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             SAMPLE,
             (
-                "skin_blend.wgsl",
-                include_str!("../shaders/skin_blend.wgsl"),
+                "skinning/skin_blend.wgsl",
+                include_str!("../shaders/skinning/skin_blend.wgsl"),
             ),
         ],
     ),
@@ -379,8 +400,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             (
-                "skin_weights.wgsl",
-                include_str!("../shaders/skin_weights.wgsl"),
+                "skinning/skin_weights.wgsl",
+                include_str!("../shaders/skinning/skin_weights.wgsl"),
             ),
         ],
     ),

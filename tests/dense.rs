@@ -10,11 +10,11 @@ mod common;
 use common::*;
 use posereg::abi::dense::{CombineParams, ForceParams, ForceTerm, GaussParams, NormParams};
 use posereg::abi::LocalMomentsParams;
-use posereg::backend::dense::{largest_vectors, smooth, Dense, ForceImages};
-use posereg::backend::{box_sums, Core};
+use posereg::backend::box_sums;
+use posereg::backend::dense::{largest_vectors, smooth, ForceImages};
+use posereg::backend::prelude::*;
 use posereg::cpu::CpuBackend;
 use posereg::volume::Grid;
-use posereg::Backend;
 
 /// A host vector where `backend` computes.
 fn on<B: Core>(backend: &B, values: &[f32]) -> B::Buffer<f32> {

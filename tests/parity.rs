@@ -16,11 +16,11 @@ use posereg::abi::{
     LocalMomentsParams, MomentsParams, RbfGradParams, ResampleParams, RigidParams, ScoreParams,
     ThresholdParams, FOLD_STATS_WIDTH, RIGID_SUMS, SCORE_SUMS,
 };
-use posereg::backend::{box_sums, BoneImages, Core};
+use posereg::backend::prelude::*;
+use posereg::backend::{box_sums, BoneImages};
 use posereg::cpu::CpuBackend;
 use posereg::volume::{Field, Grid, Image, Volume};
 use posereg::Affine;
-use posereg::Backend;
 
 const RESAMPLE_TOLERANCE: f32 = 1e-3;
 const SSD_RELATIVE_TOLERANCE: f64 = 1e-4;

@@ -5,10 +5,10 @@ mod common;
 use common::*;
 use posereg::abi::Interpolation;
 use posereg::abi::{Blending, BoneBlend, SumParams};
-use posereg::backend::{Core, DeviceImage};
+use posereg::backend::prelude::*;
+use posereg::backend::DeviceImage;
 use posereg::cpu::CpuBackend;
 use posereg::volume::{Affine, Grid, Image};
-use posereg::Backend;
 use std::sync::Arc;
 
 /// A linear ramp with dyadic coefficients: every value and every trilinear weight used below

@@ -200,8 +200,8 @@ fn locate_maps_assembled_lines_back_to_files() {
         ),
         (
             "var<uniform> params: ResampleParams",
-            "resample.wgsl",
-            include_str!("../shaders/resample.wgsl"),
+            "sampling/resample.wgsl",
+            include_str!("../shaders/sampling/resample.wgsl"),
         ),
     ] {
         let n = src.lines().position(|l| l.contains(marker)).unwrap() + 1;

@@ -33,7 +33,7 @@ impl LabelCodes {
     }
 }
 
-/// Keep in sync with `LabelParams` in shaders/label_index.wgsl.
+/// Keep in sync with `LabelParams` in shaders/labels/label_index.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct LabelParams {

@@ -1,4 +1,5 @@
-//! The adaptive stage's evaluation: the RBF on the lattice, its adjoint, sums and energies.
+//! The adaptive stage's evaluation: the RBF on the lattice, its adjoint, sums and energies, the
+//! per-cell SSD and the intensity gain.
 
 use super::*;
 
@@ -307,5 +308,62 @@ impl PartialsParams {
     /// Groups this pass writes (values each).
     pub fn groups(&self) -> usize {
         (self.counts[1] as usize).div_ceil(self.counts[2].max(1) as usize)
+    }
+}
+
+/// Keep in sync with `SsdParams` in shaders/ssd_cells.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SsdParams {
+    /// nx, ny, nz, unused.
+    pub dims: [u32; 4],
+    /// Cells along x, y, z, unused.
+    pub cells: [u32; 4],
+}
+
+impl SsdParams {
+    /// Parameters for an (nx, ny, nz) volume split into `cells`.
+    pub fn new(dims: [usize; 3], cells: [usize; 3]) -> Self {
+        SsdParams {
+            dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, 0],
+            cells: [cells[0] as u32, cells[1] as u32, cells[2] as u32, 0],
+        }
+    }
+
+    /// Partial sums the kernel writes: nz · nx · cy.
+    pub fn partials(&self) -> usize {
+        (self.dims[2] * self.dims[0] * self.cells[1]) as usize
+    }
+}
+
+/// Keep in sync with `GainParams` in shaders/gain.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct GainParams {
+    /// nx, ny, nz of the grid written, its voxels.
+    pub dims: [u32; 4],
+    /// nx, ny, nz of the smoothed grid, unused.
+    pub coarse_dims: [u32; 4],
+    /// Voxel index of the grid written → continuous index of the smoothed grid.
+    pub to_coarse: [[f32; 4]; 3],
+    /// Energy floor, most gain, unused ×2.
+    pub limits: [f32; 4],
+}
+
+impl GainParams {
+    /// For kernels writing `grid`, the gain smoothed on `coarse`, ratios kept within a factor
+    /// `most` of 1 and set to 1 where the smoothed energy is at or below `floor`.
+    pub fn new(grid: &Grid, coarse: &Grid, floor: f32, most: f32) -> Self {
+        GainParams {
+            dims: dims4(grid, grid.len() as u32),
+            coarse_dims: dims4(coarse, 0),
+            to_coarse: rows(&(coarse.world_to_voxel_affine() * grid.affine)),
+            limits: [floor, most, 0.0, 0.0],
+        }
+    }
+
+    /// Voxels of the grid written.
+    pub fn voxels(&self) -> usize {
+        self.dims[3] as usize
     }
 }

@@ -5,7 +5,7 @@ use super::*;
 /// Longest line an edt pass takes: the shader keeps a line's envelope in private arrays.
 pub const MAX_EDT_LINE: usize = 1024;
 
-/// Keep in sync with `EdtParams` in shaders/edt.wgsl.
+/// Keep in sync with `EdtParams` in shaders/regions/edt.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct EdtParams {
@@ -52,7 +52,7 @@ impl EdtParams {
     }
 }
 
-/// Keep in sync with `MomentsParams` in shaders/moments.wgsl.
+/// Keep in sync with `MomentsParams` in shaders/regions/moments.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct MomentsParams {

@@ -16,7 +16,7 @@ pub fn pack_candidates(candidates: &[Affine]) -> Vec<f32> {
         .collect()
 }
 
-/// Keep in sync with `RigidParams` in shaders/rigid_gn.wgsl.
+/// Keep in sync with `RigidParams` in shaders/rigid/rigid_gn.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct RigidParams {
@@ -60,7 +60,7 @@ impl RigidParams {
     }
 }
 
-/// Keep in sync with `ScoreParams` in shaders/rigid_score.wgsl.
+/// Keep in sync with `ScoreParams` in shaders/rigid/rigid_score.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct ScoreParams {

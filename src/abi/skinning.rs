@@ -44,7 +44,7 @@ pub fn check_bone_count(bones: usize) -> Result<()> {
     Ok(())
 }
 
-/// Keep in sync with `SkinWeightsParams` in shaders/skin_weights.wgsl.
+/// Keep in sync with `SkinWeightsParams` in shaders/skinning/skin_weights.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SkinWeightsParams {
@@ -81,7 +81,7 @@ impl SkinWeightsParams {
 /// Most bones a skinning kernel takes (its matrices live in the uniform).
 pub const MAX_SKIN_BONES: usize = 8;
 
-/// Keep in sync with `SkinBlendParams` in shaders/skin_blend.wgsl.
+/// Keep in sync with `SkinBlendParams` in shaders/skinning/skin_blend.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SkinBlendParams {

@@ -1,44 +1,31 @@
-//! CPU twins of shaders/label_index.wgsl and shaders/bone_at_source.wgsl (their lookups,
-//! labels.wgsl and bone_lookup.wgsl, are twinned in crate::sample).
+//! CPU twins of the label family's kernels (shaders/labels/; their lookups, labels.wgsl and
+//! bone_lookup.wgsl, are twinned in crate::sample).
 
-use super::common::{dims3, voxel_index};
+mod bone_at_source;
+mod label_index;
+
+use super::{filled, CpuBackend};
 use crate::abi::{BoneLookupParams, LabelParams};
-use crate::sample::{bone_at, code_index};
-use rayon::prelude::*;
+use crate::backend::labels::LabelMaps;
+use crate::error::Result;
+use std::sync::Arc;
 
-/// Fills `index` (1 float per voxel) with each label's code_index.
-pub fn label_index(params: &LabelParams, labels: &[f32], index: &mut [f32]) {
-    index
-        .par_iter_mut()
-        .zip(labels.par_iter())
-        .for_each(|(out, &label)| *out = code_index(&params.codes, label) as f32);
-}
+impl LabelMaps for CpuBackend {
+    fn label_index(&self, params: &LabelParams, labels: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| {
+            label_index::label_index(params, labels, out)
+        })
+    }
 
-/// Fills `bone` (1 float per target voxel) with the bone at each voxel's source point, where
-/// its residual is within the limit.
-pub fn bone_at_source(
-    params: &BoneLookupParams,
-    field: &[f32],
-    residual: &[f32],
-    labels: &[f32],
-    bone: &mut [f32],
-) {
-    let dims = dims3(params.geometry.target_dims);
-    let [nx, ny, _] = dims;
-    bone.par_chunks_mut((nx * ny) as usize)
-        .enumerate()
-        .for_each(|(k, slice)| {
-            for j in 0..ny {
-                for i in 0..nx {
-                    let v = voxel_index(i, j, k as u32, dims) as usize;
-                    let u = [field[3 * v], field[3 * v + 1], field[3 * v + 2]];
-                    let found = if residual[v] <= params.limit[0] {
-                        bone_at(params, labels, [i as f32, j as f32, k as f32], u)
-                    } else {
-                        0
-                    };
-                    slice[(i + nx * j) as usize] = found as f32;
-                }
-            }
-        });
+    fn bone_at_source(
+        &self,
+        params: &BoneLookupParams,
+        field: &Arc<Vec<f32>>,
+        residual: &Arc<Vec<f32>>,
+        labels: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| {
+            bone_at_source::bone_at_source(params, field, residual, labels, out)
+        })
+    }
 }

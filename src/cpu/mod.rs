@@ -13,9 +13,7 @@
 
 pub mod common;
 pub mod compose;
-pub mod coverage;
 pub mod dense;
-pub mod edt;
 pub mod fade_warp;
 pub mod fold;
 pub mod gain;
@@ -25,15 +23,12 @@ pub mod labels;
 pub mod lattice_energy;
 pub mod lattice_splat;
 pub mod lncc;
-pub mod moments;
-pub mod pyramid;
 pub mod rbf_adjoint;
 pub mod rbf_lattice;
-pub mod resample;
-pub mod rigid_gn;
-pub mod rigid_score;
-pub mod skin_blend;
-pub mod skin_weights;
+pub mod regions;
+pub mod rigid;
+pub mod sampling;
+pub mod skinning;
 pub mod ssd_cells;
 pub mod sum_chunks;
 pub mod sum_partials;
@@ -42,24 +37,14 @@ pub mod warp_field;
 pub mod warp_image;
 
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
-    MomentsParams, PartialsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams,
-    RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
-    SumParams, ThresholdParams, FOLD_STATS_WIDTH,
+    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
+    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, PartialsParams,
+    RbfGradParams, RbfLatticeParams, SplatParams, SsdParams, SumParams, ThresholdParams,
+    FOLD_STATS_WIDTH,
 };
-use crate::backend::{Backend, BoneImages, Core, CostImages, Element, Traffic};
+use crate::backend::{Backend, Core, CostImages, Element, Traffic};
 use crate::error::Result;
 use std::sync::Arc;
-
-/// The bone images as slices, for the twins.
-fn slices<'a>(images: &BoneImages<'a, Arc<Vec<f32>>>) -> BoneImages<'a, [f32]> {
-    BoneImages {
-        source: images.source.as_slice(),
-        mask: images.mask.as_slice(),
-        target: images.target.as_slice(),
-    }
-}
 
 /// The cost images as slices, for the twins.
 fn as_slices<'a>(images: &CostImages<'a, Arc<Vec<f32>>>) -> CostImages<'a, [f32]> {
@@ -128,46 +113,6 @@ impl Core for CpuBackend {
 }
 
 impl Backend for CpuBackend {
-    fn resample(
-        &self,
-        params: &ResampleParams,
-        source: &Arc<Vec<f32>>,
-        field: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.voxels(), |out| {
-            resample::resample(params, source, field, out)
-        })
-    }
-
-    fn coverage(
-        &self,
-        params: &ResampleParams,
-        field: &Arc<Vec<f32>>,
-        mask: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.voxels(), |out| {
-            coverage::coverage(params, field, mask, out)
-        })
-    }
-
-    fn label_index(&self, params: &LabelParams, labels: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
-        filled(params.voxels(), |out| {
-            labels::label_index(params, labels, out)
-        })
-    }
-
-    fn bone_at_source(
-        &self,
-        params: &BoneLookupParams,
-        field: &Arc<Vec<f32>>,
-        residual: &Arc<Vec<f32>>,
-        labels: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.voxels(), |out| {
-            labels::bone_at_source(params, field, residual, labels, out)
-        })
-    }
-
     fn ssd_cells(
         &self,
         params: &SsdParams,
@@ -215,10 +160,6 @@ impl Backend for CpuBackend {
         filled(params.voxels(), |out| fold::dilate(params, mask, held, out))
     }
 
-    fn edt(&self, params: &EdtParams, input: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
-        filled(params.values(), |out| edt::edt(params, input, out))
-    }
-
     fn local_moments(
         &self,
         params: &LocalMomentsParams,
@@ -234,12 +175,6 @@ impl Backend for CpuBackend {
         filled(2 * params.chunks(), |out| lncc::lncc(params, sums, out))
     }
 
-    fn moments(&self, params: &MomentsParams, values: &Arc<Vec<f32>>) -> Result<Arc<Vec<f64>>> {
-        filled(4 * params.chunks(), |out| {
-            moments::moments(params, values, out)
-        })
-    }
-
     fn fold_smooth(
         &self,
         params: &BoneLookupParams,
@@ -249,59 +184,6 @@ impl Backend for CpuBackend {
     ) -> Result<Arc<Vec<f32>>> {
         filled(3 * params.voxels(), |out| {
             fold::fold_smooth(params, field, region, labels, out)
-        })
-    }
-
-    fn pyramid_level(
-        &self,
-        params: &PyramidParams,
-        input: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.output_len(), |out| {
-            pyramid::pyramid(params, input, out)
-        })
-    }
-
-    fn rigid_sums(
-        &self,
-        params: &RigidParams,
-        images: &BoneImages<Arc<Vec<f32>>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.columns() * crate::abi::RIGID_SUMS, |out| {
-            rigid_gn::rigid_gn(params, &slices(images), out)
-        })
-    }
-
-    fn rigid_scores(
-        &self,
-        params: &ScoreParams,
-        images: &BoneImages<Arc<Vec<f32>>>,
-        candidates: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(
-            params.columns() * params.candidates() * crate::abi::SCORE_SUMS,
-            |out| rigid_score::rigid_score(params, &slices(images), candidates, out),
-        )
-    }
-
-    fn skin_weights(
-        &self,
-        params: &SkinWeightsParams,
-        distances: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.values(), |out| {
-            skin_weights::skin_weights(params, distances, out)
-        })
-    }
-
-    fn skin_blend(
-        &self,
-        params: &SkinBlendParams,
-        weights: &Arc<Vec<f32>>,
-        bone_of_voxel: &Arc<Vec<f32>>,
-    ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
-        filled_pair([3 * params.voxels(), params.voxels()], |field, residual| {
-            skin_blend::skin_blend(params, weights, bone_of_voxel, field, residual);
         })
     }
 

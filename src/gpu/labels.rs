@@ -1,28 +1,44 @@
-//! Host side of shaders/label_index.wgsl and shaders/bone_at_source.wgsl.
+//! Host side of the label family (shaders/labels/): its bindings, its compiled pipelines and
+//! the family's trait.
 
-use super::kernel::{cover, Binding};
+use super::context::GpuContext;
+use super::kernel::{cover, Binding, Kernel};
 use super::resident::GpuBuffer;
-use super::GpuBackend;
+use super::{compile, GpuBackend};
 use crate::abi::{BoneLookupParams, LabelParams};
+use crate::backend::labels::LabelMaps;
 use crate::error::Result;
 
 use Binding::{Read, ReadWrite, Uniform};
 
-/// label_index bindings in the order the shader declares them.
-pub const INDEX_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
-/// bone_at_source bindings.
-pub const BONE_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, ReadWrite];
+/// The family's bind group layouts, by kernel name (read through super::bindings).
+pub const BINDINGS: &[super::KernelBindings] = &[
+    ("label_index", &[Uniform, Read, ReadWrite]),
+    ("bone_at_source", &[Uniform, Read, Read, Read, ReadWrite]),
+];
 
-impl GpuBackend {
+/// The family's compiled kernels.
+pub struct LabelKernels {
+    label_index: Kernel,
+    bone_at_source: Kernel,
+}
+
+impl LabelKernels {
+    /// Compiles the family's kernels.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        Ok(LabelKernels {
+            label_index: compile(ctx, "label_index")?,
+            bone_at_source: compile(ctx, "bone_at_source")?,
+        })
+    }
+}
+
+impl LabelMaps for GpuBackend {
     /// Each label's position among the codes.
-    pub fn record_label_index(
-        &self,
-        params: &LabelParams,
-        labels: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
+    fn label_index(&self, params: &LabelParams, labels: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
         let index = self.output_buffer("label index", params.voxels())?;
         self.record(
-            &self.kernels.label_index,
+            &self.kernels.labels.label_index,
             params,
             &[labels.raw(), index.raw()],
             cover(params.dims, 4),
@@ -31,7 +47,7 @@ impl GpuBackend {
     }
 
     /// The bone at each target voxel's source point.
-    pub fn record_bone_at_source(
+    fn bone_at_source(
         &self,
         params: &BoneLookupParams,
         field: &GpuBuffer<f32>,
@@ -40,7 +56,7 @@ impl GpuBackend {
     ) -> Result<GpuBuffer<f32>> {
         let bone = self.output_buffer("bone at the source point", params.voxels())?;
         self.record(
-            &self.kernels.bone_at_source,
+            &self.kernels.labels.bone_at_source,
             params,
             &[field.raw(), residual.raw(), labels.raw(), bone.raw()],
             cover(params.geometry.target_dims, 4),

@@ -15,21 +15,18 @@ pub mod kernel;
 pub mod labels;
 pub mod lncc;
 pub mod nonrigid;
-pub mod pyramid;
 pub mod regions;
-pub mod resample;
 pub mod resident;
 pub mod rigid;
+pub mod sampling;
 pub mod skinning;
 
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, LnccParams, LnccTermsParams, LocalMomentsParams,
-    MomentsParams, PyramidParams, RbfGradParams, RbfLatticeParams, ResampleParams, RigidParams,
-    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
-    ThresholdParams,
+    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
+    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, RbfGradParams,
+    RbfLatticeParams, SplatParams, SsdParams, SumParams, ThresholdParams,
 };
-use crate::backend::{Backend, BoneImages, Core, CostImages, Element, Traffic};
+use crate::backend::{Backend, Core, CostImages, Element, Traffic};
 use crate::error::Result;
 use context::GpuContext;
 use kernel::Kernel;
@@ -38,11 +35,8 @@ use resident::GpuBuffer;
 /// The bind group layout of every kernel outside the families with tables of their own, by
 /// name (the names of crate::shaders::KERNELS).
 const BASE_BINDINGS: &[KernelBindings] = &[
-    ("bone_at_source", labels::BONE_BINDINGS),
     ("compose", field::COMPOSE_BINDINGS),
-    ("coverage", resample::COVERAGE_BINDINGS),
     ("dilate", fold::FOLD_BINDINGS),
-    ("edt", regions::EDT_BINDINGS),
     ("fade_warp", field::FADE_BINDINGS),
     ("mark_at_most", fold::FOLD_BINDINGS),
     ("fold_smooth", fold::SMOOTH_BINDINGS),
@@ -52,22 +46,14 @@ const BASE_BINDINGS: &[KernelBindings] = &[
     ("gain_terms", nonrigid::GAIN_TERMS_BINDINGS),
     ("invert_field", field::INVERT_BINDINGS),
     ("jacobian", jacobian::BINDINGS),
-    ("label_index", labels::INDEX_BINDINGS),
     ("lattice_energy", nonrigid::ENERGY_BINDINGS),
     ("lattice_splat", nonrigid::SPLAT_BINDINGS),
     ("local_moments", lncc::MOMENTS_BINDINGS),
     ("lncc", lncc::LNCC_BINDINGS),
     ("lncc_terms", lncc::TERMS_BINDINGS),
     ("lncc_gradient", lncc::GRADIENT_BINDINGS),
-    ("moments", regions::MOMENTS_BINDINGS),
-    ("pyramid", pyramid::BINDINGS),
     ("rbf_adjoint", nonrigid::ADJOINT_BINDINGS),
     ("rbf_lattice", nonrigid::LATTICE_BINDINGS),
-    ("resample", resample::BINDINGS),
-    ("rigid_gn", rigid::GN_BINDINGS),
-    ("rigid_score", rigid::SCORE_BINDINGS),
-    ("skin_blend", skinning::BLEND_BINDINGS),
-    ("skin_weights", skinning::WEIGHTS_BINDINGS),
     ("ssd_cells", nonrigid::SSD_BINDINGS),
     ("sum_chunks", nonrigid::SUM_BINDINGS),
     ("sum_partials", nonrigid::PARTIALS_BINDINGS),
@@ -82,7 +68,14 @@ pub type KernelBindings = (&'static str, &'static [kernel::Binding]);
 
 /// Every kernel's bind group layout, by name: the families' tables after the others'.
 pub fn bindings() -> impl Iterator<Item = &'static KernelBindings> {
-    BASE_BINDINGS.iter().chain(dense::BINDINGS)
+    BASE_BINDINGS
+        .iter()
+        .chain(sampling::BINDINGS)
+        .chain(labels::BINDINGS)
+        .chain(regions::BINDINGS)
+        .chain(rigid::BINDINGS)
+        .chain(skinning::BINDINGS)
+        .chain(dense::BINDINGS)
 }
 
 fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
@@ -95,24 +88,12 @@ fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
 
 /// Every compiled kernel.
 pub struct Kernels {
-    /// shaders/resample.wgsl
-    pub resample: Kernel,
-    /// shaders/coverage.wgsl
-    pub coverage: Kernel,
-    /// shaders/label_index.wgsl
-    pub label_index: Kernel,
-    /// shaders/bone_at_source.wgsl
-    pub bone_at_source: Kernel,
     /// shaders/fold_stats.wgsl
     pub fold_stats: Kernel,
     /// shaders/mark_at_most.wgsl
     pub mark_at_most: Kernel,
     /// shaders/dilate.wgsl
     pub dilate: Kernel,
-    /// shaders/edt.wgsl
-    pub edt: Kernel,
-    /// shaders/moments.wgsl
-    pub moments: Kernel,
     /// shaders/local_moments.wgsl
     pub local_moments: Kernel,
     /// shaders/lncc.wgsl
@@ -127,16 +108,6 @@ pub struct Kernels {
     pub ssd_cells: Kernel,
     /// shaders/jacobian.wgsl
     pub jacobian: Kernel,
-    /// shaders/pyramid.wgsl
-    pub pyramid: Kernel,
-    /// shaders/rigid_gn.wgsl
-    pub rigid_gn: Kernel,
-    /// shaders/rigid_score.wgsl
-    pub rigid_score: Kernel,
-    /// shaders/skin_weights.wgsl
-    pub skin_weights: Kernel,
-    /// shaders/skin_blend.wgsl
-    pub skin_blend: Kernel,
     /// shaders/warp_image.wgsl
     pub warp_image: Kernel,
     /// shaders/gain_terms.wgsl
@@ -169,6 +140,16 @@ pub struct Kernels {
     pub fade_warp: Kernel,
     /// shaders/invert_field.wgsl
     pub invert_field: Kernel,
+    /// The sampling family (shaders/sampling/).
+    pub sampling: sampling::SamplingKernels,
+    /// The label family (shaders/labels/).
+    pub labels: labels::LabelKernels,
+    /// The regions family (shaders/regions/).
+    pub regions: regions::RegionsKernels,
+    /// The rigid family (shaders/rigid/).
+    pub rigid: rigid::RigidKernels,
+    /// The skinning family (shaders/skinning/).
+    pub skinning: skinning::SkinningKernels,
     /// The dense stage's family (shaders/dense/).
     pub dense: dense::DenseKernels,
 }
@@ -193,15 +174,9 @@ impl GpuBackend {
     pub fn with_context(ctx: GpuContext) -> Result<Self> {
         Ok(GpuBackend {
             kernels: Kernels {
-                resample: compile(&ctx, "resample")?,
-                coverage: compile(&ctx, "coverage")?,
-                label_index: compile(&ctx, "label_index")?,
-                bone_at_source: compile(&ctx, "bone_at_source")?,
                 fold_stats: compile(&ctx, "fold_stats")?,
                 mark_at_most: compile(&ctx, "mark_at_most")?,
                 dilate: compile(&ctx, "dilate")?,
-                edt: compile(&ctx, "edt")?,
-                moments: compile(&ctx, "moments")?,
                 local_moments: compile(&ctx, "local_moments")?,
                 lncc: compile(&ctx, "lncc")?,
                 lncc_terms: compile(&ctx, "lncc_terms")?,
@@ -209,11 +184,6 @@ impl GpuBackend {
                 fold_smooth: compile(&ctx, "fold_smooth")?,
                 ssd_cells: compile(&ctx, "ssd_cells")?,
                 jacobian: compile(&ctx, "jacobian")?,
-                pyramid: compile(&ctx, "pyramid")?,
-                rigid_gn: compile(&ctx, "rigid_gn")?,
-                rigid_score: compile(&ctx, "rigid_score")?,
-                skin_weights: compile(&ctx, "skin_weights")?,
-                skin_blend: compile(&ctx, "skin_blend")?,
                 warp_image: compile(&ctx, "warp_image")?,
                 gain_terms: compile(&ctx, "gain_terms")?,
                 gain_ratio: compile(&ctx, "gain_ratio")?,
@@ -230,6 +200,11 @@ impl GpuBackend {
                 compose: compile(&ctx, "compose")?,
                 fade_warp: compile(&ctx, "fade_warp")?,
                 invert_field: compile(&ctx, "invert_field")?,
+                sampling: sampling::SamplingKernels::new(&ctx)?,
+                labels: labels::LabelKernels::new(&ctx)?,
+                regions: regions::RegionsKernels::new(&ctx)?,
+                rigid: rigid::RigidKernels::new(&ctx)?,
+                skinning: skinning::SkinningKernels::new(&ctx)?,
                 dense: dense::DenseKernels::new(&ctx)?,
             },
             ctx,
@@ -283,38 +258,6 @@ impl Core for GpuBackend {
 }
 
 impl Backend for GpuBackend {
-    fn resample(
-        &self,
-        params: &ResampleParams,
-        source: &GpuBuffer<f32>,
-        field: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_resample(params, source, field)
-    }
-
-    fn coverage(
-        &self,
-        params: &ResampleParams,
-        field: &GpuBuffer<f32>,
-        mask: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_coverage(params, field, mask)
-    }
-
-    fn label_index(&self, params: &LabelParams, labels: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
-        self.record_label_index(params, labels)
-    }
-
-    fn bone_at_source(
-        &self,
-        params: &BoneLookupParams,
-        field: &GpuBuffer<f32>,
-        residual: &GpuBuffer<f32>,
-        labels: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_bone_at_source(params, field, residual, labels)
-    }
-
     fn ssd_cells(
         &self,
         params: &SsdParams,
@@ -354,10 +297,6 @@ impl Backend for GpuBackend {
         self.record_dilate(params, mask, held)
     }
 
-    fn edt(&self, params: &EdtParams, input: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
-        self.record_edt(params, input)
-    }
-
     fn local_moments(
         &self,
         params: &LocalMomentsParams,
@@ -371,10 +310,6 @@ impl Backend for GpuBackend {
         self.record_lncc(params, sums)
     }
 
-    fn moments(&self, params: &MomentsParams, values: &GpuBuffer<f32>) -> Result<GpuBuffer<f64>> {
-        self.record_moments(params, values)
-    }
-
     fn fold_smooth(
         &self,
         params: &BoneLookupParams,
@@ -383,48 +318,6 @@ impl Backend for GpuBackend {
         labels: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
         self.record_fold_smooth(params, field, region, labels)
-    }
-
-    fn pyramid_level(
-        &self,
-        params: &PyramidParams,
-        input: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_pyramid(params, input)
-    }
-
-    fn rigid_sums(
-        &self,
-        params: &RigidParams,
-        images: &BoneImages<GpuBuffer<f32>>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_rigid_sums(params, images)
-    }
-
-    fn rigid_scores(
-        &self,
-        params: &ScoreParams,
-        images: &BoneImages<GpuBuffer<f32>>,
-        candidates: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_rigid_scores(params, images, candidates)
-    }
-
-    fn skin_weights(
-        &self,
-        params: &SkinWeightsParams,
-        distances: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_skin_weights(params, distances)
-    }
-
-    fn skin_blend(
-        &self,
-        params: &SkinBlendParams,
-        weights: &GpuBuffer<f32>,
-        bone_of_voxel: &GpuBuffer<f32>,
-    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
-        self.record_skin_blend(params, weights, bone_of_voxel)
     }
 
     fn warp_image(

@@ -1,31 +1,49 @@
-//! Host side of shaders/rigid_gn.wgsl and shaders/rigid_score.wgsl: whole levels bound at once,
-//! per-column partial results left on the device for sum_partials.
+//! Host side of the rigid family (shaders/rigid/): whole levels bound at once, per-column
+//! partial results left on the device for sum_partials; the bindings, the compiled pipelines
+//! and the family's trait.
 
-use super::kernel::{groups, Binding};
+use super::context::GpuContext;
+use super::kernel::{groups, Binding, Kernel};
 use super::resident::GpuBuffer;
-use super::GpuBackend;
+use super::{compile, GpuBackend};
 use crate::abi::{RigidParams, ScoreParams, RIGID_SUMS, SCORE_SUMS};
-use crate::backend::BoneImages;
+use crate::backend::rigid::{BoneImages, Rigid};
 use crate::error::Result;
 
 use Binding::{Read, ReadWrite, Uniform};
 
-/// rigid_gn bindings in the order the shader declares them.
-pub const GN_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, ReadWrite];
+/// The family's bind group layouts, by kernel name (read through super::bindings).
+pub const BINDINGS: &[super::KernelBindings] = &[
+    ("rigid_gn", &[Uniform, Read, Read, Read, ReadWrite]),
+    ("rigid_score", &[Uniform, Read, Read, Read, Read, ReadWrite]),
+];
 
-/// rigid_score bindings in the order the shader declares them.
-pub const SCORE_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, Read, ReadWrite];
+/// The family's compiled kernels.
+pub struct RigidKernels {
+    rigid_gn: Kernel,
+    rigid_score: Kernel,
+}
 
-impl GpuBackend {
+impl RigidKernels {
+    /// Compiles the family's kernels.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        Ok(RigidKernels {
+            rigid_gn: compile(ctx, "rigid_gn")?,
+            rigid_score: compile(ctx, "rigid_score")?,
+        })
+    }
+}
+
+impl Rigid for GpuBackend {
     /// Gauss-Newton column sums.
-    pub fn record_rigid_sums(
+    fn rigid_sums(
         &self,
         params: &RigidParams,
         images: &BoneImages<GpuBuffer<f32>>,
     ) -> Result<GpuBuffer<f32>> {
         let partial = self.output_buffer("rigid column sums", params.columns() * RIGID_SUMS)?;
         self.record(
-            &self.kernels.rigid_gn,
+            &self.kernels.rigid.rigid_gn,
             params,
             &[
                 images.source.raw(),
@@ -39,7 +57,7 @@ impl GpuBackend {
     }
 
     /// Candidate scores per column.
-    pub fn record_rigid_scores(
+    fn rigid_scores(
         &self,
         params: &ScoreParams,
         images: &BoneImages<GpuBuffer<f32>>,
@@ -51,7 +69,7 @@ impl GpuBackend {
             params.columns() * count * SCORE_SUMS,
         )?;
         self.record(
-            &self.kernels.rigid_score,
+            &self.kernels.rigid.rigid_score,
             params,
             &[
                 images.source.raw(),

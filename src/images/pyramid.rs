@@ -1,6 +1,6 @@
 //! Gaussian pyramids that respect anisotropic spacing: each level halves the axes that are not
 //! already much coarser than the finest one (a 0.3 × 0.3 × 1.5 mm scan keeps its 1.5 mm axis
-//! until the others catch up), smoothing with the binomial kernel of shaders/pyramid.wgsl.
+//! until the others catch up), smoothing with the binomial kernel of shaders/sampling/pyramid.wgsl.
 
 use crate::abi::PyramidParams;
 use crate::backend::{Backend, DeviceImage};

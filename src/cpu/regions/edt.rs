@@ -1,8 +1,8 @@
-//! CPU twin of shaders/edt.wgsl: the lines in parallel, each read once into a buffer (the
+//! CPU twin of shaders/regions/edt.wgsl: the lines in parallel, each read once into a buffer (the
 //! shader reads a sample each time its envelope needs it; the values are the same).
 
-use super::common::{dims3, voxel_index};
 use crate::abi::EdtParams;
+use crate::cpu::common::{dims3, voxel_index};
 use crate::sample::floor;
 use rayon::prelude::*;
 

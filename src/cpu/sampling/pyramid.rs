@@ -1,7 +1,7 @@
-//! CPU twin of shaders/pyramid.wgsl.
+//! CPU twin of shaders/sampling/pyramid.wgsl.
 
-use super::common::voxel_index;
 use crate::abi::PyramidParams;
+use crate::cpu::common::voxel_index;
 use rayon::prelude::*;
 
 fn tap(o: u32, t: u32, factor: u32, n: u32) -> (f32, f32) {

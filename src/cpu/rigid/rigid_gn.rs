@@ -1,8 +1,8 @@
-//! CPU twin of shaders/rigid_gn.wgsl: the same per-column sums, one slice per rayon task.
+//! CPU twin of shaders/rigid/rigid_gn.wgsl: the same per-column sums, one slice per rayon task.
 
-use super::common::{affine_row, linear_row, voxel_index};
 use crate::abi::{RigidParams, RIGID_SUMS as SUMS};
-use crate::backend::BoneImages;
+use crate::backend::rigid::BoneImages;
+use crate::cpu::common::{affine_row, linear_row, voxel_index};
 use crate::sample::{inside_source, trilinear_with_gradient};
 use glam::Vec3;
 use rayon::prelude::*;

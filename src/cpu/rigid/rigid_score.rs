@@ -1,8 +1,8 @@
-//! CPU twin of shaders/rigid_score.wgsl.
+//! CPU twin of shaders/rigid/rigid_score.wgsl.
 
-use super::common::{affine_row, voxel_index};
 use crate::abi::{ScoreParams, SCORE_SUMS};
-use crate::backend::BoneImages;
+use crate::backend::rigid::BoneImages;
+use crate::cpu::common::{affine_row, voxel_index};
 use crate::sample::{array_from, inside_source, trilinear};
 use rayon::prelude::*;
 

@@ -1,4 +1,4 @@
-//! CPU twin of shaders/skin_blend.wgsl.
+//! CPU twin of shaders/skinning/skin_blend.wgsl.
 //!
 //! The shader inverts one voxel per invocation; the twin inverts [`LANES`] neighbouring voxels
 //! of a row side by side, each quantity held for all of them in one array ([`Lanes`]), so that
@@ -7,8 +7,8 @@
 //! that used glam's vectors, as in a quaternion's length), so the outputs are the same bits;
 //! only the lookups into the label and weight grids go voxel by voxel.
 
-use super::common::{affine_row, det3, dims3, solve3};
 use crate::abi::{SkinBlendParams, MAX_SKIN_BONES};
+use crate::cpu::common::{affine_row, det3, dims3, solve3};
 use crate::sample::{array_from, axis_corners, corner_index, nearest};
 use glam::Vec3;
 use rayon::prelude::*;

@@ -1,7 +1,7 @@
-//! CPU twin of shaders/coverage.wgsl.
+//! CPU twin of shaders/sampling/coverage.wgsl.
 
-use super::common::{dims3, source_index, voxel_index};
 use crate::abi::ResampleParams;
+use crate::cpu::common::{dims3, source_index, voxel_index};
 use crate::sample::inside_source;
 use rayon::prelude::*;
 

@@ -1,7 +1,7 @@
-//! CPU twin of shaders/moments.wgsl.
+//! CPU twin of shaders/regions/moments.wgsl.
 
-use super::common::affine_row;
 use crate::abi::MomentsParams;
+use crate::cpu::common::affine_row;
 use rayon::prelude::*;
 
 /// Fills `moments` (4 per chunk: count, Σx, Σy, Σz) over the voxels at or above the threshold.

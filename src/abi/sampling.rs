@@ -1,4 +1,5 @@
-//! Resampling through a field, the per-cell SSD and the intensity gain.
+//! Sampling images: through a displacement field, the field's coverage of the source, and
+//! pyramid levels.
 
 use super::*;
 
@@ -12,7 +13,7 @@ pub enum Interpolation {
     Nearest,
 }
 
-/// Keep in sync with `ResampleParams` in shaders/resample.wgsl.
+/// Keep in sync with `ResampleParams` in shaders/sampling/resample.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct ResampleParams {
@@ -78,64 +79,40 @@ impl ResampleParams {
     }
 }
 
-/// Keep in sync with `SsdParams` in shaders/ssd_cells.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
-pub struct SsdParams {
-    /// nx, ny, nz, unused.
-    pub dims: [u32; 4],
-    /// Cells along x, y, z, unused.
-    pub cells: [u32; 4],
-}
-
-impl SsdParams {
-    /// Parameters for an (nx, ny, nz) volume split into `cells`.
-    pub fn new(dims: [usize; 3], cells: [usize; 3]) -> Self {
-        SsdParams {
-            dims: [dims[0] as u32, dims[1] as u32, dims[2] as u32, 0],
-            cells: [cells[0] as u32, cells[1] as u32, cells[2] as u32, 0],
-        }
-    }
-
-    /// Partial sums the kernel writes: nz · nx · cy.
-    pub fn partials(&self) -> usize {
-        (self.dims[2] * self.dims[0] * self.cells[1]) as usize
-    }
-}
-
 /// Coverage at or above which a voxel of the moving image holds data from the source scan
 /// (`is_covered` in shaders/common.wgsl): 0 or 1 at the finest level, fractional after the
 /// pyramid's smoothing, which erodes it.
 pub const COVERED_AT: f32 = 0.999;
 
-/// Keep in sync with `GainParams` in shaders/gain.wgsl.
+/// Keep in sync with `PyramidParams` in shaders/sampling/pyramid.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
-pub struct GainParams {
-    /// nx, ny, nz of the grid written, its voxels.
+pub struct PyramidParams {
+    /// Output nx, ny, nz, unused.
     pub dims: [u32; 4],
-    /// nx, ny, nz of the smoothed grid, unused.
-    pub coarse_dims: [u32; 4],
-    /// Voxel index of the grid written → continuous index of the smoothed grid.
-    pub to_coarse: [[f32; 4]; 3],
-    /// Energy floor, most gain, unused ×2.
-    pub limits: [f32; 4],
+    /// Input nx, ny, nz, unused.
+    pub input_dims: [u32; 4],
+    /// 1 or 2 per axis, unused.
+    pub factors: [u32; 4],
 }
 
-impl GainParams {
-    /// For kernels writing `grid`, the gain smoothed on `coarse`, ratios kept within a factor
-    /// `most` of 1 and set to 1 where the smoothed energy is at or below `floor`.
-    pub fn new(grid: &Grid, coarse: &Grid, floor: f32, most: f32) -> Self {
-        GainParams {
-            dims: dims4(grid, grid.len() as u32),
-            coarse_dims: dims4(coarse, 0),
-            to_coarse: rows(&(coarse.world_to_voxel_affine() * grid.affine)),
-            limits: [floor, most, 0.0, 0.0],
+impl PyramidParams {
+    /// From the input grid, the output dims and the per-axis factors.
+    pub fn new(input: &Grid, output_dims: [usize; 3], factors: [usize; 3]) -> Self {
+        PyramidParams {
+            dims: [
+                output_dims[0] as u32,
+                output_dims[1] as u32,
+                output_dims[2] as u32,
+                0,
+            ],
+            input_dims: dims4(input, 0),
+            factors: [factors[0] as u32, factors[1] as u32, factors[2] as u32, 0],
         }
     }
 
-    /// Voxels of the grid written.
-    pub fn voxels(&self) -> usize {
-        self.dims[3] as usize
+    /// Voxels of the output level.
+    pub fn output_len(&self) -> usize {
+        count(&self.dims)
     }
 }

@@ -1,7 +1,7 @@
-//! CPU twin of shaders/resample.wgsl: one target slice per rayon task.
+//! CPU twin of shaders/sampling/resample.wgsl: one target slice per rayon task.
 
-use super::common::{source_index, voxel_index};
 use crate::abi::ResampleParams;
+use crate::cpu::common::{source_index, voxel_index};
 use crate::sample::{nearest, trilinear};
 use rayon::prelude::*;
 

@@ -1,4 +1,4 @@
-//! CPU twin of shaders/skin_weights.wgsl.
+//! CPU twin of shaders/skinning/skin_weights.wgsl.
 
 use crate::abi::{SkinWeightsParams, MAX_SKIN_BONES};
 use rayon::prelude::*;

@@ -7,7 +7,7 @@
 // Bindings (group 0):
 //   0 uniform  SkinWeightsParams
 //   1 storage  distance: array<f32>  one volume per bone (mm to the bone, 0 inside), the
-//                                    distance maps of shaders/edt.wgsl
+//                                    distance maps of shaders/regions/edt.wgsl
 //   2 storage  weight: array<f32>    bones floats per voxel (read_write)
 // Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(nz/4)).
 
