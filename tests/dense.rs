@@ -14,7 +14,11 @@ use posereg::backend::box_sums;
 use posereg::backend::dense::{largest_vectors, smooth, ForceImages};
 use posereg::backend::prelude::*;
 use posereg::cpu::CpuBackend;
-use posereg::volume::Grid;
+use posereg::labels as label;
+use posereg::phantom::{generate, Phantom, PhantomSize, PhantomSpec};
+use posereg::pipeline::register::{register, Inputs, RegisterOptions};
+use posereg::progress::Silent;
+use posereg::volume::{Field, Grid, Volume};
 
 /// A host vector where `backend` computes.
 fn on<B: Core>(backend: &B, values: &[f32]) -> B::Buffer<f32> {
@@ -370,25 +374,11 @@ fn norm_max_and_combine_parity() {
 /// printed, not held to a bar.
 #[test]
 fn the_refinement_leaves_the_bones_as_they_were_and_stays_invertible() {
-    use posereg::labels as label;
-    use posereg::phantom::{generate, PhantomSize, PhantomSpec};
-    use posereg::pipeline::register::{register, Inputs, RegisterOptions};
-    use posereg::progress::Silent;
     use posereg::report::evaluate::field_error;
-    let spec = |flexion_degrees, seed| PhantomSpec {
-        size: PhantomSize::Quarter,
-        flexion_degrees,
-        seed,
-        ..Default::default()
-    };
-    let (source, target) = (
-        generate(&spec(0.0, 1)).unwrap(),
-        generate(&spec(30.0, 2)).unwrap(),
-    );
+    let (source, target) = quarter_pair_at_30();
     let inputs = Inputs::new(&source.image, &source.labels, &target.image);
     let plain = RegisterOptions::default();
-    let mut dense = plain.clone();
-    dense.dense.enabled = true;
+    let dense = with_dense();
     let without = register(&CpuBackend, inputs, &plain, &Silent).unwrap();
     let with = register(&CpuBackend, inputs, &dense, &Silent).unwrap();
 
@@ -442,4 +432,84 @@ fn the_refinement_leaves_the_bones_as_they_were_and_stays_invertible() {
         worst < 1e-3,
         "the field moved {worst} mm deep inside a bone"
     );
+}
+
+/// The quarter phantom straight and bent 30°.
+fn quarter_pair_at_30() -> (Phantom, Phantom) {
+    let spec = |flexion_degrees, seed| PhantomSpec {
+        size: PhantomSize::Quarter,
+        flexion_degrees,
+        seed,
+        ..Default::default()
+    };
+    (
+        generate(&spec(0.0, 1)).unwrap(),
+        generate(&spec(30.0, 2)).unwrap(),
+    )
+}
+
+/// The default settings with the dense refinement on.
+fn with_dense() -> RegisterOptions {
+    let mut options = RegisterOptions::default();
+    options.dense.enabled = true;
+    options
+}
+
+/// The refinement of one field on both backends (lavapipe in CI). Its kernels give the same
+/// bits on both (the parity tests above) but the composition and resampling it also runs
+/// differ in the last bit, so the fields may drift by a few thousandths of a mm while every
+/// level runs as many iterations and ends at nearly the same cost (measured: 0.0028 mm apart
+/// on average, 0.195 mm at worst, costs within 2e-5).
+///
+/// Started from the two backends' own registrations instead (0.02–0.04 mm apart,
+/// tests/adaptive.rs), the whole pipeline with the refinement ends 1.37 mm apart on this
+/// phantom (measured, 2026-12-06): where, as here, the refinement makes the field worse, its
+/// levels stop after 10 and 14 iterations from starts that close, so the whole pipeline's
+/// agreement with it on is not held to a bar; issue 50 keeps that open.
+#[test]
+fn the_refinement_of_one_field_agrees_on_both_backends() {
+    use posereg::backend::DeviceImage;
+    use posereg::nonrigid::dense::{refine, DenseInputs, DenseReport};
+    let Some(gpu) = gpu() else { return };
+    let (source, target) = quarter_pair_at_30();
+    let inputs = Inputs::new(&source.image, &source.labels, &target.image);
+    let plain = RegisterOptions::default();
+    let start = register(&CpuBackend, inputs, &plain, &Silent)
+        .unwrap()
+        .field;
+    let everywhere = posereg::Image::filled(target.image.grid.clone(), 1.0f32);
+    fn refined_on<B: Backend>(
+        b: &B,
+        (source, target, start, mask): (&Volume, &Volume, &Field, &Volume),
+    ) -> (Vec<[f32; 3]>, DenseReport) {
+        let up = |what, v: &Volume| DeviceImage::upload(b, what, v.clone()).unwrap();
+        let (source, target, mask) = (up("source", source), up("target", target), up("mask", mask));
+        let field = DeviceImage::upload_field(b, "start", start.clone()).unwrap();
+        let inputs = DenseInputs {
+            source: &source,
+            target: &target,
+            field: &field,
+            mask: &mask,
+            bones: None,
+        };
+        let (out, report) = refine(b, &inputs, &with_dense().dense, &Silent).unwrap();
+        (out.download_field(b).unwrap().data, report)
+    }
+    let images = (&source.image, &target.image, &start, &everywhere);
+    let (a, on_cpu) = refined_on(&CpuBackend, images);
+    let (b, on_gpu) = refined_on(gpu, images);
+    let apart = |n: usize| {
+        let d = (0..3).map(|c| (a[n][c] - b[n][c]) as f64);
+        d.map(|d| d * d).sum::<f64>().sqrt()
+    };
+    let mean_apart = (0..a.len()).map(apart).sum::<f64>() / a.len() as f64;
+    let (cpu_levels, gpu_levels) = (&on_cpu.levels, &on_gpu.levels);
+    eprintln!("fields {mean_apart:.4} mm apart; {cpu_levels:?} / {gpu_levels:?}");
+    assert!(mean_apart <= 0.01, "fields {mean_apart} mm apart");
+    assert_eq!(cpu_levels.len(), gpu_levels.len());
+    for (c, g) in cpu_levels.iter().zip(gpu_levels) {
+        assert_eq!(c.iterations, g.iterations, "{c:?} / {g:?}");
+        let gap = (c.cost_end - g.cost_end).abs() / c.cost_end.abs().max(1e-12);
+        assert!(gap <= 1e-3, "costs {} / {}", c.cost_end, g.cost_end);
+    }
 }
