@@ -1,10 +1,11 @@
 //! The backend traits: [`Core`] (buffers and their traffic), one trait per kernel family
-//! (in [`sampling`], [`labels`], [`regions`], [`rigid`], [`skinning`], [`dense`]) and
+//! (in [`sampling`], [`labels`], [`regions`], [`rigid`], [`skinning`], [`dense`], [`fold`]) and
 //! [`Backend`], their sum, implemented by the GPU path (wgpu compute shaders) and its CPU twin
 //! (rayon). Host code (registration loops, commands) is written against these traits only, so
 //! every stage runs on either and the two can be compared.
 
 pub mod dense;
+pub mod fold;
 pub mod labels;
 pub mod regions;
 pub mod rigid;
@@ -15,9 +16,8 @@ pub use rigid::BoneImages;
 pub use sampling::{resample_onto, resample_volume};
 
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, RbfGradParams,
-    RbfLatticeParams, SplatParams, SsdParams, SumParams, ThresholdParams,
+    ComposeParams, EnergyParams, FadeParams, GainParams, InvertParams, LnccParams, LnccTermsParams,
+    LocalMomentsParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams, SumParams,
 };
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
@@ -26,6 +26,7 @@ use crate::volume::{Field, Grid, Image, Labels, Volume};
 /// (`use posereg::backend::prelude::*;`): a method is callable only where its trait is in scope.
 pub mod prelude {
     pub use super::dense::Dense;
+    pub use super::fold::Fold;
     pub use super::labels::LabelMaps;
     pub use super::regions::Regions;
     pub use super::rigid::Rigid;
@@ -188,7 +189,7 @@ pub trait Core {
 
 /// A place kernels run: the core, the families moved so far ([`sampling::Sampling`],
 /// [`labels::LabelMaps`], [`regions::Regions`], [`rigid::Rigid`], [`skinning::Skinning`],
-/// [`dense::Dense`]) and, until they move into families of their own, the other kernels, one
+/// [`dense::Dense`], [`fold::Fold`]) and, until they move into families of their own, the other kernels, one
 /// method each. Host code (registration loops, commands) is written against these traits only,
 /// so every stage runs on either backend and the two can be compared.
 pub trait Backend:
@@ -199,6 +200,7 @@ pub trait Backend:
     + rigid::Rigid
     + skinning::Skinning
     + dense::Dense
+    + fold::Fold
 {
     /// Per-column partial sums of c (a − b)² per cell (layout of shaders/ssd_cells.wgsl, folded
     /// by metric::fold_ssd_partials): a = `images.moving`, b = `images.fixed`, c = 1 where
@@ -207,43 +209,6 @@ pub trait Backend:
         &self,
         params: &SsdParams,
         images: &CostImages<Self::Buffer<f32>>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// det(I + du/dx) of the map x → x + u(x) at every voxel of the field's grid: where it is
-    /// ≤ 0 the map folds.
-    fn jacobian(
-        &self,
-        params: &JacobianParams,
-        field: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// Per chunk of abi::STATS_CHUNK voxels of a Jacobian determinant `det`, the bone contacts
-    /// at or below the threshold apart (voxels whose stencil spans two bones `held`: along one
-    /// axis, or all six neighbours held; `held` values are bone numbers): its minimum, the
-    /// voxels ≤ 0, the voxels ≤ `params`' threshold, and those of them not `held` (> 0); then
-    /// the bone contacts ≤ 0 (shaders/fold_stats.wgsl).
-    fn fold_stats(
-        &self,
-        params: &ThresholdParams,
-        det: &Self::Buffer<f32>,
-        held: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// 1 on the voxels not `held` whose `value` is at or below `params`' threshold, else 0.
-    fn mark_at_most(
-        &self,
-        params: &ThresholdParams,
-        value: &Self::Buffer<f32>,
-        held: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// One axis of a box dilation of a 0/1 `mask` (`params`), clearing the `held` voxels
-    /// when `params` says.
-    fn dilate(
-        &self,
-        params: &DilateParams,
-        mask: &Self::Buffer<f32>,
-        held: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
     /// One axis's pass of box sums (`params`) for the local correlation of two images: the
@@ -260,17 +225,6 @@ pub trait Backend:
     /// of the squared local correlation and the voxels where it is defined (neither window
     /// flat).
     fn lncc(&self, params: &LnccParams, sums: &Self::Buffer<f32>) -> Result<Self::Buffer<f32>>;
-
-    /// One sweep of local smoothing of `field` over `region`: each voxel there takes the mean
-    /// of its 27 neighbours unless that carries its source point into a bone (`labels`,
-    /// `params`' codes) it was not in.
-    fn fold_smooth(
-        &self,
-        params: &BoneLookupParams,
-        field: &Self::Buffer<f32>,
-        region: &Self::Buffer<f32>,
-        labels: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
 
     /// `moving` seen through the warp `lattice` (3 floats per node) at every voxel of the grid
     /// in `params`: W(x) = I0(x + R(x)), 0 outside.

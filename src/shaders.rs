@@ -18,7 +18,10 @@ const BONE_LOOKUP: (&str, &str) = (
     "bone_lookup.wgsl",
     include_str!("../shaders/bone_lookup.wgsl"),
 );
-const THRESHOLD: (&str, &str) = ("threshold.wgsl", include_str!("../shaders/threshold.wgsl"));
+const THRESHOLD: (&str, &str) = (
+    "fold/threshold.wgsl",
+    include_str!("../shaders/fold/threshold.wgsl"),
+);
 const GAIN: (&str, &str) = ("gain.wgsl", include_str!("../shaders/gain.wgsl"));
 const WINDOW: (&str, &str) = ("window.wgsl", include_str!("../shaders/window.wgsl"));
 const FADE: (&str, &str) = ("fade.wgsl", include_str!("../shaders/fade.wgsl"));
@@ -83,8 +86,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             THRESHOLD,
             (
-                "fold_stats.wgsl",
-                include_str!("../shaders/fold_stats.wgsl"),
+                "fold/fold_stats.wgsl",
+                include_str!("../shaders/fold/fold_stats.wgsl"),
             ),
         ],
     ),
@@ -94,8 +97,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             THRESHOLD,
             (
-                "mark_at_most.wgsl",
-                include_str!("../shaders/mark_at_most.wgsl"),
+                "fold/mark_at_most.wgsl",
+                include_str!("../shaders/fold/mark_at_most.wgsl"),
             ),
         ],
     ),
@@ -165,7 +168,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         "dilate",
         &[
             COMMON,
-            ("dilate.wgsl", include_str!("../shaders/dilate.wgsl")),
+            (
+                "fold/dilate.wgsl",
+                include_str!("../shaders/fold/dilate.wgsl"),
+            ),
         ],
     ),
     (
@@ -177,8 +183,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             LABELS,
             BONE_LOOKUP,
             (
-                "fold_smooth.wgsl",
-                include_str!("../shaders/fold_smooth.wgsl"),
+                "fold/fold_smooth.wgsl",
+                include_str!("../shaders/fold/fold_smooth.wgsl"),
             ),
         ],
     ),
@@ -186,7 +192,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         "jacobian",
         &[
             COMMON,
-            ("jacobian.wgsl", include_str!("../shaders/jacobian.wgsl")),
+            (
+                "fold/jacobian.wgsl",
+                include_str!("../shaders/fold/jacobian.wgsl"),
+            ),
         ],
     ),
     (

@@ -1,14 +1,15 @@
-//! Folds: thresholds, the Jacobian determinant and its statistics, the field's inverse.
+//! Folds: thresholds, the Jacobian determinant and its statistics, the dilation of a mask, the
+//! field's inverse.
 
 use super::*;
 
 /// Voxels per chunk of the fold statistics and the moments.
 pub const STATS_CHUNK: usize = 1024;
-/// Floats of fold statistics per chunk (shaders/fold_stats.wgsl): minimum, folded, at most the
+/// Floats of fold statistics per chunk (shaders/fold/fold_stats.wgsl): minimum, folded, at most the
 /// threshold, of those not held, folded bone contacts.
 pub const FOLD_STATS_WIDTH: usize = 5;
 
-/// Keep in sync with `ThresholdParams` in shaders/threshold.wgsl.
+/// Keep in sync with `ThresholdParams` in shaders/fold/threshold.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct ThresholdParams {
@@ -41,7 +42,7 @@ impl ThresholdParams {
     }
 }
 
-/// Keep in sync with `JacobianParams` in shaders/jacobian.wgsl.
+/// Keep in sync with `JacobianParams` in shaders/fold/jacobian.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct JacobianParams {
@@ -63,6 +64,32 @@ impl JacobianParams {
             dims: dims4(grid, 0),
             mm_to_index: mm_to_index_rows(grid),
         }
+    }
+}
+
+/// Keep in sync with `DilateParams` in shaders/fold/dilate.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct DilateParams {
+    /// nx, ny, nz, and the margin (voxels).
+    pub dims: [u32; 4],
+    /// Axis (0 x, 1 y, 2 z), 1 to clear the held voxels, unused ×2.
+    pub axis: [u32; 4],
+}
+
+impl DilateParams {
+    /// The passes dilating a mask on `grid` by `margin` voxels along x, y and z, the last
+    /// clearing the held voxels.
+    pub fn passes(grid: &Grid, margin: usize) -> [DilateParams; 3] {
+        std::array::from_fn(|axis| DilateParams {
+            dims: dims4(grid, margin as u32),
+            axis: [axis as u32, (axis == 2) as u32, 0, 0],
+        })
+    }
+
+    /// Voxels of the grid.
+    pub fn voxels(&self) -> usize {
+        count(&self.dims)
     }
 }
 

@@ -1,4 +1,4 @@
-//! Label maps: codes, lookups of a bone at a point, dilation.
+//! Label maps: codes and lookups of a bone at a point.
 
 use super::*;
 
@@ -84,31 +84,5 @@ impl BoneLookupParams {
     /// Voxels of the target grid.
     pub fn voxels(&self) -> usize {
         self.geometry.voxels()
-    }
-}
-
-/// Keep in sync with `DilateParams` in shaders/dilate.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
-pub struct DilateParams {
-    /// nx, ny, nz, and the margin (voxels).
-    pub dims: [u32; 4],
-    /// Axis (0 x, 1 y, 2 z), 1 to clear the held voxels, unused ×2.
-    pub axis: [u32; 4],
-}
-
-impl DilateParams {
-    /// The passes dilating a mask on `grid` by `margin` voxels along x, y and z, the last
-    /// clearing the held voxels.
-    pub fn passes(grid: &Grid, margin: usize) -> [DilateParams; 3] {
-        std::array::from_fn(|axis| DilateParams {
-            dims: dims4(grid, margin as u32),
-            axis: [axis as u32, (axis == 2) as u32, 0, 0],
-        })
-    }
-
-    /// Voxels of the grid.
-    pub fn voxels(&self) -> usize {
-        count(&self.dims)
     }
 }

@@ -18,7 +18,6 @@ pub mod fade_warp;
 pub mod fold;
 pub mod gain;
 pub mod invert;
-pub mod jacobian;
 pub mod labels;
 pub mod lattice_energy;
 pub mod lattice_splat;
@@ -37,10 +36,9 @@ pub mod warp_field;
 pub mod warp_image;
 
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, PartialsParams,
-    RbfGradParams, RbfLatticeParams, SplatParams, SsdParams, SumParams, ThresholdParams,
-    FOLD_STATS_WIDTH,
+    ComposeParams, EnergyParams, FadeParams, GainParams, InvertParams, LnccParams, LnccTermsParams,
+    LocalMomentsParams, PartialsParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams,
+    SumParams,
 };
 use crate::backend::{Backend, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -123,43 +121,6 @@ impl Backend for CpuBackend {
         })
     }
 
-    fn jacobian(&self, params: &JacobianParams, field: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
-        filled(params.voxels(), |out| {
-            jacobian::jacobian(params, field, out)
-        })
-    }
-
-    fn fold_stats(
-        &self,
-        params: &ThresholdParams,
-        det: &Arc<Vec<f32>>,
-        held: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(FOLD_STATS_WIDTH * params.chunks(), |out| {
-            fold::fold_stats(params, det, held, out)
-        })
-    }
-
-    fn mark_at_most(
-        &self,
-        params: &ThresholdParams,
-        value: &Arc<Vec<f32>>,
-        held: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.voxels(), |out| {
-            fold::mark_at_most(params, value, held, out)
-        })
-    }
-
-    fn dilate(
-        &self,
-        params: &DilateParams,
-        mask: &Arc<Vec<f32>>,
-        held: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.voxels(), |out| fold::dilate(params, mask, held, out))
-    }
-
     fn local_moments(
         &self,
         params: &LocalMomentsParams,
@@ -173,18 +134,6 @@ impl Backend for CpuBackend {
 
     fn lncc(&self, params: &LnccParams, sums: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
         filled(2 * params.chunks(), |out| lncc::lncc(params, sums, out))
-    }
-
-    fn fold_smooth(
-        &self,
-        params: &BoneLookupParams,
-        field: &Arc<Vec<f32>>,
-        region: &Arc<Vec<f32>>,
-        labels: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(3 * params.voxels(), |out| {
-            fold::fold_smooth(params, field, region, labels, out)
-        })
     }
 
     fn warp_image(

@@ -10,7 +10,6 @@ pub mod context;
 pub mod dense;
 pub mod field;
 pub mod fold;
-pub mod jacobian;
 pub mod kernel;
 pub mod labels;
 pub mod lncc;
@@ -22,9 +21,8 @@ pub mod sampling;
 pub mod skinning;
 
 use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, RbfGradParams,
-    RbfLatticeParams, SplatParams, SsdParams, SumParams, ThresholdParams,
+    ComposeParams, EnergyParams, FadeParams, GainParams, InvertParams, LnccParams, LnccTermsParams,
+    LocalMomentsParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams, SumParams,
 };
 use crate::backend::{Backend, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -36,16 +34,11 @@ use resident::GpuBuffer;
 /// name (the names of crate::shaders::KERNELS).
 const BASE_BINDINGS: &[KernelBindings] = &[
     ("compose", field::COMPOSE_BINDINGS),
-    ("dilate", fold::FOLD_BINDINGS),
     ("fade_warp", field::FADE_BINDINGS),
-    ("mark_at_most", fold::FOLD_BINDINGS),
-    ("fold_smooth", fold::SMOOTH_BINDINGS),
-    ("fold_stats", fold::FOLD_BINDINGS),
     ("gain_apply", nonrigid::GAIN_BINDINGS),
     ("gain_ratio", nonrigid::GAIN_BINDINGS),
     ("gain_terms", nonrigid::GAIN_TERMS_BINDINGS),
     ("invert_field", field::INVERT_BINDINGS),
-    ("jacobian", jacobian::BINDINGS),
     ("lattice_energy", nonrigid::ENERGY_BINDINGS),
     ("lattice_splat", nonrigid::SPLAT_BINDINGS),
     ("local_moments", lncc::MOMENTS_BINDINGS),
@@ -76,6 +69,7 @@ pub fn bindings() -> impl Iterator<Item = &'static KernelBindings> {
         .chain(rigid::BINDINGS)
         .chain(skinning::BINDINGS)
         .chain(dense::BINDINGS)
+        .chain(fold::BINDINGS)
 }
 
 fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
@@ -88,12 +82,6 @@ fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
 
 /// Every compiled kernel.
 pub struct Kernels {
-    /// shaders/fold_stats.wgsl
-    pub fold_stats: Kernel,
-    /// shaders/mark_at_most.wgsl
-    pub mark_at_most: Kernel,
-    /// shaders/dilate.wgsl
-    pub dilate: Kernel,
     /// shaders/local_moments.wgsl
     pub local_moments: Kernel,
     /// shaders/lncc.wgsl
@@ -102,12 +90,8 @@ pub struct Kernels {
     pub lncc_terms: Kernel,
     /// shaders/lncc_gradient.wgsl
     pub lncc_gradient: Kernel,
-    /// shaders/fold_smooth.wgsl
-    pub fold_smooth: Kernel,
     /// shaders/ssd_cells.wgsl
     pub ssd_cells: Kernel,
-    /// shaders/jacobian.wgsl
-    pub jacobian: Kernel,
     /// shaders/warp_image.wgsl
     pub warp_image: Kernel,
     /// shaders/gain_terms.wgsl
@@ -152,6 +136,8 @@ pub struct Kernels {
     pub skinning: skinning::SkinningKernels,
     /// The dense stage's family (shaders/dense/).
     pub dense: dense::DenseKernels,
+    /// The fold family (shaders/fold/).
+    pub fold: fold::FoldKernels,
 }
 
 /// The GPU backend with its compiled kernels.
@@ -174,16 +160,11 @@ impl GpuBackend {
     pub fn with_context(ctx: GpuContext) -> Result<Self> {
         Ok(GpuBackend {
             kernels: Kernels {
-                fold_stats: compile(&ctx, "fold_stats")?,
-                mark_at_most: compile(&ctx, "mark_at_most")?,
-                dilate: compile(&ctx, "dilate")?,
                 local_moments: compile(&ctx, "local_moments")?,
                 lncc: compile(&ctx, "lncc")?,
                 lncc_terms: compile(&ctx, "lncc_terms")?,
                 lncc_gradient: compile(&ctx, "lncc_gradient")?,
-                fold_smooth: compile(&ctx, "fold_smooth")?,
                 ssd_cells: compile(&ctx, "ssd_cells")?,
-                jacobian: compile(&ctx, "jacobian")?,
                 warp_image: compile(&ctx, "warp_image")?,
                 gain_terms: compile(&ctx, "gain_terms")?,
                 gain_ratio: compile(&ctx, "gain_ratio")?,
@@ -206,6 +187,7 @@ impl GpuBackend {
                 rigid: rigid::RigidKernels::new(&ctx)?,
                 skinning: skinning::SkinningKernels::new(&ctx)?,
                 dense: dense::DenseKernels::new(&ctx)?,
+                fold: fold::FoldKernels::new(&ctx)?,
             },
             ctx,
             peak_dispatch_bytes: Default::default(),
@@ -266,37 +248,6 @@ impl Backend for GpuBackend {
         self.record_ssd_cells(params, images)
     }
 
-    fn jacobian(&self, params: &JacobianParams, field: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
-        self.record_jacobian(params, field)
-    }
-
-    fn fold_stats(
-        &self,
-        params: &ThresholdParams,
-        det: &GpuBuffer<f32>,
-        held: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_fold_stats(params, det, held)
-    }
-
-    fn mark_at_most(
-        &self,
-        params: &ThresholdParams,
-        value: &GpuBuffer<f32>,
-        held: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_mark_at_most(params, value, held)
-    }
-
-    fn dilate(
-        &self,
-        params: &DilateParams,
-        mask: &GpuBuffer<f32>,
-        held: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_dilate(params, mask, held)
-    }
-
     fn local_moments(
         &self,
         params: &LocalMomentsParams,
@@ -308,16 +259,6 @@ impl Backend for GpuBackend {
 
     fn lncc(&self, params: &LnccParams, sums: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
         self.record_lncc(params, sums)
-    }
-
-    fn fold_smooth(
-        &self,
-        params: &BoneLookupParams,
-        field: &GpuBuffer<f32>,
-        region: &GpuBuffer<f32>,
-        labels: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_fold_smooth(params, field, region, labels)
     }
 
     fn warp_image(

@@ -1,7 +1,7 @@
-//! CPU twin of shaders/jacobian.wgsl: one slice per rayon task.
+//! CPU twin of shaders/fold/jacobian.wgsl: one slice per rayon task.
 
-use super::common::{det3, voxel_index};
 use crate::abi::JacobianParams;
+use crate::cpu::common::{det3, voxel_index};
 use glam::Vec3;
 use rayon::prelude::*;
 
