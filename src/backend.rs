@@ -4,6 +4,7 @@
 //! (rayon). Host code (registration loops, commands) is written against these traits only, so
 //! every stage runs on either and the two can be compared.
 
+pub mod correlation;
 pub mod dense;
 pub mod fold;
 pub mod labels;
@@ -12,12 +13,13 @@ pub mod rigid;
 pub mod sampling;
 pub mod skinning;
 
+pub use correlation::box_sums;
 pub use rigid::BoneImages;
 pub use sampling::{resample_onto, resample_volume};
 
 use crate::abi::{
-    ComposeParams, EnergyParams, FadeParams, GainParams, InvertParams, LnccParams, LnccTermsParams,
-    LocalMomentsParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams, SumParams,
+    ComposeParams, EnergyParams, FadeParams, GainParams, InvertParams, RbfGradParams,
+    RbfLatticeParams, SplatParams, SsdParams, SumParams,
 };
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
@@ -25,6 +27,7 @@ use crate::volume::{Field, Grid, Image, Labels, Volume};
 /// Every backend trait, for code that calls kernels on a concrete backend
 /// (`use posereg::backend::prelude::*;`): a method is callable only where its trait is in scope.
 pub mod prelude {
+    pub use super::correlation::Correlation;
     pub use super::dense::Dense;
     pub use super::fold::Fold;
     pub use super::labels::LabelMaps;
@@ -201,6 +204,7 @@ pub trait Backend:
     + skinning::Skinning
     + dense::Dense
     + fold::Fold
+    + correlation::Correlation
 {
     /// Per-column partial sums of c (a − b)² per cell (layout of shaders/ssd_cells.wgsl, folded
     /// by metric::fold_ssd_partials): a = `images.moving`, b = `images.fixed`, c = 1 where
@@ -210,21 +214,6 @@ pub trait Backend:
         params: &SsdParams,
         images: &CostImages<Self::Buffer<f32>>,
     ) -> Result<Self::Buffer<f32>>;
-
-    /// One axis's pass of box sums (`params`) for the local correlation of two images: the
-    /// first pass sums abi::LOCAL_MOMENTS of the images `input` (a) and `other` (b) along x,
-    /// the others sum the stack in `input` along y, then z (`other` unused).
-    fn local_moments(
-        &self,
-        params: &LocalMomentsParams,
-        input: &Self::Buffer<f32>,
-        other: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// Per chunk of abi::STATS_CHUNK voxels of box sums (`local_moments`' last pass): the sum
-    /// of the squared local correlation and the voxels where it is defined (neither window
-    /// flat).
-    fn lncc(&self, params: &LnccParams, sums: &Self::Buffer<f32>) -> Result<Self::Buffer<f32>>;
 
     /// `moving` seen through the warp `lattice` (3 floats per node) at every voxel of the grid
     /// in `params`: W(x) = I0(x + R(x)), 0 outside.
@@ -314,28 +303,6 @@ pub trait Backend:
         images: &CostImages<Self::Buffer<f32>>,
     ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
 
-    /// The local-correlation cost's terms from the box sums of W and T (`local_moments`' last
-    /// pass) and the coverage: 5 floats per voxel to box-sum again (`local_moments` over
-    /// `LocalMomentsParams::stack_passes`) and K Σ c (1 − ρ²) per row of x (ny · nz floats).
-    fn lncc_terms(
-        &self,
-        params: &LnccTermsParams,
-        sums: &Self::Buffer<f32>,
-        covered: &Self::Buffer<f32>,
-    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
-
-    /// The image part of the local-correlation cost's gradient through the warp `lattice`
-    /// (3 floats per voxel, as `warp_cost`'s) from the box-summed terms `summed`: `moving`
-    /// (I0) seen through it against `fixed`.
-    fn lncc_gradient(
-        &self,
-        params: &RbfGradParams,
-        lattice: &Self::Buffer<f32>,
-        moving: &Self::Buffer<f32>,
-        fixed: &Self::Buffer<f32>,
-        summed: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
     /// The adjoint of the lattice interpolation: 3 floats per lattice node, Σ_x w_n(x) v(x),
     /// from 3 floats per voxel.
     fn lattice_splat(
@@ -385,20 +352,6 @@ pub trait Backend:
 pub fn total<B: Backend>(backend: &B, params: &SumParams, values: &B::Buffer<f32>) -> Result<f64> {
     let sums = backend.sum_chunks(params, values)?;
     Ok(backend.download_one(&sums)?.iter().sum())
-}
-
-/// The box sums of the local correlation (abi::LOCAL_MOMENTS per voxel) of the images `a` and
-/// `b` on one grid: `passes` (`LocalMomentsParams::passes`) x, y, then z; or, with
-/// `LocalMomentsParams::stack_passes`, of the stack in `a` (`b` unused).
-pub fn box_sums<B: Backend>(
-    backend: &B,
-    passes: &[LocalMomentsParams; 3],
-    a: &B::Buffer<f32>,
-    b: &B::Buffer<f32>,
-) -> Result<B::Buffer<f32>> {
-    let along_x = backend.local_moments(&passes[0], a, b)?;
-    let along_y = backend.local_moments(&passes[1], &along_x, &along_x)?;
-    backend.local_moments(&passes[2], &along_y, &along_y)
 }
 
 /// Checks the grids of two images combined voxel by voxel are the same.

@@ -127,8 +127,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             (
-                "local_moments.wgsl",
-                include_str!("../shaders/local_moments.wgsl"),
+                "correlation/local_moments.wgsl",
+                include_str!("../shaders/correlation/local_moments.wgsl"),
             ),
         ],
     ),
@@ -137,7 +137,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             WINDOW,
-            ("lncc.wgsl", include_str!("../shaders/lncc.wgsl")),
+            (
+                "correlation/lncc.wgsl",
+                include_str!("../shaders/correlation/lncc.wgsl"),
+            ),
         ],
     ),
     (
@@ -146,8 +149,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             WINDOW,
             (
-                "lncc_terms.wgsl",
-                include_str!("../shaders/lncc_terms.wgsl"),
+                "correlation/lncc_terms.wgsl",
+                include_str!("../shaders/correlation/lncc_terms.wgsl"),
             ),
         ],
     ),
@@ -159,8 +162,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             LATTICE_WARP,
             WARP_SAMPLE,
             (
-                "lncc_gradient.wgsl",
-                include_str!("../shaders/lncc_gradient.wgsl"),
+                "correlation/lncc_gradient.wgsl",
+                include_str!("../shaders/correlation/lncc_gradient.wgsl"),
             ),
         ],
     ),

@@ -13,6 +13,7 @@
 
 pub mod common;
 pub mod compose;
+pub mod correlation;
 pub mod dense;
 pub mod fade_warp;
 pub mod fold;
@@ -21,7 +22,7 @@ pub mod invert;
 pub mod labels;
 pub mod lattice_energy;
 pub mod lattice_splat;
-pub mod lncc;
+pub mod lattice_warp;
 pub mod rbf_adjoint;
 pub mod rbf_lattice;
 pub mod regions;
@@ -34,11 +35,11 @@ pub mod sum_partials;
 pub mod warp_cost;
 pub mod warp_field;
 pub mod warp_image;
+mod window;
 
 use crate::abi::{
-    ComposeParams, EnergyParams, FadeParams, GainParams, InvertParams, LnccParams, LnccTermsParams,
-    LocalMomentsParams, PartialsParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams,
-    SumParams,
+    ComposeParams, EnergyParams, FadeParams, GainParams, InvertParams, PartialsParams,
+    RbfGradParams, RbfLatticeParams, SplatParams, SsdParams, SumParams,
 };
 use crate::backend::{Backend, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -119,21 +120,6 @@ impl Backend for CpuBackend {
         filled(params.partials(), |out| {
             ssd_cells::ssd_cells(params, &as_slices(images), out)
         })
-    }
-
-    fn local_moments(
-        &self,
-        params: &LocalMomentsParams,
-        input: &Arc<Vec<f32>>,
-        other: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.values(), |out| {
-            lncc::local_moments(params, input, other, out)
-        })
-    }
-
-    fn lncc(&self, params: &LnccParams, sums: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
-        filled(2 * params.chunks(), |out| lncc::lncc(params, sums, out))
     }
 
     fn warp_image(
@@ -237,30 +223,6 @@ impl Backend for CpuBackend {
     ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
         filled_pair([3 * params.voxels(), params.rows()], |gradient, rows| {
             warp_cost::warp_cost(params, lattice, &as_slices(images), gradient, rows);
-        })
-    }
-
-    fn lncc_terms(
-        &self,
-        params: &LnccTermsParams,
-        sums: &Arc<Vec<f32>>,
-        covered: &Arc<Vec<f32>>,
-    ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
-        filled_pair([params.values(), params.rows()], |terms, rows| {
-            lncc::lncc_terms(params, sums, covered, terms, rows);
-        })
-    }
-
-    fn lncc_gradient(
-        &self,
-        params: &RbfGradParams,
-        lattice: &Arc<Vec<f32>>,
-        moving: &Arc<Vec<f32>>,
-        fixed: &Arc<Vec<f32>>,
-        summed: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(3 * params.voxels(), |out| {
-            lncc::lncc_gradient(params, lattice, [moving, fixed], summed, out)
         })
     }
 

@@ -1,7 +1,7 @@
 //! CPU twin of shaders/warp_cost.wgsl.
 
 use super::common::{is_covered, voxel_index};
-use super::warp_image::{LatticeTaps, RowSamples};
+use super::lattice_warp::{LatticeTaps, RowSamples};
 use crate::abi::RbfGradParams;
 use crate::backend::CostImages;
 use rayon::prelude::*;

@@ -1,6 +1,6 @@
 //! CPU twin of shaders/warp_field.wgsl.
 
-use super::warp_image::LatticeTaps;
+use super::lattice_warp::LatticeTaps;
 use crate::abi::RbfGradParams;
 use rayon::prelude::*;
 

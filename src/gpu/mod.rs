@@ -7,12 +7,12 @@
 
 pub mod buffer;
 pub mod context;
+pub mod correlation;
 pub mod dense;
 pub mod field;
 pub mod fold;
 pub mod kernel;
 pub mod labels;
-pub mod lncc;
 pub mod nonrigid;
 pub mod regions;
 pub mod resident;
@@ -21,8 +21,8 @@ pub mod sampling;
 pub mod skinning;
 
 use crate::abi::{
-    ComposeParams, EnergyParams, FadeParams, GainParams, InvertParams, LnccParams, LnccTermsParams,
-    LocalMomentsParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams, SumParams,
+    ComposeParams, EnergyParams, FadeParams, GainParams, InvertParams, RbfGradParams,
+    RbfLatticeParams, SplatParams, SsdParams, SumParams,
 };
 use crate::backend::{Backend, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -41,10 +41,6 @@ const BASE_BINDINGS: &[KernelBindings] = &[
     ("invert_field", field::INVERT_BINDINGS),
     ("lattice_energy", nonrigid::ENERGY_BINDINGS),
     ("lattice_splat", nonrigid::SPLAT_BINDINGS),
-    ("local_moments", lncc::MOMENTS_BINDINGS),
-    ("lncc", lncc::LNCC_BINDINGS),
-    ("lncc_terms", lncc::TERMS_BINDINGS),
-    ("lncc_gradient", lncc::GRADIENT_BINDINGS),
     ("rbf_adjoint", nonrigid::ADJOINT_BINDINGS),
     ("rbf_lattice", nonrigid::LATTICE_BINDINGS),
     ("ssd_cells", nonrigid::SSD_BINDINGS),
@@ -70,6 +66,7 @@ pub fn bindings() -> impl Iterator<Item = &'static KernelBindings> {
         .chain(skinning::BINDINGS)
         .chain(dense::BINDINGS)
         .chain(fold::BINDINGS)
+        .chain(correlation::BINDINGS)
 }
 
 fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
@@ -82,14 +79,6 @@ fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
 
 /// Every compiled kernel.
 pub struct Kernels {
-    /// shaders/local_moments.wgsl
-    pub local_moments: Kernel,
-    /// shaders/lncc.wgsl
-    pub lncc: Kernel,
-    /// shaders/lncc_terms.wgsl
-    pub lncc_terms: Kernel,
-    /// shaders/lncc_gradient.wgsl
-    pub lncc_gradient: Kernel,
     /// shaders/ssd_cells.wgsl
     pub ssd_cells: Kernel,
     /// shaders/warp_image.wgsl
@@ -138,6 +127,8 @@ pub struct Kernels {
     pub dense: dense::DenseKernels,
     /// The fold family (shaders/fold/).
     pub fold: fold::FoldKernels,
+    /// The correlation family (shaders/correlation/).
+    pub correlation: correlation::CorrelationKernels,
 }
 
 /// The GPU backend with its compiled kernels.
@@ -160,10 +151,6 @@ impl GpuBackend {
     pub fn with_context(ctx: GpuContext) -> Result<Self> {
         Ok(GpuBackend {
             kernels: Kernels {
-                local_moments: compile(&ctx, "local_moments")?,
-                lncc: compile(&ctx, "lncc")?,
-                lncc_terms: compile(&ctx, "lncc_terms")?,
-                lncc_gradient: compile(&ctx, "lncc_gradient")?,
                 ssd_cells: compile(&ctx, "ssd_cells")?,
                 warp_image: compile(&ctx, "warp_image")?,
                 gain_terms: compile(&ctx, "gain_terms")?,
@@ -188,6 +175,7 @@ impl GpuBackend {
                 skinning: skinning::SkinningKernels::new(&ctx)?,
                 dense: dense::DenseKernels::new(&ctx)?,
                 fold: fold::FoldKernels::new(&ctx)?,
+                correlation: correlation::CorrelationKernels::new(&ctx)?,
             },
             ctx,
             peak_dispatch_bytes: Default::default(),
@@ -246,19 +234,6 @@ impl Backend for GpuBackend {
         images: &CostImages<GpuBuffer<f32>>,
     ) -> Result<GpuBuffer<f32>> {
         self.record_ssd_cells(params, images)
-    }
-
-    fn local_moments(
-        &self,
-        params: &LocalMomentsParams,
-        input: &GpuBuffer<f32>,
-        other: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_local_moments(params, input, other)
-    }
-
-    fn lncc(&self, params: &LnccParams, sums: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
-        self.record_lncc(params, sums)
     }
 
     fn warp_image(
@@ -338,26 +313,6 @@ impl Backend for GpuBackend {
         spline: &GpuBuffer<f64>,
     ) -> Result<GpuBuffer<f32>> {
         self.record_rbf_lattice(params, geometry, spline)
-    }
-
-    fn lncc_terms(
-        &self,
-        params: &LnccTermsParams,
-        sums: &GpuBuffer<f32>,
-        covered: &GpuBuffer<f32>,
-    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
-        self.record_lncc_terms(params, sums, covered)
-    }
-
-    fn lncc_gradient(
-        &self,
-        params: &RbfGradParams,
-        lattice: &GpuBuffer<f32>,
-        moving: &GpuBuffer<f32>,
-        fixed: &GpuBuffer<f32>,
-        summed: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_lncc_gradient(params, lattice, [moving, fixed], summed)
     }
 
     fn warp_cost(

@@ -2,10 +2,10 @@
 
 use super::*;
 
-/// Local moments per voxel: Σa, Σb, Σa², Σb², Σab over a box window (shaders/local_moments.wgsl).
+/// Local moments per voxel: Σa, Σb, Σa², Σb², Σab over a box window (shaders/correlation/local_moments.wgsl).
 pub const LOCAL_MOMENTS: usize = 5;
 
-/// Keep in sync with `LocalMomentsParams` in shaders/local_moments.wgsl.
+/// Keep in sync with `LocalMomentsParams` in shaders/correlation/local_moments.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct LocalMomentsParams {
@@ -40,7 +40,7 @@ impl LocalMomentsParams {
     }
 }
 
-/// Keep in sync with `LnccTermsParams` in shaders/lncc_terms.wgsl.
+/// Keep in sync with `LnccTermsParams` in shaders/correlation/lncc_terms.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct LnccTermsParams {
@@ -71,7 +71,7 @@ impl LnccTermsParams {
     }
 }
 
-/// Keep in sync with `LnccParams` in shaders/lncc.wgsl.
+/// Keep in sync with `LnccParams` in shaders/correlation/lncc.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct LnccParams {
