@@ -6,6 +6,7 @@
 
 pub mod correlation;
 pub mod dense;
+pub mod field;
 pub mod fold;
 pub mod labels;
 pub mod regions;
@@ -18,8 +19,7 @@ pub use rigid::BoneImages;
 pub use sampling::{resample_onto, resample_volume};
 
 use crate::abi::{
-    ComposeParams, EnergyParams, FadeParams, GainParams, InvertParams, RbfGradParams,
-    RbfLatticeParams, SplatParams, SsdParams, SumParams,
+    EnergyParams, GainParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams, SumParams,
 };
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
@@ -29,6 +29,7 @@ use crate::volume::{Field, Grid, Image, Labels, Volume};
 pub mod prelude {
     pub use super::correlation::Correlation;
     pub use super::dense::Dense;
+    pub use super::field::Fields;
     pub use super::fold::Fold;
     pub use super::labels::LabelMaps;
     pub use super::regions::Regions;
@@ -205,6 +206,7 @@ pub trait Backend:
     + dense::Dense
     + fold::Fold
     + correlation::Correlation
+    + field::Fields
 {
     /// Per-column partial sums of c (a − b)² per cell (layout of shaders/ssd_cells.wgsl, folded
     /// by metric::fold_ssd_partials): a = `images.moving`, b = `images.fixed`, c = 1 where
@@ -248,41 +250,6 @@ pub trait Backend:
         gain: &Self::Buffer<f32>,
         moving: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
-
-    /// The warp R at every voxel of the grid in `params` (3 floats per voxel), interpolated
-    /// from `lattice` (3 floats per node) as the non-rigid cost does.
-    fn warp_field(
-        &self,
-        params: &RbfGradParams,
-        lattice: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// The total field u = R + u0 ∘ (id + R) of a warp R and an initial field u0 on one grid.
-    fn compose(
-        &self,
-        params: &ComposeParams,
-        warp: &Self::Buffer<f32>,
-        initial: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// `warp` (3 floats per voxel of the grid in `params`) scaled by each voxel's distance to
-    /// the nearest bone (`distance`: one volume per bone, mm, stacked) over the margin, clamped
-    /// to 1: zero on the bones.
-    fn fade_warp(
-        &self,
-        params: &FadeParams,
-        warp: &Self::Buffer<f32>,
-        distance: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// The inverse of `field` (3 floats per voxel of the field grid in `params`) on the output
-    /// grid: w with y + w(y) = z where z + u(z) = y (3 floats per voxel), and per voxel the
-    /// residual |z + u(z) − y| in mm, −1 where y has no preimage in the field's grid.
-    fn invert_field(
-        &self,
-        params: &InvertParams,
-        field: &Self::Buffer<f32>,
-    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
 
     /// The warp R at every lattice node (3 f32 per node), the cubic RBF `spline` (f64, layout
     /// of abi::spline_buffer) evaluated in f64 at nodes placed by `geometry`

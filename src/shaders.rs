@@ -284,8 +284,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             LATTICE_WARP,
             (
-                "warp_field.wgsl",
-                include_str!("../shaders/warp_field.wgsl"),
+                "field/warp_field.wgsl",
+                include_str!("../shaders/field/warp_field.wgsl"),
             ),
         ],
     ),
@@ -294,7 +294,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             SAMPLE,
-            ("compose.wgsl", include_str!("../shaders/compose.wgsl")),
+            (
+                "field/compose.wgsl",
+                include_str!("../shaders/field/compose.wgsl"),
+            ),
         ],
     ),
     (
@@ -302,7 +305,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             FADE,
-            ("fade_warp.wgsl", include_str!("../shaders/fade_warp.wgsl")),
+            (
+                "field/fade_warp.wgsl",
+                include_str!("../shaders/field/fade_warp.wgsl"),
+            ),
         ],
     ),
     (
@@ -311,8 +317,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             SAMPLE,
             (
-                "invert_field.wgsl",
-                include_str!("../shaders/invert_field.wgsl"),
+                "field/invert_field.wgsl",
+                include_str!("../shaders/field/invert_field.wgsl"),
             ),
         ],
     ),

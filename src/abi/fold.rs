@@ -1,5 +1,4 @@
-//! Folds: thresholds, the Jacobian determinant and its statistics, the dilation of a mask, the
-//! field's inverse.
+//! Folds: thresholds, the Jacobian determinant and its statistics, the dilation of a mask.
 
 use super::*;
 
@@ -90,40 +89,5 @@ impl DilateParams {
     /// Voxels of the grid.
     pub fn voxels(&self) -> usize {
         count(&self.dims)
-    }
-}
-
-/// Keep in sync with `InvertParams` in shaders/invert_field.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
-pub struct InvertParams {
-    /// nx, ny, nz of the grid the inverse is sampled on (the source's), unused.
-    pub out_dims: [u32; 4],
-    /// nx, ny, nz of the field's grid (the target's), unused.
-    pub field_dims: [u32; 4],
-    /// Rows of (field world→index) · (out index→world): an output voxel → field index.
-    pub index_to_field: [[f32; 4]; 3],
-    /// Rows of the field grid's world→index linear part: mm → index delta.
-    pub mm_to_index: [[f32; 4]; 3],
-    /// Rows of the field grid's index→world linear part: index delta → mm.
-    pub index_to_mm: [[f32; 4]; 3],
-}
-
-impl InvertParams {
-    /// To invert a field on `field` onto the grid `out`.
-    pub fn new(field: &Grid, out: &Grid) -> Self {
-        let combined = snap_to_integers(&(field.world_to_voxel_affine() * out.affine));
-        InvertParams {
-            out_dims: dims4(out, 0),
-            field_dims: dims4(field, 0),
-            index_to_field: rows(&combined),
-            mm_to_index: mm_to_index_rows(field),
-            index_to_mm: linear_rows(&field.affine.fixed_view::<3, 3>(0, 0).into_owned()),
-        }
-    }
-
-    /// Voxels of the output grid.
-    pub fn voxels(&self) -> usize {
-        count(&self.out_dims)
     }
 }

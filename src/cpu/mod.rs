@@ -12,13 +12,12 @@
 //! hot loops, where `sample::array_from` and plain loops are inlined.
 
 pub mod common;
-pub mod compose;
 pub mod correlation;
 pub mod dense;
-pub mod fade_warp;
+mod fade;
+pub mod field;
 pub mod fold;
 pub mod gain;
-pub mod invert;
 pub mod labels;
 pub mod lattice_energy;
 pub mod lattice_splat;
@@ -33,13 +32,12 @@ pub mod ssd_cells;
 pub mod sum_chunks;
 pub mod sum_partials;
 pub mod warp_cost;
-pub mod warp_field;
 pub mod warp_image;
 mod window;
 
 use crate::abi::{
-    ComposeParams, EnergyParams, FadeParams, GainParams, InvertParams, PartialsParams,
-    RbfGradParams, RbfLatticeParams, SplatParams, SsdParams, SumParams,
+    EnergyParams, GainParams, PartialsParams, RbfGradParams, RbfLatticeParams, SplatParams,
+    SsdParams, SumParams,
 };
 use crate::backend::{Backend, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -163,44 +161,6 @@ impl Backend for CpuBackend {
     ) -> Result<Arc<Vec<f32>>> {
         filled(params.voxels(), |out| {
             gain::gain_apply(params, gain, moving, out)
-        })
-    }
-
-    fn warp_field(&self, params: &RbfGradParams, lattice: &Arc<Vec<f32>>) -> Result<Arc<Vec<f32>>> {
-        filled(3 * params.voxels(), |out| {
-            warp_field::warp_field(params, lattice, out)
-        })
-    }
-
-    fn compose(
-        &self,
-        params: &ComposeParams,
-        warp: &Arc<Vec<f32>>,
-        initial: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(3 * params.voxels(), |out| {
-            compose::compose(params, warp, initial, out)
-        })
-    }
-
-    fn fade_warp(
-        &self,
-        params: &FadeParams,
-        warp: &Arc<Vec<f32>>,
-        distance: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(3 * params.voxels(), |out| {
-            fade_warp::fade_warp(params, warp, distance, out)
-        })
-    }
-
-    fn invert_field(
-        &self,
-        params: &InvertParams,
-        field: &Arc<Vec<f32>>,
-    ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
-        filled_pair([3 * params.voxels(), params.voxels()], |out, residual| {
-            invert::invert_field(params, field, out, residual);
         })
     }
 

@@ -21,8 +21,7 @@ pub mod sampling;
 pub mod skinning;
 
 use crate::abi::{
-    ComposeParams, EnergyParams, FadeParams, GainParams, InvertParams, RbfGradParams,
-    RbfLatticeParams, SplatParams, SsdParams, SumParams,
+    EnergyParams, GainParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams, SumParams,
 };
 use crate::backend::{Backend, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -33,12 +32,9 @@ use resident::GpuBuffer;
 /// The bind group layout of every kernel outside the families with tables of their own, by
 /// name (the names of crate::shaders::KERNELS).
 const BASE_BINDINGS: &[KernelBindings] = &[
-    ("compose", field::COMPOSE_BINDINGS),
-    ("fade_warp", field::FADE_BINDINGS),
     ("gain_apply", nonrigid::GAIN_BINDINGS),
     ("gain_ratio", nonrigid::GAIN_BINDINGS),
     ("gain_terms", nonrigid::GAIN_TERMS_BINDINGS),
-    ("invert_field", field::INVERT_BINDINGS),
     ("lattice_energy", nonrigid::ENERGY_BINDINGS),
     ("lattice_splat", nonrigid::SPLAT_BINDINGS),
     ("rbf_adjoint", nonrigid::ADJOINT_BINDINGS),
@@ -48,7 +44,6 @@ const BASE_BINDINGS: &[KernelBindings] = &[
     ("sum_partials", nonrigid::PARTIALS_BINDINGS),
     ("sum_partials_f32", nonrigid::PARTIALS_BINDINGS),
     ("warp_cost", nonrigid::COST_BINDINGS),
-    ("warp_field", field::WARP_BINDINGS),
     ("warp_image", nonrigid::WARP_IMAGE_BINDINGS),
 ];
 
@@ -67,6 +62,7 @@ pub fn bindings() -> impl Iterator<Item = &'static KernelBindings> {
         .chain(dense::BINDINGS)
         .chain(fold::BINDINGS)
         .chain(correlation::BINDINGS)
+        .chain(field::BINDINGS)
 }
 
 fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
@@ -105,14 +101,6 @@ pub struct Kernels {
     pub sum_partials: Kernel,
     /// shaders/sum_partials.wgsl over f32 partials
     pub sum_partials_f32: Kernel,
-    /// shaders/warp_field.wgsl
-    pub warp_field: Kernel,
-    /// shaders/compose.wgsl
-    pub compose: Kernel,
-    /// shaders/fade_warp.wgsl
-    pub fade_warp: Kernel,
-    /// shaders/invert_field.wgsl
-    pub invert_field: Kernel,
     /// The sampling family (shaders/sampling/).
     pub sampling: sampling::SamplingKernels,
     /// The label family (shaders/labels/).
@@ -129,6 +117,8 @@ pub struct Kernels {
     pub fold: fold::FoldKernels,
     /// The correlation family (shaders/correlation/).
     pub correlation: correlation::CorrelationKernels,
+    /// The field family (shaders/field/).
+    pub field: field::FieldKernels,
 }
 
 /// The GPU backend with its compiled kernels.
@@ -164,10 +154,6 @@ impl GpuBackend {
                 sum_chunks: compile(&ctx, "sum_chunks")?,
                 sum_partials: compile(&ctx, "sum_partials")?,
                 sum_partials_f32: compile(&ctx, "sum_partials_f32")?,
-                warp_field: compile(&ctx, "warp_field")?,
-                compose: compile(&ctx, "compose")?,
-                fade_warp: compile(&ctx, "fade_warp")?,
-                invert_field: compile(&ctx, "invert_field")?,
                 sampling: sampling::SamplingKernels::new(&ctx)?,
                 labels: labels::LabelKernels::new(&ctx)?,
                 regions: regions::RegionsKernels::new(&ctx)?,
@@ -176,6 +162,7 @@ impl GpuBackend {
                 dense: dense::DenseKernels::new(&ctx)?,
                 fold: fold::FoldKernels::new(&ctx)?,
                 correlation: correlation::CorrelationKernels::new(&ctx)?,
+                field: field::FieldKernels::new(&ctx)?,
             },
             ctx,
             peak_dispatch_bytes: Default::default(),
@@ -270,40 +257,6 @@ impl Backend for GpuBackend {
         moving: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
         self.record_gain_apply(params, gain, moving)
-    }
-
-    fn warp_field(
-        &self,
-        params: &RbfGradParams,
-        lattice: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_warp_field(params, lattice)
-    }
-
-    fn compose(
-        &self,
-        params: &ComposeParams,
-        warp: &GpuBuffer<f32>,
-        initial: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_compose(params, warp, initial)
-    }
-
-    fn fade_warp(
-        &self,
-        params: &FadeParams,
-        warp: &GpuBuffer<f32>,
-        distance: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_fade_warp(params, warp, distance)
-    }
-
-    fn invert_field(
-        &self,
-        params: &InvertParams,
-        field: &GpuBuffer<f32>,
-    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
-        self.record_invert_field(params, field)
     }
 
     fn rbf_lattice(

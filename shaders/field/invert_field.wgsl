@@ -30,7 +30,7 @@ struct InvertParams {
 @group(0) @binding(2) var<storage, read_write> out: array<f32>;
 @group(0) @binding(3) var<storage, read_write> residual: array<f32>;
 
-// Keep in sync with src/cpu/invert.rs.
+// Keep in sync with src/cpu/field/invert_field.rs.
 const NEWTON_STEPS: u32 = 40u;
 const HALVINGS: u32 = 12u;
 const CONVERGED_MM: f32 = 1e-4;

@@ -1,7 +1,7 @@
-//! CPU twin of shaders/compose.wgsl.
+//! CPU twin of shaders/field/compose.wgsl.
 
-use super::common::linear_row;
 use crate::abi::ComposeParams;
+use crate::cpu::common::linear_row;
 use crate::sample::{affine_row, array_from, blend_corners, corner_indices};
 use rayon::prelude::*;
 

@@ -1,15 +1,15 @@
-//! CPU twin of shaders/invert_field.wgsl: the inverse of a displacement field by Newton's
+//! CPU twin of shaders/field/invert_field.wgsl: the inverse of a displacement field by Newton's
 //! method per voxel.
 
-use super::common::{det3, dims3, solve3};
 use crate::abi::InvertParams;
+use crate::cpu::common::{det3, dims3, solve3};
 use crate::sample::{
     affine_row, array_from, blend_corners, corner_indices, inside_source, linear_row,
 };
 use glam::Vec3;
 use rayon::prelude::*;
 
-/// Keep in sync with shaders/invert_field.wgsl.
+/// Keep in sync with shaders/field/invert_field.wgsl.
 const NEWTON_STEPS: u32 = 40;
 const HALVINGS: u32 = 12;
 const CONVERGED_MM: f32 = 1e-4;

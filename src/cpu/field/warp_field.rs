@@ -1,7 +1,7 @@
-//! CPU twin of shaders/warp_field.wgsl.
+//! CPU twin of shaders/field/warp_field.wgsl.
 
-use super::lattice_warp::LatticeTaps;
 use crate::abi::RbfGradParams;
+use crate::cpu::lattice_warp::LatticeTaps;
 use rayon::prelude::*;
 
 /// Fills `out` (3 floats per voxel) with the warp interpolated from `lattice`.
