@@ -9,17 +9,19 @@ pub mod dense;
 pub mod field;
 pub mod fold;
 pub mod labels;
+pub mod reduce;
 pub mod regions;
 pub mod rigid;
 pub mod sampling;
 pub mod skinning;
 
 pub use correlation::box_sums;
+pub use reduce::total;
 pub use rigid::BoneImages;
 pub use sampling::{resample_onto, resample_volume};
 
 use crate::abi::{
-    EnergyParams, GainParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams, SumParams,
+    EnergyParams, GainParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams,
 };
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
@@ -32,6 +34,7 @@ pub mod prelude {
     pub use super::field::Fields;
     pub use super::fold::Fold;
     pub use super::labels::LabelMaps;
+    pub use super::reduce::Reduce;
     pub use super::regions::Regions;
     pub use super::rigid::Rigid;
     pub use super::sampling::Sampling;
@@ -207,6 +210,7 @@ pub trait Backend:
     + fold::Fold
     + correlation::Correlation
     + field::Fields
+    + reduce::Reduce
 {
     /// Per-column partial sums of c (a − b)² per cell (layout of shaders/ssd_cells.wgsl, folded
     /// by metric::fold_ssd_partials): a = `images.moving`, b = `images.fixed`, c = 1 where
@@ -289,7 +293,7 @@ pub trait Backend:
 
     /// The gradient with respect to the RBF's coefficients from the gradient at the nodes, as
     /// partial sums per chunk of nodes (f64: per chunk, 3 per control point, then 3 per affine
-    /// row; [`Backend::sum_partials`] adds them).
+    /// row; [`reduce::Reduce::sum_partials`] adds them).
     fn rbf_adjoint(
         &self,
         params: &RbfLatticeParams,
@@ -297,28 +301,6 @@ pub trait Backend:
         spline: &Self::Buffer<f64>,
         node_gradient: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f64>>;
-
-    /// Per-chunk partial results of `values` values each, added in chunk order (in groups,
-    /// abi::PartialsParams::passes), in f64.
-    fn sum_partials<T: Element>(
-        &self,
-        partials: &Self::Buffer<T>,
-        values: usize,
-    ) -> Result<Self::Buffer<f64>>;
-
-    /// Sums of (v − shift)^power over chunks of abi::SUM_CHUNK values, in f64 (`params`).
-    fn sum_chunks(
-        &self,
-        params: &SumParams,
-        values: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f64>>;
-}
-
-/// Σ (v − shift)^power over all of `values` (`params`), reduced where the backend computes; the
-/// chunks' sums come back and are added here.
-pub fn total<B: Backend>(backend: &B, params: &SumParams, values: &B::Buffer<f32>) -> Result<f64> {
-    let sums = backend.sum_chunks(params, values)?;
-    Ok(backend.download_one(&sums)?.iter().sum())
 }
 
 /// Checks the grids of two images combined voxel by voxel are the same.

@@ -26,8 +26,8 @@ const GAIN: (&str, &str) = ("gain.wgsl", include_str!("../shaders/gain.wgsl"));
 const WINDOW: (&str, &str) = ("window.wgsl", include_str!("../shaders/window.wgsl"));
 const FADE: (&str, &str) = ("fade.wgsl", include_str!("../shaders/fade.wgsl"));
 const SUM_PARTIALS: (&str, &str) = (
-    "sum_partials.wgsl",
-    include_str!("../shaders/sum_partials.wgsl"),
+    "reduce/sum_partials.wgsl",
+    include_str!("../shaders/reduce/sum_partials.wgsl"),
 );
 
 /// Every kernel: its name and the files it is assembled from, in order.
@@ -359,8 +359,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             (
-                "sum_chunks.wgsl",
-                include_str!("../shaders/sum_chunks.wgsl"),
+                "reduce/sum_chunks.wgsl",
+                include_str!("../shaders/reduce/sum_chunks.wgsl"),
             ),
         ],
     ),

@@ -24,20 +24,18 @@ pub mod lattice_splat;
 pub mod lattice_warp;
 pub mod rbf_adjoint;
 pub mod rbf_lattice;
+pub mod reduce;
 pub mod regions;
 pub mod rigid;
 pub mod sampling;
 pub mod skinning;
 pub mod ssd_cells;
-pub mod sum_chunks;
-pub mod sum_partials;
 pub mod warp_cost;
 pub mod warp_image;
 mod window;
 
 use crate::abi::{
-    EnergyParams, GainParams, PartialsParams, RbfGradParams, RbfLatticeParams, SplatParams,
-    SsdParams, SumParams,
+    EnergyParams, GainParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams,
 };
 use crate::backend::{Backend, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -213,29 +211,6 @@ impl Backend for CpuBackend {
     ) -> Result<Arc<Vec<f64>>> {
         filled(3 * params.rows() * params.chunks(), |out| {
             rbf_adjoint::rbf_adjoint(params, geometry, spline, node_gradient, out)
-        })
-    }
-
-    fn sum_partials<T: Element>(
-        &self,
-        partials: &Arc<Vec<T>>,
-        values: usize,
-    ) -> Result<Arc<Vec<f64>>> {
-        let mut sums: Option<Vec<f64>> = None;
-        for pass in PartialsParams::passes(values, partials.len() / values.max(1)) {
-            let mut out = zeroed::<f64>(pass.groups() * values);
-            match &sums {
-                None => sum_partials::sum_partials(&pass, partials, &mut out),
-                Some(earlier) => sum_partials::sum_partials(&pass, earlier, &mut out),
-            }
-            sums = Some(out);
-        }
-        Ok(Arc::new(sums.expect("at least one pass")))
-    }
-
-    fn sum_chunks(&self, params: &SumParams, values: &Arc<Vec<f32>>) -> Result<Arc<Vec<f64>>> {
-        filled(params.chunks(), |out| {
-            sum_chunks::sum_chunks(params, values, out)
         })
     }
 }

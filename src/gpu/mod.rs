@@ -14,6 +14,7 @@ pub mod fold;
 pub mod kernel;
 pub mod labels;
 pub mod nonrigid;
+pub mod reduce;
 pub mod regions;
 pub mod resident;
 pub mod rigid;
@@ -21,7 +22,7 @@ pub mod sampling;
 pub mod skinning;
 
 use crate::abi::{
-    EnergyParams, GainParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams, SumParams,
+    EnergyParams, GainParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams,
 };
 use crate::backend::{Backend, Core, CostImages, Element, Traffic};
 use crate::error::Result;
@@ -40,9 +41,6 @@ const BASE_BINDINGS: &[KernelBindings] = &[
     ("rbf_adjoint", nonrigid::ADJOINT_BINDINGS),
     ("rbf_lattice", nonrigid::LATTICE_BINDINGS),
     ("ssd_cells", nonrigid::SSD_BINDINGS),
-    ("sum_chunks", nonrigid::SUM_BINDINGS),
-    ("sum_partials", nonrigid::PARTIALS_BINDINGS),
-    ("sum_partials_f32", nonrigid::PARTIALS_BINDINGS),
     ("warp_cost", nonrigid::COST_BINDINGS),
     ("warp_image", nonrigid::WARP_IMAGE_BINDINGS),
 ];
@@ -63,6 +61,7 @@ pub fn bindings() -> impl Iterator<Item = &'static KernelBindings> {
         .chain(fold::BINDINGS)
         .chain(correlation::BINDINGS)
         .chain(field::BINDINGS)
+        .chain(reduce::BINDINGS)
 }
 
 fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
@@ -95,12 +94,6 @@ pub struct Kernels {
     pub lattice_energy: Kernel,
     /// shaders/rbf_adjoint.wgsl
     pub rbf_adjoint: Kernel,
-    /// shaders/sum_chunks.wgsl
-    pub sum_chunks: Kernel,
-    /// shaders/sum_partials.wgsl over f64 partials
-    pub sum_partials: Kernel,
-    /// shaders/sum_partials.wgsl over f32 partials
-    pub sum_partials_f32: Kernel,
     /// The sampling family (shaders/sampling/).
     pub sampling: sampling::SamplingKernels,
     /// The label family (shaders/labels/).
@@ -119,6 +112,8 @@ pub struct Kernels {
     pub correlation: correlation::CorrelationKernels,
     /// The field family (shaders/field/).
     pub field: field::FieldKernels,
+    /// The reduce family (shaders/reduce/).
+    pub reduce: reduce::ReduceKernels,
 }
 
 /// The GPU backend with its compiled kernels.
@@ -151,9 +146,6 @@ impl GpuBackend {
                 warp_cost: compile(&ctx, "warp_cost")?,
                 lattice_energy: compile(&ctx, "lattice_energy")?,
                 rbf_adjoint: compile(&ctx, "rbf_adjoint")?,
-                sum_chunks: compile(&ctx, "sum_chunks")?,
-                sum_partials: compile(&ctx, "sum_partials")?,
-                sum_partials_f32: compile(&ctx, "sum_partials_f32")?,
                 sampling: sampling::SamplingKernels::new(&ctx)?,
                 labels: labels::LabelKernels::new(&ctx)?,
                 regions: regions::RegionsKernels::new(&ctx)?,
@@ -163,6 +155,7 @@ impl GpuBackend {
                 fold: fold::FoldKernels::new(&ctx)?,
                 correlation: correlation::CorrelationKernels::new(&ctx)?,
                 field: field::FieldKernels::new(&ctx)?,
+                reduce: reduce::ReduceKernels::new(&ctx)?,
             },
             ctx,
             peak_dispatch_bytes: Default::default(),
@@ -302,17 +295,5 @@ impl Backend for GpuBackend {
         node_gradient: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f64>> {
         self.record_rbf_adjoint(params, geometry, spline, node_gradient)
-    }
-
-    fn sum_partials<T: Element>(
-        &self,
-        partials: &GpuBuffer<T>,
-        values: usize,
-    ) -> Result<GpuBuffer<f64>> {
-        self.record_sum_partials(partials, values)
-    }
-
-    fn sum_chunks(&self, params: &SumParams, values: &GpuBuffer<f32>) -> Result<GpuBuffer<f64>> {
-        self.record_sum_chunks(params, values)
     }
 }

@@ -7,10 +7,9 @@ use super::kernel::{cover, groups, Binding};
 use super::resident::GpuBuffer;
 use super::GpuBackend;
 use crate::abi::{
-    EnergyParams, GainParams, PartialsParams, RbfGradParams, RbfLatticeParams, SplatParams,
-    SsdParams, SumParams,
+    EnergyParams, GainParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams,
 };
-use crate::backend::{CostImages, Element};
+use crate::backend::CostImages;
 use crate::error::Result;
 
 use Binding::{Read, ReadWrite, Uniform};
@@ -25,10 +24,6 @@ pub const SPLAT_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
 pub const ENERGY_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite, ReadWrite];
 /// rbf_adjoint bindings.
 pub const ADJOINT_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, ReadWrite];
-/// sum_partials bindings.
-pub const PARTIALS_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
-/// sum_chunks bindings.
-pub const SUM_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
 /// warp_image bindings.
 pub const WARP_IMAGE_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
 /// ssd_cells bindings.
@@ -143,47 +138,6 @@ impl GpuBackend {
             [groups(rows, 64), params.chunks() as u32, 1],
         )?;
         Ok(partials)
-    }
-
-    /// shaders/sum_partials.wgsl, pass after pass until one group is left.
-    pub fn record_sum_partials<T: Element>(
-        &self,
-        partials: &GpuBuffer<T>,
-        values: usize,
-    ) -> Result<GpuBuffer<f64>> {
-        let mut sums: Option<GpuBuffer<f64>> = None;
-        for pass in PartialsParams::passes(values, partials.len() / values.max(1)) {
-            let (kernel, input) = match &sums {
-                None if T::WGSL == "f32" => (&self.kernels.sum_partials_f32, partials.raw()),
-                None => (&self.kernels.sum_partials, partials.raw()),
-                Some(earlier) => (&self.kernels.sum_partials, earlier.raw()),
-            };
-            let out = self.output_buffer("summed partials", pass.groups() * values)?;
-            self.record(
-                kernel,
-                &pass,
-                &[input, out.raw()],
-                [groups(values, 64), pass.groups() as u32, 1],
-            )?;
-            sums = Some(out);
-        }
-        Ok(sums.expect("at least one pass"))
-    }
-
-    /// shaders/sum_chunks.wgsl
-    pub fn record_sum_chunks(
-        &self,
-        params: &SumParams,
-        values: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f64>> {
-        let sums = self.output_buffer("partial sums", params.chunks())?;
-        self.record(
-            &self.kernels.sum_chunks,
-            params,
-            &[values.raw(), sums.raw()],
-            [groups(params.chunks(), 64), 1, 1],
-        )?;
-        Ok(sums)
     }
 
     /// shaders/warp_image.wgsl

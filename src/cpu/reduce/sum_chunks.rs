@@ -1,4 +1,4 @@
-//! CPU twin of shaders/sum_chunks.wgsl.
+//! CPU twin of shaders/reduce/sum_chunks.wgsl.
 
 use crate::abi::SumParams;
 use rayon::prelude::*;

@@ -1,4 +1,4 @@
-//! CPU twin of shaders/sum_partials.wgsl.
+//! CPU twin of shaders/reduce/sum_partials.wgsl.
 
 use crate::abi::PartialsParams;
 use rayon::prelude::*;
