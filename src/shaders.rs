@@ -11,7 +11,10 @@ const WARP_SAMPLE: (&str, &str) = (
     "warp_sample.wgsl",
     include_str!("../shaders/warp_sample.wgsl"),
 );
-const RBF_NODES: (&str, &str) = ("rbf_nodes.wgsl", include_str!("../shaders/rbf_nodes.wgsl"));
+const RBF_NODES: (&str, &str) = (
+    "nonrigid/rbf_nodes.wgsl",
+    include_str!("../shaders/nonrigid/rbf_nodes.wgsl"),
+);
 const GEOMETRY: (&str, &str) = ("geometry.wgsl", include_str!("../shaders/geometry.wgsl"));
 const LABELS: (&str, &str) = ("labels.wgsl", include_str!("../shaders/labels.wgsl"));
 const BONE_LOOKUP: (&str, &str) = (
@@ -22,7 +25,10 @@ const THRESHOLD: (&str, &str) = (
     "fold/threshold.wgsl",
     include_str!("../shaders/fold/threshold.wgsl"),
 );
-const GAIN: (&str, &str) = ("gain.wgsl", include_str!("../shaders/gain.wgsl"));
+const GAIN: (&str, &str) = (
+    "nonrigid/gain.wgsl",
+    include_str!("../shaders/nonrigid/gain.wgsl"),
+);
 const WINDOW: (&str, &str) = ("window.wgsl", include_str!("../shaders/window.wgsl"));
 const FADE: (&str, &str) = ("fade.wgsl", include_str!("../shaders/fade.wgsl"));
 const SUM_PARTIALS: (&str, &str) = (
@@ -206,8 +212,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             (
-                "lattice_splat.wgsl",
-                include_str!("../shaders/lattice_splat.wgsl"),
+                "nonrigid/lattice_splat.wgsl",
+                include_str!("../shaders/nonrigid/lattice_splat.wgsl"),
             ),
         ],
     ),
@@ -229,8 +235,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             LATTICE_WARP,
             WARP_SAMPLE,
             (
-                "warp_image.wgsl",
-                include_str!("../shaders/warp_image.wgsl"),
+                "nonrigid/warp_image.wgsl",
+                include_str!("../shaders/nonrigid/warp_image.wgsl"),
             ),
         ],
     ),
@@ -240,8 +246,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             GAIN,
             (
-                "gain_terms.wgsl",
-                include_str!("../shaders/gain_terms.wgsl"),
+                "nonrigid/gain_terms.wgsl",
+                include_str!("../shaders/nonrigid/gain_terms.wgsl"),
             ),
         ],
     ),
@@ -251,8 +257,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             GAIN,
             (
-                "gain_ratio.wgsl",
-                include_str!("../shaders/gain_ratio.wgsl"),
+                "nonrigid/gain_ratio.wgsl",
+                include_str!("../shaders/nonrigid/gain_ratio.wgsl"),
             ),
         ],
     ),
@@ -263,8 +269,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             SAMPLE,
             GAIN,
             (
-                "gain_apply.wgsl",
-                include_str!("../shaders/gain_apply.wgsl"),
+                "nonrigid/gain_apply.wgsl",
+                include_str!("../shaders/nonrigid/gain_apply.wgsl"),
             ),
         ],
     ),
@@ -275,7 +281,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             SAMPLE,
             LATTICE_WARP,
             WARP_SAMPLE,
-            ("warp_cost.wgsl", include_str!("../shaders/warp_cost.wgsl")),
+            (
+                "nonrigid/warp_cost.wgsl",
+                include_str!("../shaders/nonrigid/warp_cost.wgsl"),
+            ),
         ],
     ),
     (
@@ -328,8 +337,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             RBF_NODES,
             (
-                "rbf_lattice.wgsl",
-                include_str!("../shaders/rbf_lattice.wgsl"),
+                "nonrigid/rbf_lattice.wgsl",
+                include_str!("../shaders/nonrigid/rbf_lattice.wgsl"),
             ),
         ],
     ),
@@ -339,8 +348,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             RBF_NODES,
             (
-                "rbf_adjoint.wgsl",
-                include_str!("../shaders/rbf_adjoint.wgsl"),
+                "nonrigid/rbf_adjoint.wgsl",
+                include_str!("../shaders/nonrigid/rbf_adjoint.wgsl"),
             ),
         ],
     ),
@@ -349,8 +358,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             (
-                "lattice_energy.wgsl",
-                include_str!("../shaders/lattice_energy.wgsl"),
+                "nonrigid/lattice_energy.wgsl",
+                include_str!("../shaders/nonrigid/lattice_energy.wgsl"),
             ),
         ],
     ),
@@ -427,7 +436,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         "ssd_cells",
         &[
             COMMON,
-            ("ssd_cells.wgsl", include_str!("../shaders/ssd_cells.wgsl")),
+            (
+                "nonrigid/ssd_cells.wgsl",
+                include_str!("../shaders/nonrigid/ssd_cells.wgsl"),
+            ),
         ],
     ),
     // The dense stage's family (shaders/dense/).

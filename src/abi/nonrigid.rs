@@ -44,7 +44,7 @@ impl RbfGradParams {
     }
 }
 
-/// Keep in sync with `SplatParams` in shaders/lattice_splat.wgsl.
+/// Keep in sync with `SplatParams` in shaders/nonrigid/lattice_splat.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SplatParams {
@@ -72,7 +72,7 @@ impl SplatParams {
     }
 }
 
-/// Keep in sync with `RbfLatticeParams` in shaders/rbf_nodes.wgsl (rbf_lattice, rbf_adjoint).
+/// Keep in sync with `RbfLatticeParams` in shaders/nonrigid/rbf_nodes.wgsl (rbf_lattice, rbf_adjoint).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct RbfLatticeParams {
@@ -167,7 +167,7 @@ pub struct Operator {
     pub weight: f32,
 }
 
-/// Keep in sync with `EnergyParams` in shaders/lattice_energy.wgsl.
+/// Keep in sync with `EnergyParams` in shaders/nonrigid/lattice_energy.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct EnergyParams {
@@ -230,7 +230,7 @@ impl EnergyParams {
     }
 }
 
-/// Keep in sync with `SsdParams` in shaders/ssd_cells.wgsl.
+/// Keep in sync with `SsdParams` in shaders/nonrigid/ssd_cells.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SsdParams {
@@ -255,7 +255,7 @@ impl SsdParams {
     }
 }
 
-/// Keep in sync with `GainParams` in shaders/gain.wgsl.
+/// Keep in sync with `GainParams` in shaders/nonrigid/gain.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct GainParams {

@@ -1,9 +1,9 @@
-//! CPU twin of shaders/warp_cost.wgsl.
+//! CPU twin of shaders/nonrigid/warp_cost.wgsl.
 
-use super::common::{is_covered, voxel_index};
-use super::lattice_warp::{LatticeTaps, RowSamples};
 use crate::abi::RbfGradParams;
 use crate::backend::CostImages;
+use crate::cpu::common::{is_covered, voxel_index};
+use crate::cpu::lattice_warp::{LatticeTaps, RowSamples};
 use rayon::prelude::*;
 
 /// Fills `gradient` (3 floats per voxel: c · 2 (W − T) ∇I0, world mm) and `rows` (Σ c (W − T)²

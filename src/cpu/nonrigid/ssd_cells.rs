@@ -1,9 +1,9 @@
-//! CPU twin of shaders/ssd_cells.wgsl: the same (x, z)-column partial sums, one slice per
+//! CPU twin of shaders/nonrigid/ssd_cells.wgsl: the same (x, z)-column partial sums, one slice per
 //! rayon task.
 
-use super::common::{cell_start, is_covered, voxel_index};
 use crate::abi::SsdParams;
 use crate::backend::CostImages;
+use crate::cpu::common::{cell_start, is_covered, voxel_index};
 use rayon::prelude::*;
 
 /// Fills `partial` (nz * nx * cy values) with per-column, per-y-cell sums of c (a - b)^2, a the

@@ -1,6 +1,6 @@
 // rbf_nodes.wgsl: helpers of the f64 kernels over lattice nodes (rbf_lattice, rbf_adjoint),
 // which declare `params: RbfLatticeParams` and `geometry` (the target grid's voxel → world rows, 3 × 4 f64). Mirrored in
-// src/cpu/rbf_lattice.rs.
+// src/cpu/nonrigid/rbf_nodes.rs.
 
 // Keep in sync with abi::RbfLatticeParams.
 struct RbfLatticeParams {

@@ -1,35 +1,9 @@
-//! CPU twins of shaders/gain_terms.wgsl, shaders/gain_ratio.wgsl and shaders/gain_apply.wgsl.
+//! CPU twin of shaders/nonrigid/gain_apply.wgsl.
 
-use super::common::{affine_row, voxel_index};
 use crate::abi::GainParams;
+use crate::cpu::common::{affine_row, voxel_index};
 use crate::sample::trilinear;
 use rayon::prelude::*;
-
-/// Fills `product` with W · T and `energy` with W · W per voxel.
-pub fn gain_terms(warped: &[f32], target: &[f32], product: &mut [f32], energy: &mut [f32]) {
-    product
-        .par_iter_mut()
-        .zip(energy.par_iter_mut())
-        .enumerate()
-        .for_each(|(v, (p, e))| {
-            let w = warped[v];
-            *p = w * target[v];
-            *e = w * w;
-        });
-}
-
-/// Fills `gain` with the clamped ratio product / energy, 1 where energy ≤ the floor.
-pub fn gain_ratio(params: &GainParams, product: &[f32], energy: &[f32], gain: &mut [f32]) {
-    let [floor, most, _, _] = params.limits;
-    gain.par_iter_mut().enumerate().for_each(|(v, g)| {
-        let e = energy[v];
-        *g = if e > floor {
-            (product[v] / e).clamp(1.0 / most, most)
-        } else {
-            1.0
-        };
-    });
-}
 
 /// Fills `gained` with `moving` times the gain interpolated from the smoothed grid.
 pub fn gain_apply(params: &GainParams, gain: &[f32], moving: &[f32], gained: &mut [f32]) {

@@ -1,33 +1,14 @@
-//! CPU twin of shaders/rbf_lattice.wgsl and of the helpers in shaders/rbf_nodes.wgsl.
+//! CPU twin of shaders/nonrigid/rbf_lattice.wgsl (with shaders/nonrigid/rbf_nodes.wgsl).
 //!
 //! Each node's sum runs in the shader's order (the affine part, then the points in order); the
 //! twin walks a run of nodes at a time through each point, so the loop over nodes vectorises.
 
+use super::rbf_nodes::node_position;
 use crate::abi::RbfLatticeParams;
 use rayon::prelude::*;
 
 /// Nodes one task evaluates (a run long enough for the loop over them to vectorise well).
 const NODES_PER_TASK: usize = 256;
-
-/// World position (mm) of lattice node `a`, which sits on voxel a · step (per axis).
-#[inline]
-pub fn node_position(geometry: &[f64], a: [u32; 3], step: [u32; 4]) -> [f64; 3] {
-    let v: [f64; 3] = std::array::from_fn(|r| (a[r] * step[r]) as f64);
-    std::array::from_fn(|r| {
-        let g = &geometry[4 * r..4 * r + 4];
-        g[0] * v[0] + g[1] * v[1] + g[2] * v[2] + g[3]
-    })
-}
-
-/// φ(|x − c|) = |x − c|³, the cubic radial basis.
-#[inline]
-pub fn cube_of_distance(x: [f64; 3], c: [f64; 3]) -> f64 {
-    let dx = x[0] - c[0];
-    let dy = x[1] - c[1];
-    let dz = x[2] - c[2];
-    let d = (dx * dx + dy * dy + dz * dz).sqrt();
-    d * d * d
-}
 
 /// Fills `values` (3 floats per node) with the warp R at every lattice node.
 pub fn rbf_lattice(
@@ -72,7 +53,7 @@ fn nodes_run(
         let (cx, cy, cz) = (s[o], s[o + 1], s[o + 2]);
         let [rx, ry, rz] = &mut r;
         for n in 0..xs.len() {
-            // cube_of_distance(x[n], centre), written out by lane.
+            // rbf_nodes.wgsl's cube_of_distance(x[n], centre), written out by lane.
             let (dx, dy, dz) = (xs[n] - cx, ys[n] - cy, zs[n] - cz);
             let d = (dx * dx + dy * dy + dz * dz).sqrt();
             let f = d * d * d;

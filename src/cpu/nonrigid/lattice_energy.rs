@@ -1,7 +1,7 @@
-//! CPU twin of shaders/lattice_energy.wgsl.
+//! CPU twin of shaders/nonrigid/lattice_energy.wgsl.
 
-use super::common::voxel_index;
 use crate::abi::EnergyParams;
+use crate::cpu::common::voxel_index;
 use glam::{IVec3, Vec3};
 use rayon::prelude::*;
 

@@ -1,9 +1,9 @@
-//! CPU twin of shaders/rbf_adjoint.wgsl.
+//! CPU twin of shaders/nonrigid/rbf_adjoint.wgsl.
 //!
 //! Each output row sums a chunk's nodes in the shader's order; the twin walks the chunk once
 //! for a block of rows, so the loop over a block's control points vectorises.
 
-use super::rbf_lattice::node_position;
+use super::rbf_nodes::node_position;
 use crate::abi::RbfLatticeParams;
 use rayon::prelude::*;
 
@@ -86,7 +86,7 @@ fn sum_block(
         if first < points {
             let [sx, sy, sz] = &mut point_sums;
             for r in 0..BLOCK {
-                // cube_of_distance(x, centres[r]), written out by lane.
+                // rbf_nodes.wgsl's cube_of_distance(x, centres[r]), written out by lane.
                 let (dx, dy, dz) = (x[0] - cx[r], x[1] - cy[r], x[2] - cz[r]);
                 let d = (dx * dx + dy * dy + dz * dz).sqrt();
                 let w = d * d * d;

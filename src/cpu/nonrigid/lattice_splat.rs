@@ -1,7 +1,7 @@
-//! CPU twin of shaders/lattice_splat.wgsl.
+//! CPU twin of shaders/nonrigid/lattice_splat.wgsl.
 
-use super::common::voxel_index;
 use crate::abi::SplatParams;
+use crate::cpu::common::voxel_index;
 use rayon::prelude::*;
 
 fn reach_lo(a: u32, s: u32) -> u32 {

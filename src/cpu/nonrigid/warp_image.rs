@@ -1,7 +1,7 @@
-//! CPU twin of shaders/warp_image.wgsl.
+//! CPU twin of shaders/nonrigid/warp_image.wgsl.
 
-use super::lattice_warp::{LatticeTaps, RowSamples};
 use crate::abi::RbfGradParams;
+use crate::cpu::lattice_warp::{LatticeTaps, RowSamples};
 use rayon::prelude::*;
 
 /// Fills `warped` (one per voxel) with `moving` seen through the warp `lattice`.
