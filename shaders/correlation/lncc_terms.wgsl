@@ -21,7 +21,10 @@
 // Keep in sync with abi::LnccTermsParams.
 struct LnccTermsParams {
     dims: vec4<u32>,    // nx, ny, nz, radius (voxels)
-    scale: vec4<f32>,   // K, unused x3
+    scale: f32,         // K
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: LnccTermsParams;
@@ -44,7 +47,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let s = array<f32, 5>(sums[5u * v], sums[5u * v + 1u], sums[5u * v + 2u],
                               sums[5u * v + 3u], sums[5u * v + 4u]);
         let w = window_at(s, d, i, j, k);
-        let kc = params.scale.x * select(0.0, 1.0, is_covered(covered[v]));
+        let kc = params.scale * select(0.0, 1.0, is_covered(covered[v]));
         var rho2 = 0.0;
         var alpha = 0.0;
         var beta = 0.0;

@@ -12,8 +12,11 @@
 
 // Keep in sync with abi::FadeParams.
 struct FadeParams {
-    dims: vec4<u32>,     // nx, ny, nz, bones (volumes of the distance stack)
-    margin: vec4<f32>,   // mm over which R rises from 0 to its whole, unused ×3
+    dims: vec4<u32>,     // nx, ny, nz, unused
+    bones: u32,          // volumes of the distance stack
+    margin: f32,         // mm over which R rises from 0 to its whole
+    pad0: u32,
+    pad1: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: FadeParams;
@@ -28,7 +31,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let v = voxel_index(gid.x, gid.y, gid.z, d);
-    let scale = fade_at(v, d.x * d.y * d.z, params.dims.w, params.margin.x);
+    let scale = fade_at(v, d.x * d.y * d.z, params.bones, params.margin);
     for (var c = 0u; c < 3u; c = c + 1u) {
         out[3u * v + c] = scale * warp[3u * v + c];
     }

@@ -66,7 +66,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (c >= n.z) {
         return;
     }
-    let threshold = params.threshold.x;
+    let threshold = params.threshold;
     var lowest = 3.4e38;
     var folded = 0.0;
     var low = 0.0;

@@ -21,5 +21,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let v = voxel_index(gid.x, gid.y, gid.z, d);
-    mark[v] = select(0.0, 1.0, value[v] <= params.threshold.x && !is_held(held[v]));
+    mark[v] = select(0.0, 1.0, value[v] <= params.threshold && !is_held(held[v]));
 }

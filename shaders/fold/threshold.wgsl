@@ -6,7 +6,10 @@
 struct ThresholdParams {
     dims: vec4<u32>,       // nx, ny, nz, unused
     chunks: vec4<u32>,     // voxels, voxels per chunk, chunks, unused
-    threshold: vec4<f32>,  // the threshold (det J for the folds, mm for a distance), unused x3
+    threshold: f32,        // det J for the folds, mm for a distance
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 fn is_held(value: f32) -> bool {

@@ -46,8 +46,10 @@ impl LocalMomentsParams {
 pub struct LnccTermsParams {
     /// nx, ny, nz, and the window's radius (voxels).
     pub dims: [u32; 4],
-    /// The cost's scale K, unused ×3.
-    pub scale: [f32; 4],
+    /// The cost's scale K.
+    pub scale: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 impl LnccTermsParams {
@@ -56,7 +58,8 @@ impl LnccTermsParams {
     pub fn new(grid: &Grid, radius: usize, scale: f32) -> Self {
         LnccTermsParams {
             dims: dims4(grid, radius as u32),
-            scale: [scale, 0.0, 0.0, 0.0],
+            scale,
+            pad: [0; 3],
         }
     }
 

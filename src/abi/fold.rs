@@ -16,8 +16,10 @@ pub struct ThresholdParams {
     pub dims: [u32; 4],
     /// Voxels, voxels per chunk ([`STATS_CHUNK`]), chunks, unused.
     pub chunks: [u32; 4],
-    /// The threshold (det J for the folds, mm for a distance), unused ×3.
-    pub threshold: [f32; 4],
+    /// The threshold (det J for the folds, mm for a distance).
+    pub threshold: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 impl ThresholdParams {
@@ -26,7 +28,8 @@ impl ThresholdParams {
         ThresholdParams {
             dims: dims4(grid, 0),
             chunks: chunking(grid.len(), STATS_CHUNK, 0),
-            threshold: [threshold, 0.0, 0.0, 0.0],
+            threshold,
+            pad: [0; 3],
         }
     }
 

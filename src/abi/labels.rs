@@ -66,8 +66,10 @@ pub struct BoneLookupParams {
     pub geometry: ResampleParams,
     /// The bones' codes.
     pub codes: LabelCodes,
-    /// Largest residual (mm) bone_at_source counts, unused ×3.
-    pub limit: [f32; 4],
+    /// Largest residual (mm) bone_at_source counts.
+    pub limit: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 impl BoneLookupParams {
@@ -77,7 +79,8 @@ impl BoneLookupParams {
         Ok(BoneLookupParams {
             geometry: ResampleParams::new(labels, target, -1.0, Interpolation::Nearest),
             codes: LabelCodes::new(bones)?,
-            limit: [residual_limit, 0.0, 0.0, 0.0],
+            limit: residual_limit,
+            pad: [0; 3],
         })
     }
 

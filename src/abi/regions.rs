@@ -60,8 +60,10 @@ pub struct MomentsParams {
     pub dims: [u32; 4],
     /// Voxels, voxels per chunk ([`STATS_CHUNK`]), chunks, unused.
     pub chunks: [u32; 4],
-    /// Value at or above which a voxel counts, unused ×3.
-    pub threshold: [f32; 4],
+    /// Value at or above which a voxel counts.
+    pub threshold: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
     /// Voxel index → world (mm).
     pub index_to_world: [[f32; 4]; 3],
 }
@@ -72,7 +74,8 @@ impl MomentsParams {
         MomentsParams {
             dims: dims4(grid, 0),
             chunks: chunking(grid.len(), STATS_CHUNK, 0),
-            threshold: [threshold, 0.0, 0.0, 0.0],
+            threshold,
+            pad: [0; 3],
             index_to_world: rows(&grid.affine),
         }
     }

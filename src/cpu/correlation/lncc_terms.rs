@@ -27,7 +27,7 @@ pub fn lncc_terms(
             for i in 0..nx {
                 let v = voxel_index(i, j, k, dims3(d)) as usize;
                 let w = window_at(sums, v, d, [i, j, k]);
-                let kc = params.scale[0] * if is_covered(covered[v]) { 1.0 } else { 0.0 };
+                let kc = params.scale * if is_covered(covered[v]) { 1.0 } else { 0.0 };
                 let (mut rho2, mut alpha, mut beta) = (0.0f32, 0.0f32, 0.0f32);
                 if !w.flat {
                     alpha = w.cab / (w.va * w.vb);

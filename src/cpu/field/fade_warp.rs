@@ -9,9 +9,9 @@ use rayon::prelude::*;
 /// the bones.
 pub fn fade_warp(params: &FadeParams, warp: &[f32], distance: &[f32], out: &mut [f32]) {
     let voxels = params.voxels();
-    let bones = params.dims[3] as usize;
+    let bones = params.bones as usize;
     out.par_chunks_mut(3).enumerate().for_each(|(v, r)| {
-        let scale = fade_at(distance, v, voxels, bones, params.margin[0]);
+        let scale = fade_at(distance, v, voxels, bones, params.margin);
         for c in 0..3 {
             r[c] = scale * warp[3 * v + c];
         }

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 /// the voxels at or below the threshold at a bone contact apart.
 pub fn fold_stats(params: &ThresholdParams, det: &[f32], held: &[f32], stats: &mut [f32]) {
     let [voxels, per_chunk, _, _] = params.chunks.map(|n| n as usize);
-    let threshold = params.threshold[0];
+    let threshold = params.threshold;
     let dims = dims3(params.dims);
     let count = |yes: bool| if yes { 1.0 } else { 0.0 };
     stats

@@ -7,7 +7,7 @@ use rayon::prelude::*;
 /// Fills `mark` (1 float per voxel) with 1 on the voxels not held whose value is at most the
 /// threshold.
 pub fn mark_at_most(params: &ThresholdParams, value: &[f32], held: &[f32], mark: &mut [f32]) {
-    let threshold = params.threshold[0];
+    let threshold = params.threshold;
     mark.par_iter_mut().enumerate().for_each(|(v, out)| {
         *out = if value[v] <= threshold && !is_held(held[v]) {
             1.0
