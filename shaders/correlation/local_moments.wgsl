@@ -14,7 +14,10 @@
 // Keep in sync with abi::LocalMomentsParams.
 struct LocalMomentsParams {
     dims: vec4<u32>,   // nx, ny, nz, radius (voxels)
-    axis: vec4<u32>,   // axis (0 x, 1 y, 2 z), 1 on the first pass, unused x2
+    axis: u32,         // 0 x, 1 y, 2 z
+    first: u32,        // 1 on the first pass
+    pad0: u32,
+    pad1: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: LocalMomentsParams;
@@ -24,7 +27,7 @@ struct LocalMomentsParams {
 
 // The 5 moments voxel v adds: from the two images on the first pass, else the stack's.
 fn moments_at(v: u32) -> array<f32, 5> {
-    if (params.axis.y == 1u) {
+    if (params.first == 1u) {
         let a = input[v];
         let b = other[v];
         return array<f32, 5>(a, b, a * a, b * b, a * b);
@@ -39,7 +42,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
         return;
     }
-    let axis = params.axis.x;
+    let axis = params.axis;
     let r = params.dims.w;
     let c = gid[axis];
     var p = gid;

@@ -13,7 +13,10 @@
 // Keep in sync with abi::DilateParams.
 struct DilateParams {
     dims: vec4<u32>,   // nx, ny, nz, margin (voxels)
-    axis: vec4<u32>,   // axis (0 x, 1 y, 2 z), 1: clear the held voxels, unused x2
+    axis: u32,         // 0 x, 1 y, 2 z
+    clear_held: u32,   // 1: clear the held voxels
+    pad0: u32,
+    pad1: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: DilateParams;
@@ -27,7 +30,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
         return;
     }
-    let axis = params.axis.x;
+    let axis = params.axis;
     let m = params.dims.w;
     let c = gid[axis];
     let lo = max(c, m) - m;
@@ -39,6 +42,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         near = mask[voxel_index(p.x, p.y, p.z, d)] > 0.0;
     }
     let v = voxel_index(gid.x, gid.y, gid.z, d);
-    let cleared = params.axis.y == 1u && held[v] > 0.0;
+    let cleared = params.clear_held == 1u && held[v] > 0.0;
     out[v] = select(0.0, 1.0, near && !cleared);
 }

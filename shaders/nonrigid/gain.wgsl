@@ -5,5 +5,8 @@ struct GainParams {
     dims: vec4<u32>,               // nx, ny, nz of the grid written, voxels
     coarse_dims: vec4<u32>,        // nx, ny, nz of the smoothed grid, unused
     to_coarse: array<vec4<f32>, 3>, // voxel index of the grid written -> smoothed grid index
-    limits: vec4<f32>,             // energy floor, most gain, unused x2
+    floor: f32,                    // smoothed energy at or below which the gain is 1
+    most: f32,                     // most gain
+    pad0: u32,
+    pad1: u32,
 }

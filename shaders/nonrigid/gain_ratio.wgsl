@@ -23,8 +23,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let v = voxel_index(gid.x, gid.y, gid.z, d);
     let e = energy[v];
-    let most = params.limits.y;
-    if (e > params.limits.x) {
+    let most = params.most;
+    if (e > params.floor) {
         gain[v] = clamp(product[v] / e, 1.0 / most, most);
     } else {
         gain[v] = 1.0;

@@ -5,7 +5,7 @@
 // lattice (crate::regularise: first differences for the membrane, second for bending), each
 // result's squared length weighted: E = Σ_o w_o Σ_p |Σ_t c_ot R(p + t)|². Per node n this
 // kernel writes the energy of the placements anchored at n (summed by sum_chunks), and the
-// image gradient splatted to n (lattice_splat, scaled by params.scale.x = 1 / voxels) plus
+// image gradient splatted to n (lattice_splat, scaled by params.scale = 1 / voxels) plus
 // ∂E/∂R(n) = Σ 2 w_o c_ot (result at p = n − t), gathered over the placements that touch n so
 // no atomics are needed.
 //
@@ -20,7 +20,10 @@
 // Keep in sync with abi::EnergyParams.
 struct EnergyParams {
     dims: vec4<u32>,                       // lx, ly, lz, operators (at most 9)
-    scale: vec4<f32>,                      // factor on the splatted image gradient, unused x3
+    scale: f32,                            // factor on the splatted image gradient
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
     taps: array<vec4<i32>, 36>,            // operator o's tap t at 4 o + t: offset, unused
     coefficients: array<vec4<f32>, 9>,     // operator o's tap coefficients
     weights: array<vec4<f32>, 9>,          // operator o's weight, unused x3
@@ -69,7 +72,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let here = vec3<i32>(gid);
     let n = voxel_index(gid.x, gid.y, gid.z, d.xyz);
-    var g = params.scale.x * vec3<f32>(splat[3u * n], splat[3u * n + 1u], splat[3u * n + 2u]);
+    var g = params.scale * vec3<f32>(splat[3u * n], splat[3u * n + 1u], splat[3u * n + 2u]);
     var e = 0.0;
     for (var o = 0u; o < d.w; o = o + 1u) {
         let w = params.weights[o].x;

@@ -11,8 +11,12 @@ pub const LOCAL_MOMENTS: usize = 5;
 pub struct LocalMomentsParams {
     /// nx, ny, nz, and the window's radius (voxels).
     pub dims: [u32; 4],
-    /// Axis of this pass (0 x, 1 y, 2 z), 1 on the first pass (it reads the two images), unused ×2.
-    pub axis: [u32; 4],
+    /// Axis of this pass (0 x, 1 y, 2 z).
+    pub axis: u32,
+    /// 1 on the first pass (it reads the two images), 0 on the others (they read the stack).
+    pub first: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 2],
 }
 
 impl LocalMomentsParams {
@@ -21,7 +25,9 @@ impl LocalMomentsParams {
     pub fn passes(grid: &Grid, radius: usize) -> [LocalMomentsParams; 3] {
         std::array::from_fn(|axis| LocalMomentsParams {
             dims: dims4(grid, radius as u32),
-            axis: [axis as u32, (axis == 0) as u32, 0, 0],
+            axis: axis as u32,
+            first: (axis == 0) as u32,
+            pad: [0; 2],
         })
     }
 
@@ -30,7 +36,9 @@ impl LocalMomentsParams {
     pub fn stack_passes(grid: &Grid, radius: usize) -> [LocalMomentsParams; 3] {
         std::array::from_fn(|axis| LocalMomentsParams {
             dims: dims4(grid, radius as u32),
-            axis: [axis as u32, 0, 0, 0],
+            axis: axis as u32,
+            first: 0,
+            pad: [0; 2],
         })
     }
 

@@ -75,8 +75,12 @@ impl JacobianParams {
 pub struct DilateParams {
     /// nx, ny, nz, and the margin (voxels).
     pub dims: [u32; 4],
-    /// Axis (0 x, 1 y, 2 z), 1 to clear the held voxels, unused ×2.
-    pub axis: [u32; 4],
+    /// Axis (0 x, 1 y, 2 z).
+    pub axis: u32,
+    /// 1 to clear the held voxels.
+    pub clear_held: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 2],
 }
 
 impl DilateParams {
@@ -85,7 +89,9 @@ impl DilateParams {
     pub fn passes(grid: &Grid, margin: usize) -> [DilateParams; 3] {
         std::array::from_fn(|axis| DilateParams {
             dims: dims4(grid, margin as u32),
-            axis: [axis as u32, (axis == 2) as u32, 0, 0],
+            axis: axis as u32,
+            clear_held: (axis == 2) as u32,
+            pad: [0; 2],
         })
     }
 

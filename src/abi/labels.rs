@@ -7,8 +7,10 @@ use super::*;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct LabelCodes {
-    /// Codes in the list, unused ×3.
-    pub count: [u32; 4],
+    /// Codes in the list.
+    pub count: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
     /// The codes, 4 per row.
     pub list: [[u32; 4]; 2],
 }
@@ -27,7 +29,8 @@ impl LabelCodes {
             list[c / 4][c % 4] = code as u32;
         }
         Ok(LabelCodes {
-            count: [codes.len() as u32, 0, 0, 0],
+            count: codes.len() as u32,
+            pad: [0; 3],
             list,
         })
     }

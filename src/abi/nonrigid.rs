@@ -173,8 +173,10 @@ pub struct Operator {
 pub struct EnergyParams {
     /// Lattice nodes along x, y, z, and the number of operators.
     pub dims: [u32; 4],
-    /// Factor on the splatted image gradient (1 / voxels), unused ×3.
-    pub scale: [f32; 4],
+    /// Factor on the splatted image gradient (1 / voxels).
+    pub scale: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
     /// Operator o's tap t at 4 o + t: node offset, unused.
     pub taps: [[i32; 4]; MAX_OPERATORS * MAX_TAPS],
     /// Operator o's tap coefficients.
@@ -200,7 +202,7 @@ impl EnergyParams {
             dims[2] as u32,
             operators.len() as u32,
         ];
-        p.scale[0] = scale;
+        p.scale = scale;
         for (o, op) in operators.iter().enumerate() {
             assert!(
                 op.taps.len() <= MAX_TAPS,
@@ -265,8 +267,12 @@ pub struct GainParams {
     pub coarse_dims: [u32; 4],
     /// Voxel index of the grid written → continuous index of the smoothed grid.
     pub to_coarse: [[f32; 4]; 3],
-    /// Energy floor, most gain, unused ×2.
-    pub limits: [f32; 4],
+    /// Smoothed energy at or below which the gain is 1.
+    pub floor: f32,
+    /// Most gain: ratios are kept within this factor of 1.
+    pub most: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 2],
 }
 
 impl GainParams {
@@ -277,7 +283,9 @@ impl GainParams {
             dims: dims4(grid, grid.len() as u32),
             coarse_dims: dims4(coarse, 0),
             to_coarse: rows(&(coarse.world_to_voxel_affine() * grid.affine)),
-            limits: [floor, most, 0.0, 0.0],
+            floor,
+            most,
+            pad: [0; 2],
         }
     }
 

@@ -11,8 +11,10 @@ pub const SUM_CHUNK: usize = 1024;
 pub struct SumParams {
     /// Values, values per chunk, chunks, power (1 or 2).
     pub counts: [u32; 4],
-    /// Shift subtracted from each value before the power, unused ×3.
-    pub shift: [f32; 4],
+    /// Shift subtracted from each value before the power.
+    pub shift: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 impl SumParams {
@@ -20,7 +22,8 @@ impl SumParams {
     pub fn new(values: usize) -> Self {
         SumParams {
             counts: chunking(values, SUM_CHUNK, 1),
-            shift: [0.0; 4],
+            shift: 0.0,
+            pad: [0; 3],
         }
     }
 
@@ -28,7 +31,7 @@ impl SumParams {
     pub fn squares_about(values: usize, shift: f32) -> Self {
         let mut p = SumParams::new(values);
         p.counts[3] = 2;
-        p.shift[0] = shift;
+        p.shift = shift;
         p
     }
 

@@ -93,8 +93,14 @@ pub const MAX_SKIN_BONES: usize = 8;
 pub struct SkinBlendParams {
     /// Target nx, ny, nz, unused.
     pub dims: [u32; 4],
-    /// Bones, inversion iterations, blending (0 linear, 1 dual quaternion), unused.
-    pub blend: [u32; 4],
+    /// Bones.
+    pub bones: u32,
+    /// Most iterations of the inversion.
+    pub iterations: u32,
+    /// Blending: 0 linear, 1 dual quaternion.
+    pub blending: u32,
+    /// Padding to 16 bytes.
+    pub pad: u32,
     /// Weight grid nx, ny, nz, unused.
     pub weight_dims: [u32; 4],
     /// Source label grid nx, ny, nz, unused.
@@ -139,7 +145,10 @@ impl SkinBlendParams {
         };
         SkinBlendParams {
             dims: dims4(target, 0),
-            blend: [motions.len() as u32, blend.iterations, blending, 0],
+            bones: motions.len() as u32,
+            iterations: blend.iterations,
+            blending,
+            pad: 0,
             weight_dims: dims4(weights, 0),
             label_dims: dims4(labels, 0),
             target_to_world: rows(&target.affine),

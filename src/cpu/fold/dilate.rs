@@ -7,7 +7,7 @@ use rayon::prelude::*;
 /// Fills `out` (1 float per voxel) with one axis of a box dilation of `mask`.
 pub fn dilate(params: &DilateParams, mask: &[f32], held: &[f32], out: &mut [f32]) {
     let d = dims3(params.dims);
-    let (axis, m) = (params.axis[0] as usize, params.dims[3]);
+    let (axis, m) = (params.axis as usize, params.dims[3]);
     // Whether each z slice marks any voxel: a slice with none within reach is all zeros, found
     // without looking at its voxels (most of the volume, around a few folds).
     let slice_len = (d[0] * d[1]) as usize;
@@ -36,7 +36,7 @@ pub fn dilate(params: &DilateParams, mask: &[f32], held: &[f32], out: &mut [f32]
                         mask[voxel_index(p[0], p[1], p[2], d) as usize] > 0.0
                     });
                     let v = voxel_index(i, j, k as u32, d) as usize;
-                    let cleared = params.axis[1] == 1 && held[v] > 0.0;
+                    let cleared = params.clear_held == 1 && held[v] > 0.0;
                     slice[(i + d[0] * j) as usize] = if near && !cleared { 1.0 } else { 0.0 };
                 }
             }

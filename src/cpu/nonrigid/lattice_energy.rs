@@ -93,8 +93,7 @@ pub fn lattice_energy(
         .enumerate()
         .for_each(|(n, (g_out, e_out))| {
             let here = node(params, n);
-            let mut g =
-                params.scale[0] * Vec3::new(splat[3 * n], splat[3 * n + 1], splat[3 * n + 2]);
+            let mut g = params.scale * Vec3::new(splat[3 * n], splat[3 * n + 1], splat[3 * n + 2]);
             let mut e = 0.0f32;
             for o in 0..operators {
                 let w = params.weights[o][0];

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 pub fn sum_chunks(params: &SumParams, values: &[f32], sums: &mut [f64]) {
     let chunk = params.counts[1] as usize;
     let squares = params.counts[3] == 2;
-    let shift = params.shift[0] as f64;
+    let shift = params.shift as f64;
     sums.par_iter_mut().enumerate().for_each(|(c, sum)| {
         let end = ((c + 1) * chunk).min(values.len());
         *sum = values[c * chunk..end].iter().fold(0.0f64, |s, &v| {
