@@ -12,8 +12,12 @@
 
 // Keep in sync with abi::LnccParams.
 struct LnccParams {
-    dims: vec4<u32>,     // nx, ny, nz, radius (voxels)
+    dims: vec4<u32>,     // nx, ny, nz, unused
     chunks: vec4<u32>,   // voxels, voxels per chunk, chunks, unused
+    radius: u32,         // the window's radius (voxels)
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: LnccParams;
@@ -24,7 +28,7 @@ struct LnccParams {
 fn squared_correlation(v: u32, i: u32, j: u32, k: u32) -> f32 {
     let s = array<f32, 5>(sums[5u * v], sums[5u * v + 1u], sums[5u * v + 2u],
                           sums[5u * v + 3u], sums[5u * v + 4u]);
-    let w = window_at(s, params.dims, i, j, k);
+    let w = window_at(s, vec4<u32>(params.dims.xyz, params.radius), i, j, k);
     if (w.flat) {
         return -1.0;
     }

@@ -20,11 +20,11 @@
 
 // Keep in sync with abi::LnccTermsParams.
 struct LnccTermsParams {
-    dims: vec4<u32>,    // nx, ny, nz, radius (voxels)
+    dims: vec4<u32>,    // nx, ny, nz, unused
     scale: f32,         // K
+    radius: u32,        // the window's radius (voxels)
     pad0: u32,
     pad1: u32,
-    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: LnccTermsParams;
@@ -35,7 +35,7 @@ struct LnccTermsParams {
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let d = params.dims;
+    let d = vec4<u32>(params.dims.xyz, params.radius);
     let j = gid.x;
     let k = gid.y;
     if (j >= d.y || k >= d.z) {

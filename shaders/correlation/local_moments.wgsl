@@ -13,11 +13,11 @@
 
 // Keep in sync with abi::LocalMomentsParams.
 struct LocalMomentsParams {
-    dims: vec4<u32>,   // nx, ny, nz, radius (voxels)
+    dims: vec4<u32>,   // nx, ny, nz, unused
     axis: u32,         // 0 x, 1 y, 2 z
     first: u32,        // 1 on the first pass
+    radius: u32,       // the window's radius (voxels)
     pad0: u32,
-    pad1: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: LocalMomentsParams;
@@ -43,7 +43,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let axis = params.axis;
-    let r = params.dims.w;
+    let r = params.radius;
     let c = gid[axis];
     var p = gid;
     var sums = array<f32, 5>(0.0, 0.0, 0.0, 0.0, 0.0);

@@ -12,11 +12,11 @@
 
 // Keep in sync with abi::DilateParams.
 struct DilateParams {
-    dims: vec4<u32>,   // nx, ny, nz, margin (voxels)
+    dims: vec4<u32>,   // nx, ny, nz, unused
     axis: u32,         // 0 x, 1 y, 2 z
     clear_held: u32,   // 1: clear the held voxels
+    margin: u32,       // voxels
     pad0: u32,
-    pad1: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: DilateParams;
@@ -31,7 +31,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let axis = params.axis;
-    let m = params.dims.w;
+    let m = params.margin;
     let c = gid[axis];
     let lo = max(c, m) - m;
     let hi = min(c + m + 1u, d[axis]);

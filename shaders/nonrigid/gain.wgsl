@@ -2,7 +2,7 @@
 
 // Keep in sync with abi::GainParams.
 struct GainParams {
-    dims: vec4<u32>,               // nx, ny, nz of the grid written, voxels
+    dims: vec4<u32>,               // nx, ny, nz of the grid written, unused
     coarse_dims: vec4<u32>,        // nx, ny, nz of the smoothed grid, unused
     to_coarse: array<vec4<f32>, 3>, // voxel index of the grid written -> smoothed grid index
     floor: f32,                    // smoothed energy at or below which the gain is 1

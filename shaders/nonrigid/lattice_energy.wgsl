@@ -19,11 +19,11 @@
 
 // Keep in sync with abi::EnergyParams.
 struct EnergyParams {
-    dims: vec4<u32>,                       // lx, ly, lz, operators (at most 9)
+    dims: vec4<u32>,                       // lx, ly, lz, unused
     scale: f32,                            // factor on the splatted image gradient
+    operators: u32,                        // at most 9
     pad0: u32,
     pad1: u32,
-    pad2: u32,
     taps: array<vec4<i32>, 36>,            // operator o's tap t at 4 o + t: offset, unused
     coefficients: array<vec4<f32>, 9>,     // operator o's tap coefficients
     weights: array<vec4<f32>, 9>,          // operator o's weight, unused x3
@@ -74,7 +74,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let n = voxel_index(gid.x, gid.y, gid.z, d.xyz);
     var g = params.scale * vec3<f32>(splat[3u * n], splat[3u * n + 1u], splat[3u * n + 2u]);
     var e = 0.0;
-    for (var o = 0u; o < d.w; o = o + 1u) {
+    for (var o = 0u; o < params.operators; o = o + 1u) {
         let w = params.weights[o].x;
         if (placed(o, here)) {
             let r = result_at(o, here);

@@ -36,7 +36,7 @@ fn gradient_at(n: u32) -> vec3<f64> {
 // The weight of node x in output row t: φ(|x − c_t|) for a control point, else the affine
 // row's term 1, x, y or z.
 fn weight(t: u32, x: vec3<f64>) -> f64 {
-    let points = params.lattice.w;
+    let points = params.points;
     if (t < points) {
         let o = 12u + 6u * t;
         return cube_of_distance(x, vec3<f64>(spline[o], spline[o + 1u], spline[o + 2u]));
@@ -52,7 +52,7 @@ fn weight(t: u32, x: vec3<f64>) -> f64 {
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let t = gid.x;
     let c = gid.y;
-    let rows = params.lattice.w + 4u;
+    let rows = params.points + 4u;
     if (t >= rows || c >= params.chunks.z) {
         return;
     }

@@ -30,7 +30,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         spline[1] + spline[4] * x.x + spline[7] * x.y + spline[10] * x.z,
         spline[2] + spline[5] * x.x + spline[8] * x.y + spline[11] * x.z,
     );
-    for (var p = 0u; p < l.w; p = p + 1u) {
+    for (var p = 0u; p < params.points; p = p + 1u) {
         let o = 12u + 6u * p;
         let f = cube_of_distance(x, vec3<f64>(spline[o], spline[o + 1u], spline[o + 2u]));
         r = r + vec3<f64>(spline[o + 3u] * f, spline[o + 4u] * f, spline[o + 5u] * f);

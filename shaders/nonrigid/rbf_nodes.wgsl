@@ -4,9 +4,13 @@
 
 // Keep in sync with abi::RbfLatticeParams.
 struct RbfLatticeParams {
-    lattice: vec4<u32>,  // lx, ly, lz, control points
+    lattice: vec4<u32>,  // lx, ly, lz, unused
     step: vec4<u32>,     // lattice step along x, y, z (voxels), unused
     chunks: vec4<u32>,   // nodes, nodes per chunk, chunks (rbf_adjoint), unused
+    points: u32,         // the spline's control points
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // World position (mm) of lattice node `a`, which sits on voxel a · step (per axis).

@@ -11,11 +11,11 @@
 
 // Keep in sync with abi::SumParams.
 struct SumParams {
-    counts: vec4<u32>,  // values, values per chunk, chunks, power
+    counts: vec4<u32>,  // values, values per chunk, chunks, unused
     shift: f32,
+    power: u32,         // 1 or 2
     pad0: u32,
     pad1: u32,
-    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: SumParams;
@@ -32,7 +32,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var sum = 0.0lf;
     for (var v = c * n.y; v < min((c + 1u) * n.y, n.x); v = v + 1u) {
         let d = f64(values[v]) - f64(params.shift);
-        sum = sum + select(d, d * d, n.w == 2u);
+        sum = sum + select(d, d * d, params.power == 2u);
     }
     sums[c] = sum;
 }

@@ -9,14 +9,16 @@ pub const LOCAL_MOMENTS: usize = 5;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct LocalMomentsParams {
-    /// nx, ny, nz, and the window's radius (voxels).
+    /// nx, ny, nz, unused.
     pub dims: [u32; 4],
     /// Axis of this pass (0 x, 1 y, 2 z).
     pub axis: u32,
     /// 1 on the first pass (it reads the two images), 0 on the others (they read the stack).
     pub first: u32,
+    /// The window's radius (voxels).
+    pub radius: u32,
     /// Padding to 16 bytes.
-    pub pad: [u32; 2],
+    pub pad: u32,
 }
 
 impl LocalMomentsParams {
@@ -24,10 +26,11 @@ impl LocalMomentsParams {
     /// (2 `radius` + 1)³ voxels (cut at the grid's faces).
     pub fn passes(grid: &Grid, radius: usize) -> [LocalMomentsParams; 3] {
         std::array::from_fn(|axis| LocalMomentsParams {
-            dims: dims4(grid, radius as u32),
+            dims: dims4(grid, 0),
             axis: axis as u32,
             first: (axis == 0) as u32,
-            pad: [0; 2],
+            radius: radius as u32,
+            pad: 0,
         })
     }
 
@@ -35,10 +38,11 @@ impl LocalMomentsParams {
     /// (as lncc_terms writes) over the same boxes.
     pub fn stack_passes(grid: &Grid, radius: usize) -> [LocalMomentsParams; 3] {
         std::array::from_fn(|axis| LocalMomentsParams {
-            dims: dims4(grid, radius as u32),
+            dims: dims4(grid, 0),
             axis: axis as u32,
             first: 0,
-            pad: [0; 2],
+            radius: radius as u32,
+            pad: 0,
         })
     }
 
@@ -52,12 +56,14 @@ impl LocalMomentsParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct LnccTermsParams {
-    /// nx, ny, nz, and the window's radius (voxels).
+    /// nx, ny, nz, unused.
     pub dims: [u32; 4],
     /// The cost's scale K.
     pub scale: f32,
+    /// The window's radius (voxels).
+    pub radius: u32,
     /// Padding to 16 bytes.
-    pub pad: [u32; 3],
+    pub pad: [u32; 2],
 }
 
 impl LnccTermsParams {
@@ -65,9 +71,10 @@ impl LnccTermsParams {
     /// `scale` Σ c (1 − ρ²).
     pub fn new(grid: &Grid, radius: usize, scale: f32) -> Self {
         LnccTermsParams {
-            dims: dims4(grid, radius as u32),
+            dims: dims4(grid, 0),
             scale,
-            pad: [0; 3],
+            radius: radius as u32,
+            pad: [0; 2],
         }
     }
 
@@ -86,18 +93,24 @@ impl LnccTermsParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct LnccParams {
-    /// nx, ny, nz, and the window's radius (voxels).
+    /// nx, ny, nz, unused.
     pub dims: [u32; 4],
     /// Voxels, voxels per chunk ([`STATS_CHUNK`]), chunks, unused.
     pub chunks: [u32; 4],
+    /// The window's radius (voxels).
+    pub radius: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 impl LnccParams {
     /// For [`LOCAL_MOMENTS`] summed on `grid` over windows of `radius` voxels.
     pub fn new(grid: &Grid, radius: usize) -> Self {
         LnccParams {
-            dims: dims4(grid, radius as u32),
+            dims: dims4(grid, 0),
             chunks: chunking(grid.len(), STATS_CHUNK, 0),
+            radius: radius as u32,
+            pad: [0; 3],
         }
     }
 

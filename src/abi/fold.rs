@@ -73,14 +73,16 @@ impl JacobianParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct DilateParams {
-    /// nx, ny, nz, and the margin (voxels).
+    /// nx, ny, nz, unused.
     pub dims: [u32; 4],
     /// Axis (0 x, 1 y, 2 z).
     pub axis: u32,
     /// 1 to clear the held voxels.
     pub clear_held: u32,
+    /// The margin (voxels).
+    pub margin: u32,
     /// Padding to 16 bytes.
-    pub pad: [u32; 2],
+    pub pad: u32,
 }
 
 impl DilateParams {
@@ -88,10 +90,11 @@ impl DilateParams {
     /// clearing the held voxels.
     pub fn passes(grid: &Grid, margin: usize) -> [DilateParams; 3] {
         std::array::from_fn(|axis| DilateParams {
-            dims: dims4(grid, margin as u32),
+            dims: dims4(grid, 0),
             axis: axis as u32,
             clear_held: (axis == 2) as u32,
-            pad: [0; 2],
+            margin: margin as u32,
+            pad: 0,
         })
     }
 

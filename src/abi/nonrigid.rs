@@ -76,12 +76,16 @@ impl SplatParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct RbfLatticeParams {
-    /// Lattice nodes along x, y, z, and the number of control points.
+    /// Lattice nodes along x, y, z, unused.
     pub lattice: [u32; 4],
     /// Lattice step along x, y, z (voxels), unused.
     pub step: [u32; 4],
     /// rbf_adjoint's chunks: nodes, nodes per chunk, chunks, unused.
     pub chunks: [u32; 4],
+    /// The spline's control points.
+    pub points: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 /// Lattice nodes one rbf_adjoint invocation sums: about `nodes / 512`, so that a GPU runs
@@ -99,9 +103,11 @@ impl RbfLatticeParams {
     pub fn new(lattice_dims: [usize; 3], steps: [usize; 3], points: usize) -> Self {
         let nodes: usize = lattice_dims.iter().product();
         RbfLatticeParams {
-            lattice: padded(lattice_dims, points as u32),
+            lattice: padded(lattice_dims, 0),
             step: padded(steps, 0),
             chunks: chunking(nodes, adjoint_chunk(nodes), 0),
+            points: points as u32,
+            pad: [0; 3],
         }
     }
 
@@ -127,7 +133,7 @@ impl RbfLatticeParams {
 
     /// Control points.
     pub fn points(&self) -> usize {
-        self.lattice[3] as usize
+        self.points as usize
     }
 }
 
@@ -171,12 +177,14 @@ pub struct Operator {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct EnergyParams {
-    /// Lattice nodes along x, y, z, and the number of operators.
+    /// Lattice nodes along x, y, z, unused.
     pub dims: [u32; 4],
     /// Factor on the splatted image gradient (1 / voxels).
     pub scale: f32,
+    /// Operators (at most [`MAX_OPERATORS`]).
+    pub operators: u32,
     /// Padding to 16 bytes.
-    pub pad: [u32; 3],
+    pub pad: [u32; 2],
     /// Operator o's tap t at 4 o + t: node offset, unused.
     pub taps: [[i32; 4]; MAX_OPERATORS * MAX_TAPS],
     /// Operator o's tap coefficients.
@@ -196,13 +204,9 @@ impl EnergyParams {
             "too many energy operators"
         );
         let mut p = EnergyParams::zeroed();
-        p.dims = [
-            dims[0] as u32,
-            dims[1] as u32,
-            dims[2] as u32,
-            operators.len() as u32,
-        ];
+        p.dims = padded(dims, 0);
         p.scale = scale;
+        p.operators = operators.len() as u32;
         for (o, op) in operators.iter().enumerate() {
             assert!(
                 op.taps.len() <= MAX_TAPS,
@@ -261,7 +265,7 @@ impl SsdParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct GainParams {
-    /// nx, ny, nz of the grid written, its voxels.
+    /// nx, ny, nz of the grid written, unused.
     pub dims: [u32; 4],
     /// nx, ny, nz of the smoothed grid, unused.
     pub coarse_dims: [u32; 4],
@@ -280,7 +284,7 @@ impl GainParams {
     /// `most` of 1 and set to 1 where the smoothed energy is at or below `floor`.
     pub fn new(grid: &Grid, coarse: &Grid, floor: f32, most: f32) -> Self {
         GainParams {
-            dims: dims4(grid, grid.len() as u32),
+            dims: dims4(grid, 0),
             coarse_dims: dims4(coarse, 0),
             to_coarse: rows(&(coarse.world_to_voxel_affine() * grid.affine)),
             floor,
@@ -291,6 +295,6 @@ impl GainParams {
 
     /// Voxels of the grid written.
     pub fn voxels(&self) -> usize {
-        self.dims[3] as usize
+        count(&self.dims)
     }
 }

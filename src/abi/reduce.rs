@@ -9,28 +9,31 @@ pub const SUM_CHUNK: usize = 1024;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SumParams {
-    /// Values, values per chunk, chunks, power (1 or 2).
+    /// Values, values per chunk, chunks, unused.
     pub counts: [u32; 4],
     /// Shift subtracted from each value before the power.
     pub shift: f32,
+    /// The power (1 or 2).
+    pub power: u32,
     /// Padding to 16 bytes.
-    pub pad: [u32; 3],
+    pub pad: [u32; 2],
 }
 
 impl SumParams {
     /// Sums of `values` values in chunks of [`SUM_CHUNK`].
     pub fn new(values: usize) -> Self {
         SumParams {
-            counts: chunking(values, SUM_CHUNK, 1),
+            counts: chunking(values, SUM_CHUNK, 0),
             shift: 0.0,
-            pad: [0; 3],
+            power: 1,
+            pad: [0; 2],
         }
     }
 
     /// Sums of the squares of `values` values minus `shift`.
     pub fn squares_about(values: usize, shift: f32) -> Self {
         let mut p = SumParams::new(values);
-        p.counts[3] = 2;
+        p.power = 2;
         p.shift = shift;
         p
     }

@@ -7,7 +7,8 @@ use rayon::prelude::*;
 
 /// ρ² at voxel v (index i, j, k), or −1 where a window is flat.
 fn squared_correlation(params: &LnccParams, sums: &[f32], v: usize, ijk: [u32; 3]) -> f32 {
-    let w = window_at(sums, v, params.dims, ijk);
+    let [nx, ny, nz, _] = params.dims;
+    let w = window_at(sums, v, [nx, ny, nz, params.radius], ijk);
     if w.flat {
         return -1.0;
     }

@@ -15,7 +15,12 @@ pub fn lncc_terms(
     terms: &mut [f32],
     rows: &mut [f32],
 ) {
-    let d = params.dims;
+    let d = [
+        params.dims[0],
+        params.dims[1],
+        params.dims[2],
+        params.radius,
+    ];
     let [nx, ny, _] = dims3(d);
     terms
         .par_chunks_mut(LOCAL_MOMENTS * nx as usize)

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 /// `input` (a) and `other` (b) on the first pass, else from the stack in `input`.
 pub fn local_moments(params: &LocalMomentsParams, input: &[f32], other: &[f32], out: &mut [f32]) {
     let d = dims3(params.dims);
-    let (axis, r) = (params.axis as usize, params.dims[3]);
+    let (axis, r) = (params.axis as usize, params.radius);
     let moments_at = |v: usize| -> [f32; LOCAL_MOMENTS] {
         if params.first == 1 {
             let (a, b) = (input[v], other[v]);

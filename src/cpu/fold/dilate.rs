@@ -7,7 +7,7 @@ use rayon::prelude::*;
 /// Fills `out` (1 float per voxel) with one axis of a box dilation of `mask`.
 pub fn dilate(params: &DilateParams, mask: &[f32], held: &[f32], out: &mut [f32]) {
     let d = dims3(params.dims);
-    let (axis, m) = (params.axis as usize, params.dims[3]);
+    let (axis, m) = (params.axis as usize, params.margin);
     // Whether each z slice marks any voxel: a slice with none within reach is all zeros, found
     // without looking at its voxels (most of the volume, around a few folds).
     let slice_len = (d[0] * d[1]) as usize;

@@ -44,9 +44,9 @@ fn result_at(params: &EnergyParams, lattice: &[f32], o: usize, p: IVec3) -> Vec3
 /// node · operators + o): the shader recomputes a result for each tap that reads it, the twin
 /// computes it once (the same sums, so the same bits).
 fn results(params: &EnergyParams, lattice: &[f32]) -> Vec<Option<Vec3>> {
-    let [lx, ly, lz, operators] = params.dims;
+    let [lx, ly, lz, _] = params.dims;
     let nodes = (lx * ly * lz) as usize;
-    let operators = operators as usize;
+    let operators = params.operators as usize;
     let mut out = vec![None; nodes * operators];
     out.par_chunks_mut(operators.max(1))
         .enumerate()
@@ -78,8 +78,8 @@ pub fn lattice_energy(
     gradient: &mut [f32],
     energy: &mut [f32],
 ) {
-    let [lx, ly, lz, operators] = params.dims;
-    let operators = operators as usize;
+    let [lx, ly, lz, _] = params.dims;
+    let operators = params.operators as usize;
     let results = results(params, lattice);
     let top = IVec3::new(lx as i32, ly as i32, lz as i32);
     let result = |o: usize, p: IVec3| -> Option<Vec3> {

@@ -33,7 +33,8 @@ fn nodes_run(
     first: usize,
     out: &mut [f32],
 ) {
-    let [lx, ly, _, points] = params.lattice;
+    let [lx, ly, _, _] = params.lattice;
+    let points = params.points;
     let s = spline;
     // Coordinates and sums by axis, so the loop over the run's nodes vectorises.
     let x: Vec<[f64; 3]> = (first..first + out.len() / 3)

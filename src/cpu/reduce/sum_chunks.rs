@@ -7,7 +7,7 @@ use rayon::prelude::*;
 /// order.
 pub fn sum_chunks(params: &SumParams, values: &[f32], sums: &mut [f64]) {
     let chunk = params.counts[1] as usize;
-    let squares = params.counts[3] == 2;
+    let squares = params.power == 2;
     let shift = params.shift as f64;
     sums.par_iter_mut().enumerate().for_each(|(c, sum)| {
         let end = ((c + 1) * chunk).min(values.len());
