@@ -6,7 +6,10 @@
 struct BoneLookupParams {
     geometry: ResampleParams,   // target grid → source label grid
     codes: LabelCodes,          // the bones
-    limit: vec4<f32>,           // largest residual (mm) bone_at_source counts, unused x3
+    limit: f32,                 // largest residual (mm) bone_at_source counts
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // code_index of the source label nearest to target voxel p displaced by u (mm); 0 outside

@@ -2,7 +2,7 @@
 // bone over the margin, clamped to 1 (0 on the bones, which then move exactly by their rigid
 // motions). Shared by fade_warp and dense/field_combine; the kernel declares
 // `distance: array<f32>` (mm to each bone, one volume per bone, stacked). Mirrored in
-// src/cpu/fade_warp.rs (fade_at).
+// src/cpu/fade.rs (fade_at).
 
 fn fade_at(v: u32, voxels: u32, bones: u32, margin: f32) -> f32 {
     if (bones == 0u) {

@@ -5,7 +5,10 @@
 
 // Keep in sync with abi::LabelCodes.
 struct LabelCodes {
-    count: vec4<u32>,            // codes in the list, unused x3
+    count: u32,                  // codes in the list
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
     list: array<vec4<u32>, 2>,   // up to 8 codes, 4 per vector
 }
 
@@ -15,7 +18,7 @@ fn code_index(label: f32) -> u32 {
         return 0u;
     }
     let code = u32(label);
-    for (var c = 0u; c < params.codes.count.x; c = c + 1u) {
+    for (var c = 0u; c < params.codes.count; c = c + 1u) {
         if (params.codes.list[c / 4u][c % 4u] == code) {
             return c + 1u;
         }

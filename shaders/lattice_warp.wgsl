@@ -1,6 +1,6 @@
 // lattice_warp.wgsl: the non-rigid warp R interpolated from a coarse lattice; prepended to the
 // kernels that read it (warp_field, warp_image, warp_cost), which declare `params: RbfGradParams` and
-// `lattice` (3 floats per node). Mirrored in src/cpu/warp_image.rs (LatticeTaps::row for column,
+// `lattice` (3 floats per node). Mirrored in src/cpu/lattice_warp.rs (LatticeTaps::row for column,
 // RowTaps::warp_at).
 
 // Keep in sync with abi::RbfGradParams.

@@ -1,6 +1,6 @@
 // warp_sample.wgsl: the moving image sampled through the lattice warp at one voxel; shared by
 // warp_image, warp_cost and lncc_gradient, which declare `params`, `lattice` and
-// `sampled_value` (I0). Mirrored in src/cpu/warp_image.rs (warped_sample, warped_value_gradient).
+// `sampled_value` (I0). Mirrored in src/cpu/lattice_warp.rs (warped_sample, warped_value_gradient).
 
 // Where voxel (i, j, k) samples I0, in I0's index space: x + R(x).
 fn warped_position(i: u32, j: u32, k: u32) -> vec3<f32> {

@@ -1,5 +1,6 @@
 // window.wgsl: the statistics of one local-correlation window from its box sums
-// (local_moments.wgsl); shared by lncc and lncc_terms. Mirrored in src/cpu/lncc.rs.
+// (correlation/local_moments.wgsl); shared by lncc, lncc_terms and dense/dense_force.
+// Mirrored in src/cpu/window.rs.
 
 // Voxels of the window along one axis at coordinate c of n, radius r.
 fn window_length(c: u32, n: u32, r: u32) -> u32 {

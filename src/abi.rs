@@ -9,22 +9,24 @@ use crate::error::{Error, Result};
 use crate::volume::{Affine, Grid};
 use bytemuck::{Pod, Zeroable};
 
+mod correlation;
 pub mod dense;
 mod field;
 mod fold;
 mod labels;
-mod lncc;
 mod nonrigid;
+mod reduce;
 mod regions;
 mod rigid;
 mod sampling;
 mod skinning;
 
+pub use correlation::*;
 pub use field::*;
 pub use fold::*;
 pub use labels::*;
-pub use lncc::*;
 pub use nonrigid::*;
+pub use reduce::*;
 pub use regions::*;
 pub use rigid::*;
 pub use sampling::*;

@@ -1,32 +1,41 @@
-//! The backend traits: [`Core`] (buffers and their traffic), one trait per kernel family
-//! (in [`sampling`], [`labels`], [`regions`], [`rigid`], [`skinning`], [`dense`]) and
-//! [`Backend`], their sum, implemented by the GPU path (wgpu compute shaders) and its CPU twin
-//! (rayon). Host code (registration loops, commands) is written against these traits only, so
-//! every stage runs on either and the two can be compared.
+//! The backend traits: [`Core`] (buffers and their traffic), one trait per kernel family (in
+//! [`sampling`], [`labels`], [`regions`], [`rigid`], [`skinning`], [`dense`], [`fold`],
+//! [`correlation`], [`field`], [`reduce`], [`nonrigid`]) and [`Backend`], their sum,
+//! implemented by the GPU path (wgpu compute shaders) and its CPU twin (rayon). Host code
+//! (registration loops, commands) is written against these traits only, so every stage runs on
+//! either and the two can be compared.
 
+pub mod correlation;
 pub mod dense;
+pub mod field;
+pub mod fold;
 pub mod labels;
+pub mod nonrigid;
+pub mod reduce;
 pub mod regions;
 pub mod rigid;
 pub mod sampling;
 pub mod skinning;
 
+pub use correlation::box_sums;
+pub use nonrigid::CostImages;
+pub use reduce::total;
 pub use rigid::BoneImages;
 pub use sampling::{resample_onto, resample_volume};
 
-use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, RbfGradParams,
-    RbfLatticeParams, SplatParams, SsdParams, SumParams, ThresholdParams,
-};
 use crate::error::Result;
 use crate::volume::{Field, Grid, Image, Labels, Volume};
 
 /// Every backend trait, for code that calls kernels on a concrete backend
 /// (`use posereg::backend::prelude::*;`): a method is callable only where its trait is in scope.
 pub mod prelude {
+    pub use super::correlation::Correlation;
     pub use super::dense::Dense;
+    pub use super::field::Fields;
+    pub use super::fold::Fold;
     pub use super::labels::LabelMaps;
+    pub use super::nonrigid::NonRigid;
+    pub use super::reduce::Reduce;
     pub use super::regions::Regions;
     pub use super::rigid::Rigid;
     pub use super::sampling::Sampling;
@@ -139,17 +148,6 @@ impl<B: Core> DeviceImage<B> {
     }
 }
 
-/// The images one evaluation of the non-rigid cost compares, on the target grid.
-pub struct CostImages<'a, T: ?Sized> {
-    /// I0, sampled through the warp.
-    pub moving: &'a T,
-    /// The target T.
-    pub fixed: &'a T,
-    /// c: the share of I0's sample that holds data from the source scan (0 or 1 at the finest
-    /// level); kernels count a voxel where c ≥ abi::COVERED_AT.
-    pub covered: &'a T,
-}
-
 /// Where buffers live and how they move: what every kernel family needs.
 ///
 /// Data a registration works on lives where the backend computes, as [`Core::Buffer`]s: a
@@ -186,11 +184,9 @@ pub trait Core {
     }
 }
 
-/// A place kernels run: the core, the families moved so far ([`sampling::Sampling`],
-/// [`labels::LabelMaps`], [`regions::Regions`], [`rigid::Rigid`], [`skinning::Skinning`],
-/// [`dense::Dense`]) and, until they move into families of their own, the other kernels, one
-/// method each. Host code (registration loops, commands) is written against these traits only,
-/// so every stage runs on either backend and the two can be compared.
+/// A place kernels run: the core and every kernel family. Host code (registration loops,
+/// commands) is written against these traits only, so every stage runs on either backend and
+/// the two can be compared.
 pub trait Backend:
     Core
     + sampling::Sampling
@@ -199,252 +195,29 @@ pub trait Backend:
     + rigid::Rigid
     + skinning::Skinning
     + dense::Dense
+    + fold::Fold
+    + correlation::Correlation
+    + field::Fields
+    + reduce::Reduce
+    + nonrigid::NonRigid
 {
-    /// Per-column partial sums of c (a − b)² per cell (layout of shaders/ssd_cells.wgsl, folded
-    /// by metric::fold_ssd_partials): a = `images.moving`, b = `images.fixed`, c = 1 where
-    /// `images.covered` says the moving image holds data.
-    fn ssd_cells(
-        &self,
-        params: &SsdParams,
-        images: &CostImages<Self::Buffer<f32>>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// det(I + du/dx) of the map x → x + u(x) at every voxel of the field's grid: where it is
-    /// ≤ 0 the map folds.
-    fn jacobian(
-        &self,
-        params: &JacobianParams,
-        field: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// Per chunk of abi::STATS_CHUNK voxels of a Jacobian determinant `det`, the bone contacts
-    /// at or below the threshold apart (voxels whose stencil spans two bones `held`: along one
-    /// axis, or all six neighbours held; `held` values are bone numbers): its minimum, the
-    /// voxels ≤ 0, the voxels ≤ `params`' threshold, and those of them not `held` (> 0); then
-    /// the bone contacts ≤ 0 (shaders/fold_stats.wgsl).
-    fn fold_stats(
-        &self,
-        params: &ThresholdParams,
-        det: &Self::Buffer<f32>,
-        held: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// 1 on the voxels not `held` whose `value` is at or below `params`' threshold, else 0.
-    fn mark_at_most(
-        &self,
-        params: &ThresholdParams,
-        value: &Self::Buffer<f32>,
-        held: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// One axis of a box dilation of a 0/1 `mask` (`params`), clearing the `held` voxels
-    /// when `params` says.
-    fn dilate(
-        &self,
-        params: &DilateParams,
-        mask: &Self::Buffer<f32>,
-        held: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// One axis's pass of box sums (`params`) for the local correlation of two images: the
-    /// first pass sums abi::LOCAL_MOMENTS of the images `input` (a) and `other` (b) along x,
-    /// the others sum the stack in `input` along y, then z (`other` unused).
-    fn local_moments(
-        &self,
-        params: &LocalMomentsParams,
-        input: &Self::Buffer<f32>,
-        other: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// Per chunk of abi::STATS_CHUNK voxels of box sums (`local_moments`' last pass): the sum
-    /// of the squared local correlation and the voxels where it is defined (neither window
-    /// flat).
-    fn lncc(&self, params: &LnccParams, sums: &Self::Buffer<f32>) -> Result<Self::Buffer<f32>>;
-
-    /// One sweep of local smoothing of `field` over `region`: each voxel there takes the mean
-    /// of its 27 neighbours unless that carries its source point into a bone (`labels`,
-    /// `params`' codes) it was not in.
-    fn fold_smooth(
-        &self,
-        params: &BoneLookupParams,
-        field: &Self::Buffer<f32>,
-        region: &Self::Buffer<f32>,
-        labels: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// `moving` seen through the warp `lattice` (3 floats per node) at every voxel of the grid
-    /// in `params`: W(x) = I0(x + R(x)), 0 outside.
-    fn warp_image(
-        &self,
-        params: &RbfGradParams,
-        lattice: &Self::Buffer<f32>,
-        moving: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// W · T and W · W per voxel: what the intensity gain smooths (gain.rs).
-    fn gain_terms(
-        &self,
-        params: &GainParams,
-        warped: &Self::Buffer<f32>,
-        target: &Self::Buffer<f32>,
-    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
-
-    /// The gain on the smoothed grid: product / energy, clamped, 1 where energy is at or below
-    /// the floor.
-    fn gain_ratio(
-        &self,
-        params: &GainParams,
-        product: &Self::Buffer<f32>,
-        energy: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// `moving` times the gain interpolated from the smoothed grid.
-    fn gain_apply(
-        &self,
-        params: &GainParams,
-        gain: &Self::Buffer<f32>,
-        moving: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// The warp R at every voxel of the grid in `params` (3 floats per voxel), interpolated
-    /// from `lattice` (3 floats per node) as the non-rigid cost does.
-    fn warp_field(
-        &self,
-        params: &RbfGradParams,
-        lattice: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// The total field u = R + u0 ∘ (id + R) of a warp R and an initial field u0 on one grid.
-    fn compose(
-        &self,
-        params: &ComposeParams,
-        warp: &Self::Buffer<f32>,
-        initial: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// `warp` (3 floats per voxel of the grid in `params`) scaled by each voxel's distance to
-    /// the nearest bone (`distance`: one volume per bone, mm, stacked) over the margin, clamped
-    /// to 1: zero on the bones.
-    fn fade_warp(
-        &self,
-        params: &FadeParams,
-        warp: &Self::Buffer<f32>,
-        distance: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// The inverse of `field` (3 floats per voxel of the field grid in `params`) on the output
-    /// grid: w with y + w(y) = z where z + u(z) = y (3 floats per voxel), and per voxel the
-    /// residual |z + u(z) − y| in mm, −1 where y has no preimage in the field's grid.
-    fn invert_field(
-        &self,
-        params: &InvertParams,
-        field: &Self::Buffer<f32>,
-    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
-
-    /// The warp R at every lattice node (3 f32 per node), the cubic RBF `spline` (f64, layout
-    /// of abi::spline_buffer) evaluated in f64 at nodes placed by `geometry`
-    /// (abi::lattice_geometry).
-    fn rbf_lattice(
-        &self,
-        params: &RbfLatticeParams,
-        geometry: &Self::Buffer<f64>,
-        spline: &Self::Buffer<f64>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// The image part of a non-rigid cost evaluation through the warp `lattice`: the masked
-    /// gradient (3 floats per voxel) and Σ c (W − T)² per row of x (ny · nz floats).
-    fn warp_cost(
-        &self,
-        params: &RbfGradParams,
-        lattice: &Self::Buffer<f32>,
-        images: &CostImages<Self::Buffer<f32>>,
-    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
-
-    /// The local-correlation cost's terms from the box sums of W and T (`local_moments`' last
-    /// pass) and the coverage: 5 floats per voxel to box-sum again (`local_moments` over
-    /// `LocalMomentsParams::stack_passes`) and K Σ c (1 − ρ²) per row of x (ny · nz floats).
-    fn lncc_terms(
-        &self,
-        params: &LnccTermsParams,
-        sums: &Self::Buffer<f32>,
-        covered: &Self::Buffer<f32>,
-    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
-
-    /// The image part of the local-correlation cost's gradient through the warp `lattice`
-    /// (3 floats per voxel, as `warp_cost`'s) from the box-summed terms `summed`: `moving`
-    /// (I0) seen through it against `fixed`.
-    fn lncc_gradient(
-        &self,
-        params: &RbfGradParams,
-        lattice: &Self::Buffer<f32>,
-        moving: &Self::Buffer<f32>,
-        fixed: &Self::Buffer<f32>,
-        summed: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// The adjoint of the lattice interpolation: 3 floats per lattice node, Σ_x w_n(x) v(x),
-    /// from 3 floats per voxel.
-    fn lattice_splat(
-        &self,
-        params: &SplatParams,
-        values: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
-
-    /// The lattice energy's terms (1 float per node) and the whole cost's gradient at each
-    /// node (3 floats): `splat` scaled, plus the energy's gradient.
-    fn lattice_energy(
-        &self,
-        params: &EnergyParams,
-        lattice: &Self::Buffer<f32>,
-        splat: &Self::Buffer<f32>,
-    ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
-
-    /// The gradient with respect to the RBF's coefficients from the gradient at the nodes, as
-    /// partial sums per chunk of nodes (f64: per chunk, 3 per control point, then 3 per affine
-    /// row; [`Backend::sum_partials`] adds them).
-    fn rbf_adjoint(
-        &self,
-        params: &RbfLatticeParams,
-        geometry: &Self::Buffer<f64>,
-        spline: &Self::Buffer<f64>,
-        node_gradient: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f64>>;
-
-    /// Per-chunk partial results of `values` values each, added in chunk order (in groups,
-    /// abi::PartialsParams::passes), in f64.
-    fn sum_partials<T: Element>(
-        &self,
-        partials: &Self::Buffer<T>,
-        values: usize,
-    ) -> Result<Self::Buffer<f64>>;
-
-    /// Sums of (v − shift)^power over chunks of abi::SUM_CHUNK values, in f64 (`params`).
-    fn sum_chunks(
-        &self,
-        params: &SumParams,
-        values: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f64>>;
 }
 
-/// Σ (v − shift)^power over all of `values` (`params`), reduced where the backend computes; the
-/// chunks' sums come back and are added here.
-pub fn total<B: Backend>(backend: &B, params: &SumParams, values: &B::Buffer<f32>) -> Result<f64> {
-    let sums = backend.sum_chunks(params, values)?;
-    Ok(backend.download_one(&sums)?.iter().sum())
-}
-
-/// The box sums of the local correlation (abi::LOCAL_MOMENTS per voxel) of the images `a` and
-/// `b` on one grid: `passes` (`LocalMomentsParams::passes`) x, y, then z; or, with
-/// `LocalMomentsParams::stack_passes`, of the stack in `a` (`b` unused).
-pub fn box_sums<B: Backend>(
-    backend: &B,
-    passes: &[LocalMomentsParams; 3],
-    a: &B::Buffer<f32>,
-    b: &B::Buffer<f32>,
-) -> Result<B::Buffer<f32>> {
-    let along_x = backend.local_moments(&passes[0], a, b)?;
-    let along_y = backend.local_moments(&passes[1], &along_x, &along_x)?;
-    backend.local_moments(&passes[2], &along_y, &along_y)
+/// Every type with the core and every family is a backend.
+impl<T> Backend for T where
+    T: Core
+        + sampling::Sampling
+        + labels::LabelMaps
+        + regions::Regions
+        + rigid::Rigid
+        + skinning::Skinning
+        + dense::Dense
+        + fold::Fold
+        + correlation::Correlation
+        + field::Fields
+        + reduce::Reduce
+        + nonrigid::NonRigid
+{
 }
 
 /// Checks the grids of two images combined voxel by voxel are the same.

@@ -50,7 +50,7 @@ pub fn code_index(codes: &LabelCodes, label: f32) -> u32 {
         return 0;
     }
     let code = label as u32;
-    (0..codes.count[0])
+    (0..codes.count)
         .find(|&c| codes.list[(c / 4) as usize][(c % 4) as usize] == code)
         .map_or(0, |c| c + 1)
 }

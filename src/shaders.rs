@@ -11,20 +11,29 @@ const WARP_SAMPLE: (&str, &str) = (
     "warp_sample.wgsl",
     include_str!("../shaders/warp_sample.wgsl"),
 );
-const RBF_NODES: (&str, &str) = ("rbf_nodes.wgsl", include_str!("../shaders/rbf_nodes.wgsl"));
+const RBF_NODES: (&str, &str) = (
+    "nonrigid/rbf_nodes.wgsl",
+    include_str!("../shaders/nonrigid/rbf_nodes.wgsl"),
+);
 const GEOMETRY: (&str, &str) = ("geometry.wgsl", include_str!("../shaders/geometry.wgsl"));
 const LABELS: (&str, &str) = ("labels.wgsl", include_str!("../shaders/labels.wgsl"));
 const BONE_LOOKUP: (&str, &str) = (
     "bone_lookup.wgsl",
     include_str!("../shaders/bone_lookup.wgsl"),
 );
-const THRESHOLD: (&str, &str) = ("threshold.wgsl", include_str!("../shaders/threshold.wgsl"));
-const GAIN: (&str, &str) = ("gain.wgsl", include_str!("../shaders/gain.wgsl"));
+const THRESHOLD: (&str, &str) = (
+    "fold/threshold.wgsl",
+    include_str!("../shaders/fold/threshold.wgsl"),
+);
+const GAIN: (&str, &str) = (
+    "nonrigid/gain.wgsl",
+    include_str!("../shaders/nonrigid/gain.wgsl"),
+);
 const WINDOW: (&str, &str) = ("window.wgsl", include_str!("../shaders/window.wgsl"));
 const FADE: (&str, &str) = ("fade.wgsl", include_str!("../shaders/fade.wgsl"));
 const SUM_PARTIALS: (&str, &str) = (
-    "sum_partials.wgsl",
-    include_str!("../shaders/sum_partials.wgsl"),
+    "reduce/sum_partials.wgsl",
+    include_str!("../shaders/reduce/sum_partials.wgsl"),
 );
 
 /// Every kernel: its name and the files it is assembled from, in order.
@@ -83,8 +92,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             THRESHOLD,
             (
-                "fold_stats.wgsl",
-                include_str!("../shaders/fold_stats.wgsl"),
+                "fold/fold_stats.wgsl",
+                include_str!("../shaders/fold/fold_stats.wgsl"),
             ),
         ],
     ),
@@ -94,8 +103,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             THRESHOLD,
             (
-                "mark_at_most.wgsl",
-                include_str!("../shaders/mark_at_most.wgsl"),
+                "fold/mark_at_most.wgsl",
+                include_str!("../shaders/fold/mark_at_most.wgsl"),
             ),
         ],
     ),
@@ -124,8 +133,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             (
-                "local_moments.wgsl",
-                include_str!("../shaders/local_moments.wgsl"),
+                "correlation/local_moments.wgsl",
+                include_str!("../shaders/correlation/local_moments.wgsl"),
             ),
         ],
     ),
@@ -134,7 +143,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             WINDOW,
-            ("lncc.wgsl", include_str!("../shaders/lncc.wgsl")),
+            (
+                "correlation/lncc.wgsl",
+                include_str!("../shaders/correlation/lncc.wgsl"),
+            ),
         ],
     ),
     (
@@ -143,8 +155,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             WINDOW,
             (
-                "lncc_terms.wgsl",
-                include_str!("../shaders/lncc_terms.wgsl"),
+                "correlation/lncc_terms.wgsl",
+                include_str!("../shaders/correlation/lncc_terms.wgsl"),
             ),
         ],
     ),
@@ -156,8 +168,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             LATTICE_WARP,
             WARP_SAMPLE,
             (
-                "lncc_gradient.wgsl",
-                include_str!("../shaders/lncc_gradient.wgsl"),
+                "correlation/lncc_gradient.wgsl",
+                include_str!("../shaders/correlation/lncc_gradient.wgsl"),
             ),
         ],
     ),
@@ -165,7 +177,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         "dilate",
         &[
             COMMON,
-            ("dilate.wgsl", include_str!("../shaders/dilate.wgsl")),
+            (
+                "fold/dilate.wgsl",
+                include_str!("../shaders/fold/dilate.wgsl"),
+            ),
         ],
     ),
     (
@@ -177,8 +192,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             LABELS,
             BONE_LOOKUP,
             (
-                "fold_smooth.wgsl",
-                include_str!("../shaders/fold_smooth.wgsl"),
+                "fold/fold_smooth.wgsl",
+                include_str!("../shaders/fold/fold_smooth.wgsl"),
             ),
         ],
     ),
@@ -186,7 +201,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         "jacobian",
         &[
             COMMON,
-            ("jacobian.wgsl", include_str!("../shaders/jacobian.wgsl")),
+            (
+                "fold/jacobian.wgsl",
+                include_str!("../shaders/fold/jacobian.wgsl"),
+            ),
         ],
     ),
     (
@@ -194,8 +212,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             (
-                "lattice_splat.wgsl",
-                include_str!("../shaders/lattice_splat.wgsl"),
+                "nonrigid/lattice_splat.wgsl",
+                include_str!("../shaders/nonrigid/lattice_splat.wgsl"),
             ),
         ],
     ),
@@ -217,8 +235,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             LATTICE_WARP,
             WARP_SAMPLE,
             (
-                "warp_image.wgsl",
-                include_str!("../shaders/warp_image.wgsl"),
+                "nonrigid/warp_image.wgsl",
+                include_str!("../shaders/nonrigid/warp_image.wgsl"),
             ),
         ],
     ),
@@ -228,8 +246,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             GAIN,
             (
-                "gain_terms.wgsl",
-                include_str!("../shaders/gain_terms.wgsl"),
+                "nonrigid/gain_terms.wgsl",
+                include_str!("../shaders/nonrigid/gain_terms.wgsl"),
             ),
         ],
     ),
@@ -239,8 +257,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             GAIN,
             (
-                "gain_ratio.wgsl",
-                include_str!("../shaders/gain_ratio.wgsl"),
+                "nonrigid/gain_ratio.wgsl",
+                include_str!("../shaders/nonrigid/gain_ratio.wgsl"),
             ),
         ],
     ),
@@ -251,8 +269,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             SAMPLE,
             GAIN,
             (
-                "gain_apply.wgsl",
-                include_str!("../shaders/gain_apply.wgsl"),
+                "nonrigid/gain_apply.wgsl",
+                include_str!("../shaders/nonrigid/gain_apply.wgsl"),
             ),
         ],
     ),
@@ -263,7 +281,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             SAMPLE,
             LATTICE_WARP,
             WARP_SAMPLE,
-            ("warp_cost.wgsl", include_str!("../shaders/warp_cost.wgsl")),
+            (
+                "nonrigid/warp_cost.wgsl",
+                include_str!("../shaders/nonrigid/warp_cost.wgsl"),
+            ),
         ],
     ),
     (
@@ -272,8 +293,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             LATTICE_WARP,
             (
-                "warp_field.wgsl",
-                include_str!("../shaders/warp_field.wgsl"),
+                "field/warp_field.wgsl",
+                include_str!("../shaders/field/warp_field.wgsl"),
             ),
         ],
     ),
@@ -282,7 +303,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             SAMPLE,
-            ("compose.wgsl", include_str!("../shaders/compose.wgsl")),
+            (
+                "field/compose.wgsl",
+                include_str!("../shaders/field/compose.wgsl"),
+            ),
         ],
     ),
     (
@@ -290,7 +314,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             FADE,
-            ("fade_warp.wgsl", include_str!("../shaders/fade_warp.wgsl")),
+            (
+                "field/fade_warp.wgsl",
+                include_str!("../shaders/field/fade_warp.wgsl"),
+            ),
         ],
     ),
     (
@@ -299,8 +326,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             SAMPLE,
             (
-                "invert_field.wgsl",
-                include_str!("../shaders/invert_field.wgsl"),
+                "field/invert_field.wgsl",
+                include_str!("../shaders/field/invert_field.wgsl"),
             ),
         ],
     ),
@@ -310,8 +337,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             RBF_NODES,
             (
-                "rbf_lattice.wgsl",
-                include_str!("../shaders/rbf_lattice.wgsl"),
+                "nonrigid/rbf_lattice.wgsl",
+                include_str!("../shaders/nonrigid/rbf_lattice.wgsl"),
             ),
         ],
     ),
@@ -321,8 +348,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             RBF_NODES,
             (
-                "rbf_adjoint.wgsl",
-                include_str!("../shaders/rbf_adjoint.wgsl"),
+                "nonrigid/rbf_adjoint.wgsl",
+                include_str!("../shaders/nonrigid/rbf_adjoint.wgsl"),
             ),
         ],
     ),
@@ -331,8 +358,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             (
-                "lattice_energy.wgsl",
-                include_str!("../shaders/lattice_energy.wgsl"),
+                "nonrigid/lattice_energy.wgsl",
+                include_str!("../shaders/nonrigid/lattice_energy.wgsl"),
             ),
         ],
     ),
@@ -341,8 +368,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             (
-                "sum_chunks.wgsl",
-                include_str!("../shaders/sum_chunks.wgsl"),
+                "reduce/sum_chunks.wgsl",
+                include_str!("../shaders/reduce/sum_chunks.wgsl"),
             ),
         ],
     ),
@@ -409,7 +436,10 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         "ssd_cells",
         &[
             COMMON,
-            ("ssd_cells.wgsl", include_str!("../shaders/ssd_cells.wgsl")),
+            (
+                "nonrigid/ssd_cells.wgsl",
+                include_str!("../shaders/nonrigid/ssd_cells.wgsl"),
+            ),
         ],
     ),
     // The dense stage's family (shaders/dense/).

@@ -680,7 +680,7 @@ fn nonrigid_evaluation_kernels_parity() {
     let Some(gpu) = gpu() else { return };
     // A coarse lattice of odd size, its step different along each axis; and every voxel a node
     // (as at coarse pyramid levels), over more than 65 535 nodes (llvmpipe ends longer loops:
-    // shaders/rbf_adjoint.wgsl).
+    // shaders/nonrigid/rbf_adjoint.wgsl).
     for (dims, step, points) in [([27, 22, 17], [4, 3, 5], 40), ([41, 64, 27], [1; 3], 23)] {
         let grid = oblique_grid(dims);
         let moving = smooth_volume(&grid, 61);

@@ -561,7 +561,7 @@ fn lattice_splat_is_the_adjoint_of_the_lattice_interpolation() {
     // <interp(L), v> over voxels == <L, splat(v)> over nodes, for random L and v: the gradient
     // the optimiser gets through the lattice is exactly the gradient of what it evaluates.
     use posereg::abi::RbfGradParams;
-    use posereg::cpu::warp_image::{warp_at, LatticeTaps};
+    use posereg::cpu::lattice_warp::{warp_at, LatticeTaps};
     let grid = oblique_grid([19, 14, 11]);
     let step = [4, 3, 5];
     let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);

@@ -33,7 +33,7 @@ fn every_shader_parses_and_validates() {
         let module = parse(kernel);
         let mut validator = naga::valid::Validator::new(
             naga::valid::ValidationFlags::all(),
-            // The RBF kernels need f64 (shaders/rbf_lattice.wgsl says why); the GPU backend
+            // The RBF kernels need f64 (shaders/nonrigid/rbf_lattice.wgsl says why); the GPU backend
             // asks the adapter for SHADER_F64.
             naga::valid::Capabilities::FLOAT64,
         );

@@ -9,7 +9,7 @@
 //         form: the window centred on the voxel only; 0 where a window is flat)
 // c is 1 where the field's point lies inside the source (coverage ≥ abi::COVERED_AT), else 0.
 // ∇W is in world mm: central differences along the index axes (one-sided at the faces)
-// times d(index)/d(world), as jacobian.wgsl differentiates a field.
+// times d(index)/d(world), as fold/jacobian.wgsl differentiates a field.
 //
 // Bindings (group 0):
 //   0 uniform  ForceParams

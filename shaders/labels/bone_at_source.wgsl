@@ -31,7 +31,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let v = voxel_index(gid.x, gid.y, gid.z, d);
     let u = vec3<f32>(field[3u * v], field[3u * v + 1u], field[3u * v + 2u]);
     var found = 0u;
-    if (residual[v] <= params.limit.x) {
+    if (residual[v] <= params.limit) {
         found = bone_at(vec3<f32>(gid), u);
     }
     bone[v] = f32(found);

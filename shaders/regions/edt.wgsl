@@ -14,9 +14,12 @@
 
 // Keep in sync with abi::EdtParams.
 struct EdtParams {
-    dims: vec4<u32>,     // nx, ny, nz, axis of this pass (0 x, 1 y, 2 z)
+    dims: vec4<u32>,     // nx, ny, nz, unused
     spacing: vec4<f32>,  // mm between samples along x, y, z, unused
-    stack: vec4<u32>,    // volumes, 1: first pass (input is the index map), 1: last pass, unused
+    axis: u32,           // the axis of this pass (0 x, 1 y, 2 z)
+    volumes: u32,        // volumes in the stack
+    first: u32,          // 1: first pass (input is the index map)
+    last: u32,           // 1: last pass
 }
 
 @group(0) @binding(0) var<uniform> params: EdtParams;
@@ -35,7 +38,7 @@ var<private> bounds: array<f32, MAX_LINE>;  // where each one starts to be the l
 fn voxel_of(q: u32, gid: vec3<u32>) -> u32 {
     let d = params.dims.xyz;
     var c = vec3<u32>(0u);
-    switch params.dims.w {
+    switch params.axis {
         case 0u: { c = vec3<u32>(q, gid.x, gid.y); }
         case 1u: { c = vec3<u32>(gid.x, q, gid.y); }
         default: { c = vec3<u32>(gid.x, gid.y, q); }
@@ -46,7 +49,7 @@ fn voxel_of(q: u32, gid: vec3<u32>) -> u32 {
 // The squared distance so far at line position q (FAR where none).
 fn sample(q: u32, gid: vec3<u32>) -> f32 {
     let v = voxel_of(q, gid);
-    if (params.stack.y == 1u) {
+    if (params.first == 1u) {
         return select(FAR, 0.0, floor(input[v] + 0.5) == f32(gid.z + 1u));
     }
     let d = params.dims.xyz;
@@ -56,9 +59,9 @@ fn sample(q: u32, gid: vec3<u32>) -> f32 {
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let d = params.dims.xyz;
-    let axis = params.dims.w;
+    let axis = params.axis;
     let others = select(select(vec2<u32>(d.x, d.y), vec2<u32>(d.x, d.z), axis == 1u), vec2<u32>(d.y, d.z), axis == 0u);
-    if (gid.x >= others.x || gid.y >= others.y || gid.z >= params.stack.x) {
+    if (gid.x >= others.x || gid.y >= others.y || gid.z >= params.volumes) {
         return;
     }
     let n = d[axis];
@@ -102,7 +105,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let e = xq - f32(hull[k]) * h;
             out = e * e + sample(hull[k], gid);
         }
-        if (params.stack.z == 1u) {
+        if (params.last == 1u) {
             out = sqrt(out);
         }
         output[base + voxel_of(q, gid)] = out;

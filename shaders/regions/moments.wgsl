@@ -13,7 +13,10 @@
 struct MomentsParams {
     dims: vec4<u32>,     // nx, ny, nz, unused
     chunks: vec4<u32>,   // voxels, voxels per chunk, chunks, unused
-    threshold: vec4<f32>,
+    threshold: f32,      // value at or above which a voxel counts
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
     index_to_world: array<vec4<f32>, 3>,
 }
 
@@ -32,7 +35,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var count = 0.0lf;
     var sum = vec3<f64>(0.0lf);
     for (var v = c * n.y; v < min((c + 1u) * n.y, n.x); v = v + 1u) {
-        if (values[v] >= params.threshold.x) {
+        if (values[v] >= params.threshold) {
             let p = vec3<f32>(f32(v % d.x), f32((v / d.x) % d.y), f32(v / (d.x * d.y)));
             let w = vec3<f32>(
                 affine_row(params.index_to_world[0], p),

@@ -19,10 +19,14 @@
 
 // Keep in sync with abi::ScoreParams.
 struct ScoreParams {
-    dims: vec4<u32>,          // source nx, ny, nz, candidates
+    dims: vec4<u32>,          // source nx, ny, nz, unused
     target_dims: vec4<u32>,   // target nx, ny, nz, unused
     source_to_world: array<vec4<f32>, 3>,
     world_to_target: array<vec4<f32>, 3>,
+    candidates: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: ScoreParams;
@@ -45,7 +49,7 @@ fn candidate_row(c: u32, r: u32) -> vec4<f32> {
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let nx = params.dims.x;
     let ny = params.dims.y;
-    let count = params.dims.w;
+    let count = params.candidates;
     let x = gid.x;
     let z = gid.y;
     let c = gid.z;

@@ -23,7 +23,10 @@
 // Keep in sync with abi::SkinBlendParams.
 struct SkinBlendParams {
     dims: vec4<u32>,        // target nx, ny, nz, unused
-    blend: vec4<u32>,       // bones, iterations, blending (0 linear, 1 dual quaternion), unused
+    bones: u32,
+    iterations: u32,        // most iterations of the inversion
+    blending: u32,          // 0 linear, 1 dual quaternion
+    pad0: u32,
     weight_dims: vec4<u32>, // weight grid nx, ny, nz, unused
     label_dims: vec4<u32>,  // source label grid nx, ny, nz, unused
     target_to_world: array<vec4<f32>, 3>,
@@ -61,7 +64,7 @@ fn sampled_value(index: u32) -> f32 {
 // The bone whose label holds x (nearest label voxel), or `bones` when x is in soft tissue or
 // outside the label grid.
 fn bone_at(x: vec3<f32>) -> u32 {
-    let bones = params.blend.x;
+    let bones = params.bones;
     let n = params.label_dims.xyz;
     let q = vec3<f32>(
         affine_row(params.world_to_label[0], x),
@@ -74,7 +77,7 @@ fn bone_at(x: vec3<f32>) -> u32 {
 
 fn blend(x: vec3<f32>) -> Blend {
     let n = params.weight_dims.xyz;
-    let bones = params.blend.x;
+    let bones = params.bones;
     let inside = bone_at(x);
     if (inside < bones) {
         let m0 = params.forward[3u * inside];
@@ -102,7 +105,7 @@ fn blend(x: vec3<f32>) -> Blend {
     b.r0 = vec3<f32>(0.0);
     b.r1 = vec3<f32>(0.0);
     b.r2 = vec3<f32>(0.0);
-    let dual_quaternion = params.blend.z == 1u;
+    let dual_quaternion = params.blending == 1u;
     var real = vec4<f32>(0.0);
     var dual = vec4<f32>(0.0);
     for (var j = 0u; j < bones; j = j + 1u) {
@@ -161,7 +164,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
         return;
     }
-    let bones = params.blend.x;
+    let bones = params.bones;
     let v = vec3<f32>(f32(gid.x), f32(gid.y), f32(gid.z));
     let p = vec3<f32>(
         affine_row(params.target_to_world[0], v),
@@ -192,7 +195,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         b = blend(x);
     }
     var err = best;
-    for (var it = 0u; it < params.blend.y && err > CONVERGED_MM; it = it + 1u) {
+    for (var it = 0u; it < params.iterations && err > CONVERGED_MM; it = it + 1u) {
         let e = b.point - p;
         let det = det3(b.r0, b.r1, b.r2);
         var step = e;

@@ -14,7 +14,10 @@
 // Keep in sync with abi::SkinWeightsParams.
 struct SkinWeightsParams {
     dims: vec4<u32>,     // nx, ny, nz, unused
-    weights: vec4<u32>,  // bones, power (integer p), unused x2
+    bones: u32,
+    power: u32,          // integer p
+    pad0: u32,
+    pad1: u32,
     reach: array<vec4<f32>, 2>,  // per bone, the factor its distances are scaled by
 }
 
@@ -33,7 +36,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
         return;
     }
-    let bones = params.weights.x;
+    let bones = params.bones;
     let v = voxel_index(gid.x, gid.y, gid.z, d.xyz);
     let voxels = d.x * d.y * d.z;
     let base = v * bones;
@@ -56,7 +59,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var j = 0u; j < bones; j = j + 1u) {
         let ratio = nearest / scaled_distance(j, v, voxels);
         var raw = 1.0;
-        for (var k = 0u; k < params.weights.y; k = k + 1u) {
+        for (var k = 0u; k < params.power; k = k + 1u) {
             raw = raw * ratio;
         }
         weight[base + j] = raw;

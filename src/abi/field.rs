@@ -1,23 +1,29 @@
-//! Fields: the fade off the bones and composition.
+//! Fields: the fade off the bones, composition and inversion.
 
 use super::*;
 
-/// Keep in sync with `FadeParams` in shaders/fade_warp.wgsl.
+/// Keep in sync with `FadeParams` in shaders/field/fade_warp.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct FadeParams {
-    /// nx, ny, nz of the warp's grid, and the bones (volumes of the distance stack).
+    /// nx, ny, nz of the warp's grid, unused.
     pub dims: [u32; 4],
-    /// mm over which the warp rises from zero on a bone to its whole, unused ×3.
-    pub margin: [f32; 4],
+    /// Bones (volumes of the distance stack).
+    pub bones: u32,
+    /// mm over which the warp rises from zero on a bone to its whole.
+    pub margin: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 2],
 }
 
 impl FadeParams {
     /// For a warp on `grid` faded over `margin_mm` (> 0) from `bones` bones.
     pub fn new(grid: &Grid, bones: usize, margin_mm: f64) -> Self {
         FadeParams {
-            dims: dims4(grid, bones as u32),
-            margin: [margin_mm as f32, 0.0, 0.0, 0.0],
+            dims: dims4(grid, 0),
+            bones: bones as u32,
+            margin: margin_mm as f32,
+            pad: [0; 2],
         }
     }
 
@@ -27,7 +33,7 @@ impl FadeParams {
     }
 }
 
-/// Keep in sync with `ComposeParams` in shaders/compose.wgsl.
+/// Keep in sync with `ComposeParams` in shaders/field/compose.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct ComposeParams {
@@ -58,5 +64,40 @@ impl ComposeParams {
             index_to_initial: rows.index_to_source,
             mm_to_initial: rows.mm_to_source,
         }
+    }
+}
+
+/// Keep in sync with `InvertParams` in shaders/field/invert_field.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct InvertParams {
+    /// nx, ny, nz of the grid the inverse is sampled on (the source's), unused.
+    pub out_dims: [u32; 4],
+    /// nx, ny, nz of the field's grid (the target's), unused.
+    pub field_dims: [u32; 4],
+    /// Rows of (field world→index) · (out index→world): an output voxel → field index.
+    pub index_to_field: [[f32; 4]; 3],
+    /// Rows of the field grid's world→index linear part: mm → index delta.
+    pub mm_to_index: [[f32; 4]; 3],
+    /// Rows of the field grid's index→world linear part: index delta → mm.
+    pub index_to_mm: [[f32; 4]; 3],
+}
+
+impl InvertParams {
+    /// To invert a field on `field` onto the grid `out`.
+    pub fn new(field: &Grid, out: &Grid) -> Self {
+        let combined = snap_to_integers(&(field.world_to_voxel_affine() * out.affine));
+        InvertParams {
+            out_dims: dims4(out, 0),
+            field_dims: dims4(field, 0),
+            index_to_field: rows(&combined),
+            mm_to_index: mm_to_index_rows(field),
+            index_to_mm: linear_rows(&field.affine.fixed_view::<3, 3>(0, 0).into_owned()),
+        }
+    }
+
+    /// Voxels of the output grid.
+    pub fn voxels(&self) -> usize {
+        count(&self.out_dims)
     }
 }

@@ -1,14 +1,14 @@
-//! Folds: thresholds, the Jacobian determinant and its statistics, the field's inverse.
+//! Folds: thresholds, the Jacobian determinant and its statistics, the dilation of a mask.
 
 use super::*;
 
 /// Voxels per chunk of the fold statistics and the moments.
 pub const STATS_CHUNK: usize = 1024;
-/// Floats of fold statistics per chunk (shaders/fold_stats.wgsl): minimum, folded, at most the
+/// Floats of fold statistics per chunk (shaders/fold/fold_stats.wgsl): minimum, folded, at most the
 /// threshold, of those not held, folded bone contacts.
 pub const FOLD_STATS_WIDTH: usize = 5;
 
-/// Keep in sync with `ThresholdParams` in shaders/threshold.wgsl.
+/// Keep in sync with `ThresholdParams` in shaders/fold/threshold.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct ThresholdParams {
@@ -16,8 +16,10 @@ pub struct ThresholdParams {
     pub dims: [u32; 4],
     /// Voxels, voxels per chunk ([`STATS_CHUNK`]), chunks, unused.
     pub chunks: [u32; 4],
-    /// The threshold (det J for the folds, mm for a distance), unused ×3.
-    pub threshold: [f32; 4],
+    /// The threshold (det J for the folds, mm for a distance).
+    pub threshold: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 impl ThresholdParams {
@@ -26,7 +28,8 @@ impl ThresholdParams {
         ThresholdParams {
             dims: dims4(grid, 0),
             chunks: chunking(grid.len(), STATS_CHUNK, 0),
-            threshold: [threshold, 0.0, 0.0, 0.0],
+            threshold,
+            pad: [0; 3],
         }
     }
 
@@ -41,7 +44,7 @@ impl ThresholdParams {
     }
 }
 
-/// Keep in sync with `JacobianParams` in shaders/jacobian.wgsl.
+/// Keep in sync with `JacobianParams` in shaders/fold/jacobian.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct JacobianParams {
@@ -66,37 +69,37 @@ impl JacobianParams {
     }
 }
 
-/// Keep in sync with `InvertParams` in shaders/invert_field.wgsl.
+/// Keep in sync with `DilateParams` in shaders/fold/dilate.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
-pub struct InvertParams {
-    /// nx, ny, nz of the grid the inverse is sampled on (the source's), unused.
-    pub out_dims: [u32; 4],
-    /// nx, ny, nz of the field's grid (the target's), unused.
-    pub field_dims: [u32; 4],
-    /// Rows of (field world→index) · (out index→world): an output voxel → field index.
-    pub index_to_field: [[f32; 4]; 3],
-    /// Rows of the field grid's world→index linear part: mm → index delta.
-    pub mm_to_index: [[f32; 4]; 3],
-    /// Rows of the field grid's index→world linear part: index delta → mm.
-    pub index_to_mm: [[f32; 4]; 3],
+pub struct DilateParams {
+    /// nx, ny, nz, unused.
+    pub dims: [u32; 4],
+    /// Axis (0 x, 1 y, 2 z).
+    pub axis: u32,
+    /// 1 to clear the held voxels.
+    pub clear_held: u32,
+    /// The margin (voxels).
+    pub margin: u32,
+    /// Padding to 16 bytes.
+    pub pad: u32,
 }
 
-impl InvertParams {
-    /// To invert a field on `field` onto the grid `out`.
-    pub fn new(field: &Grid, out: &Grid) -> Self {
-        let combined = snap_to_integers(&(field.world_to_voxel_affine() * out.affine));
-        InvertParams {
-            out_dims: dims4(out, 0),
-            field_dims: dims4(field, 0),
-            index_to_field: rows(&combined),
-            mm_to_index: mm_to_index_rows(field),
-            index_to_mm: linear_rows(&field.affine.fixed_view::<3, 3>(0, 0).into_owned()),
-        }
+impl DilateParams {
+    /// The passes dilating a mask on `grid` by `margin` voxels along x, y and z, the last
+    /// clearing the held voxels.
+    pub fn passes(grid: &Grid, margin: usize) -> [DilateParams; 3] {
+        std::array::from_fn(|axis| DilateParams {
+            dims: dims4(grid, 0),
+            axis: axis as u32,
+            clear_held: (axis == 2) as u32,
+            margin: margin as u32,
+            pad: 0,
+        })
     }
 
-    /// Voxels of the output grid.
+    /// Voxels of the grid.
     pub fn voxels(&self) -> usize {
-        count(&self.out_dims)
+        count(&self.dims)
     }
 }

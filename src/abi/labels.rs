@@ -1,4 +1,4 @@
-//! Label maps: codes, lookups of a bone at a point, dilation.
+//! Label maps: codes and lookups of a bone at a point.
 
 use super::*;
 
@@ -7,8 +7,10 @@ use super::*;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct LabelCodes {
-    /// Codes in the list, unused ×3.
-    pub count: [u32; 4],
+    /// Codes in the list.
+    pub count: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
     /// The codes, 4 per row.
     pub list: [[u32; 4]; 2],
 }
@@ -27,7 +29,8 @@ impl LabelCodes {
             list[c / 4][c % 4] = code as u32;
         }
         Ok(LabelCodes {
-            count: [codes.len() as u32, 0, 0, 0],
+            count: codes.len() as u32,
+            pad: [0; 3],
             list,
         })
     }
@@ -66,8 +69,10 @@ pub struct BoneLookupParams {
     pub geometry: ResampleParams,
     /// The bones' codes.
     pub codes: LabelCodes,
-    /// Largest residual (mm) bone_at_source counts, unused ×3.
-    pub limit: [f32; 4],
+    /// Largest residual (mm) bone_at_source counts.
+    pub limit: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 impl BoneLookupParams {
@@ -77,38 +82,13 @@ impl BoneLookupParams {
         Ok(BoneLookupParams {
             geometry: ResampleParams::new(labels, target, -1.0, Interpolation::Nearest),
             codes: LabelCodes::new(bones)?,
-            limit: [residual_limit, 0.0, 0.0, 0.0],
+            limit: residual_limit,
+            pad: [0; 3],
         })
     }
 
     /// Voxels of the target grid.
     pub fn voxels(&self) -> usize {
         self.geometry.voxels()
-    }
-}
-
-/// Keep in sync with `DilateParams` in shaders/dilate.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
-pub struct DilateParams {
-    /// nx, ny, nz, and the margin (voxels).
-    pub dims: [u32; 4],
-    /// Axis (0 x, 1 y, 2 z), 1 to clear the held voxels, unused ×2.
-    pub axis: [u32; 4],
-}
-
-impl DilateParams {
-    /// The passes dilating a mask on `grid` by `margin` voxels along x, y and z, the last
-    /// clearing the held voxels.
-    pub fn passes(grid: &Grid, margin: usize) -> [DilateParams; 3] {
-        std::array::from_fn(|axis| DilateParams {
-            dims: dims4(grid, margin as u32),
-            axis: [axis as u32, (axis == 2) as u32, 0, 0],
-        })
-    }
-
-    /// Voxels of the grid.
-    pub fn voxels(&self) -> usize {
-        count(&self.dims)
     }
 }

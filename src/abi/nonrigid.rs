@@ -1,5 +1,5 @@
-//! The adaptive stage's evaluation: the RBF on the lattice, its adjoint, sums and energies, the
-//! per-cell SSD and the intensity gain.
+//! The adaptive stage's evaluation: the RBF on the lattice, its adjoint, the lattice energy,
+//! the per-cell SSD and the intensity gain.
 
 use super::*;
 
@@ -44,7 +44,7 @@ impl RbfGradParams {
     }
 }
 
-/// Keep in sync with `SplatParams` in shaders/lattice_splat.wgsl.
+/// Keep in sync with `SplatParams` in shaders/nonrigid/lattice_splat.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SplatParams {
@@ -72,16 +72,20 @@ impl SplatParams {
     }
 }
 
-/// Keep in sync with `RbfLatticeParams` in shaders/rbf_nodes.wgsl (rbf_lattice, rbf_adjoint).
+/// Keep in sync with `RbfLatticeParams` in shaders/nonrigid/rbf_nodes.wgsl (rbf_lattice, rbf_adjoint).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct RbfLatticeParams {
-    /// Lattice nodes along x, y, z, and the number of control points.
+    /// Lattice nodes along x, y, z, unused.
     pub lattice: [u32; 4],
     /// Lattice step along x, y, z (voxels), unused.
     pub step: [u32; 4],
     /// rbf_adjoint's chunks: nodes, nodes per chunk, chunks, unused.
     pub chunks: [u32; 4],
+    /// The spline's control points.
+    pub points: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 /// Lattice nodes one rbf_adjoint invocation sums: about `nodes / 512`, so that a GPU runs
@@ -99,9 +103,11 @@ impl RbfLatticeParams {
     pub fn new(lattice_dims: [usize; 3], steps: [usize; 3], points: usize) -> Self {
         let nodes: usize = lattice_dims.iter().product();
         RbfLatticeParams {
-            lattice: padded(lattice_dims, points as u32),
+            lattice: padded(lattice_dims, 0),
             step: padded(steps, 0),
             chunks: chunking(nodes, adjoint_chunk(nodes), 0),
+            points: points as u32,
+            pad: [0; 3],
         }
     }
 
@@ -127,7 +133,7 @@ impl RbfLatticeParams {
 
     /// Control points.
     pub fn points(&self) -> usize {
-        self.lattice[3] as usize
+        self.points as usize
     }
 }
 
@@ -153,47 +159,6 @@ pub fn spline_buffer(
     out
 }
 
-/// Values per chunk of sum_chunks.
-pub const SUM_CHUNK: usize = 1024;
-
-/// Keep in sync with `SumParams` in shaders/sum_chunks.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
-pub struct SumParams {
-    /// Values, values per chunk, chunks, power (1 or 2).
-    pub counts: [u32; 4],
-    /// Shift subtracted from each value before the power, unused ×3.
-    pub shift: [f32; 4],
-}
-
-impl SumParams {
-    /// Sums of `values` values in chunks of [`SUM_CHUNK`].
-    pub fn new(values: usize) -> Self {
-        SumParams {
-            counts: chunking(values, SUM_CHUNK, 1),
-            shift: [0.0; 4],
-        }
-    }
-
-    /// Sums of the squares of `values` values minus `shift`.
-    pub fn squares_about(values: usize, shift: f32) -> Self {
-        let mut p = SumParams::new(values);
-        p.counts[3] = 2;
-        p.shift[0] = shift;
-        p
-    }
-
-    /// Values summed.
-    pub fn values(&self) -> usize {
-        self.counts[0] as usize
-    }
-
-    /// Chunks, hence sums.
-    pub fn chunks(&self) -> usize {
-        self.counts[2] as usize
-    }
-}
-
 /// Most operators of a lattice energy (3 membrane + 6 bending).
 pub const MAX_OPERATORS: usize = 9;
 /// Most taps of one operator.
@@ -208,14 +173,18 @@ pub struct Operator {
     pub weight: f32,
 }
 
-/// Keep in sync with `EnergyParams` in shaders/lattice_energy.wgsl.
+/// Keep in sync with `EnergyParams` in shaders/nonrigid/lattice_energy.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct EnergyParams {
-    /// Lattice nodes along x, y, z, and the number of operators.
+    /// Lattice nodes along x, y, z, unused.
     pub dims: [u32; 4],
-    /// Factor on the splatted image gradient (1 / voxels), unused ×3.
-    pub scale: [f32; 4],
+    /// Factor on the splatted image gradient (1 / voxels).
+    pub scale: f32,
+    /// Operators (at most [`MAX_OPERATORS`]).
+    pub operators: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 2],
     /// Operator o's tap t at 4 o + t: node offset, unused.
     pub taps: [[i32; 4]; MAX_OPERATORS * MAX_TAPS],
     /// Operator o's tap coefficients.
@@ -235,13 +204,9 @@ impl EnergyParams {
             "too many energy operators"
         );
         let mut p = EnergyParams::zeroed();
-        p.dims = [
-            dims[0] as u32,
-            dims[1] as u32,
-            dims[2] as u32,
-            operators.len() as u32,
-        ];
-        p.scale[0] = scale;
+        p.dims = padded(dims, 0);
+        p.scale = scale;
+        p.operators = operators.len() as u32;
         for (o, op) in operators.iter().enumerate() {
             assert!(
                 op.taps.len() <= MAX_TAPS,
@@ -271,47 +236,7 @@ impl EnergyParams {
     }
 }
 
-/// Keep in sync with `PartialsParams` in shaders/sum_partials.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
-pub struct PartialsParams {
-    /// Values per chunk, chunks, chunks per group, unused.
-    pub counts: [u32; 4],
-}
-
-/// Most chunks one sum_partials invocation adds.
-pub const PARTIALS_GROUP: usize = 1024;
-
-impl PartialsParams {
-    /// The passes that add `chunks` partial results of `values` values each down to one: each
-    /// adds groups of up to [`PARTIALS_GROUP`] chunks, and the next adds its groups.
-    pub fn passes(values: usize, chunks: usize) -> Vec<PartialsParams> {
-        let mut passes = Vec::new();
-        let mut chunks = chunks.max(1);
-        loop {
-            let group = chunks.min(PARTIALS_GROUP);
-            passes.push(PartialsParams {
-                counts: [values as u32, chunks as u32, group as u32, 0],
-            });
-            if group == chunks {
-                return passes;
-            }
-            chunks = chunks.div_ceil(group);
-        }
-    }
-
-    /// Values per chunk.
-    pub fn values(&self) -> usize {
-        self.counts[0] as usize
-    }
-
-    /// Groups this pass writes (values each).
-    pub fn groups(&self) -> usize {
-        (self.counts[1] as usize).div_ceil(self.counts[2].max(1) as usize)
-    }
-}
-
-/// Keep in sync with `SsdParams` in shaders/ssd_cells.wgsl.
+/// Keep in sync with `SsdParams` in shaders/nonrigid/ssd_cells.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SsdParams {
@@ -336,18 +261,22 @@ impl SsdParams {
     }
 }
 
-/// Keep in sync with `GainParams` in shaders/gain.wgsl.
+/// Keep in sync with `GainParams` in shaders/nonrigid/gain.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct GainParams {
-    /// nx, ny, nz of the grid written, its voxels.
+    /// nx, ny, nz of the grid written, unused.
     pub dims: [u32; 4],
     /// nx, ny, nz of the smoothed grid, unused.
     pub coarse_dims: [u32; 4],
     /// Voxel index of the grid written → continuous index of the smoothed grid.
     pub to_coarse: [[f32; 4]; 3],
-    /// Energy floor, most gain, unused ×2.
-    pub limits: [f32; 4],
+    /// Smoothed energy at or below which the gain is 1.
+    pub floor: f32,
+    /// Most gain: ratios are kept within this factor of 1.
+    pub most: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 2],
 }
 
 impl GainParams {
@@ -355,15 +284,17 @@ impl GainParams {
     /// `most` of 1 and set to 1 where the smoothed energy is at or below `floor`.
     pub fn new(grid: &Grid, coarse: &Grid, floor: f32, most: f32) -> Self {
         GainParams {
-            dims: dims4(grid, grid.len() as u32),
+            dims: dims4(grid, 0),
             coarse_dims: dims4(coarse, 0),
             to_coarse: rows(&(coarse.world_to_voxel_affine() * grid.affine)),
-            limits: [floor, most, 0.0, 0.0],
+            floor,
+            most,
+            pad: [0; 2],
         }
     }
 
     /// Voxels of the grid written.
     pub fn voxels(&self) -> usize {
-        self.dims[3] as usize
+        count(&self.dims)
     }
 }

@@ -9,13 +9,19 @@ pub const MAX_EDT_LINE: usize = 1024;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct EdtParams {
-    /// nx, ny, nz, and the axis of this pass (0 x, 1 y, 2 z).
+    /// nx, ny, nz, unused.
     pub dims: [u32; 4],
     /// mm between samples along x, y, z, unused.
     pub spacing: [f32; 4],
-    /// Volumes in the stack, 1 on the first pass (its input is one volume whose values round to
-    /// the stack index + 1 on each region), 1 on the last (square roots), unused.
-    pub stack: [u32; 4],
+    /// The axis of this pass (0 x, 1 y, 2 z).
+    pub axis: u32,
+    /// Volumes in the stack.
+    pub volumes: u32,
+    /// 1 on the first pass: its input is one volume whose values round to the stack index + 1
+    /// on each region.
+    pub first: u32,
+    /// 1 on the last pass (square roots).
+    pub last: u32,
 }
 
 impl EdtParams {
@@ -30,21 +36,24 @@ impl EdtParams {
         }
         let h = grid.spacing();
         Ok(std::array::from_fn(|axis| EdtParams {
-            dims: dims4(grid, axis as u32),
+            dims: dims4(grid, 0),
             spacing: [h[0] as f32, h[1] as f32, h[2] as f32, 0.0],
-            stack: [volumes as u32, (axis == 0) as u32, (axis == 2) as u32, 0],
+            axis: axis as u32,
+            volumes: volumes as u32,
+            first: (axis == 0) as u32,
+            last: (axis == 2) as u32,
         }))
     }
 
     /// Values written: volumes × voxels.
     pub fn values(&self) -> usize {
-        self.stack[0] as usize * count(&self.dims)
+        self.volumes as usize * count(&self.dims)
     }
 
     /// Lines along the other two axes (each a workgroup dimension).
     pub fn lines(&self) -> [usize; 2] {
         let d = self.dims.map(|n| n as usize);
-        match d[3] {
+        match self.axis {
             0 => [d[1], d[2]],
             1 => [d[0], d[2]],
             _ => [d[0], d[1]],
@@ -60,8 +69,10 @@ pub struct MomentsParams {
     pub dims: [u32; 4],
     /// Voxels, voxels per chunk ([`STATS_CHUNK`]), chunks, unused.
     pub chunks: [u32; 4],
-    /// Value at or above which a voxel counts, unused ×3.
-    pub threshold: [f32; 4],
+    /// Value at or above which a voxel counts.
+    pub threshold: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
     /// Voxel index → world (mm).
     pub index_to_world: [[f32; 4]; 3],
 }
@@ -72,7 +83,8 @@ impl MomentsParams {
         MomentsParams {
             dims: dims4(grid, 0),
             chunks: chunking(grid.len(), STATS_CHUNK, 0),
-            threshold: [threshold, 0.0, 0.0, 0.0],
+            threshold,
+            pad: [0; 3],
             index_to_world: rows(&grid.affine),
         }
     }

@@ -64,7 +64,7 @@ impl RigidParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct ScoreParams {
-    /// Source nx, ny, nz, number of candidates.
+    /// Source nx, ny, nz, unused.
     pub dims: [u32; 4],
     /// Target nx, ny, nz, unused.
     pub target_dims: [u32; 4],
@@ -72,16 +72,22 @@ pub struct ScoreParams {
     pub source_to_world: [[f32; 4]; 3],
     /// World → target continuous index.
     pub world_to_target: [[f32; 4]; 3],
+    /// Candidate motions scored.
+    pub candidates: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
 
 impl ScoreParams {
     /// For `candidates` motions of a bone from `source` into `target`.
     pub fn new(source: &Grid, target: &Grid, candidates: usize) -> Self {
         ScoreParams {
-            dims: dims4(source, candidates as u32),
+            dims: dims4(source, 0),
             target_dims: dims4(target, 0),
             source_to_world: rows(&source.affine),
             world_to_target: rows(&target.world_to_voxel_affine()),
+            candidates: candidates as u32,
+            pad: [0; 3],
         }
     }
 
@@ -92,6 +98,6 @@ impl ScoreParams {
 
     /// Candidate motions scored.
     pub fn candidates(&self) -> usize {
-        self.dims[3] as usize
+        self.candidates as usize
     }
 }

@@ -50,8 +50,12 @@ pub fn check_bone_count(bones: usize) -> Result<()> {
 pub struct SkinWeightsParams {
     /// nx, ny, nz, unused.
     pub dims: [u32; 4],
-    /// Bones, Shepard power, unused ×2.
-    pub weights: [u32; 4],
+    /// Bones (volumes of the distance stack, weights per voxel).
+    pub bones: u32,
+    /// Shepard power p (weights ∝ d⁻ᵖ).
+    pub power: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 2],
     /// Per bone, the factor its distances are scaled by (skinning::reach_scale), 4 per row.
     pub reach: [[f32; 4]; 2],
 }
@@ -67,14 +71,16 @@ impl SkinWeightsParams {
         }
         SkinWeightsParams {
             dims: dims4(grid, 0),
-            weights: [reach.len() as u32, power, 0, 0],
+            bones: reach.len() as u32,
+            power,
+            pad: [0; 2],
             reach: rows,
         }
     }
 
     /// Weights written: bones per voxel.
     pub fn values(&self) -> usize {
-        count(&self.dims) * self.weights[0] as usize
+        count(&self.dims) * self.bones as usize
     }
 }
 
@@ -87,8 +93,14 @@ pub const MAX_SKIN_BONES: usize = 8;
 pub struct SkinBlendParams {
     /// Target nx, ny, nz, unused.
     pub dims: [u32; 4],
-    /// Bones, inversion iterations, blending (0 linear, 1 dual quaternion), unused.
-    pub blend: [u32; 4],
+    /// Bones.
+    pub bones: u32,
+    /// Most iterations of the inversion.
+    pub iterations: u32,
+    /// Blending: 0 linear, 1 dual quaternion.
+    pub blending: u32,
+    /// Padding to 16 bytes.
+    pub pad: u32,
     /// Weight grid nx, ny, nz, unused.
     pub weight_dims: [u32; 4],
     /// Source label grid nx, ny, nz, unused.
@@ -133,7 +145,10 @@ impl SkinBlendParams {
         };
         SkinBlendParams {
             dims: dims4(target, 0),
-            blend: [motions.len() as u32, blend.iterations, blending, 0],
+            bones: motions.len() as u32,
+            iterations: blend.iterations,
+            blending,
+            pad: 0,
             weight_dims: dims4(weights, 0),
             label_dims: dims4(labels, 0),
             target_to_world: rows(&target.affine),

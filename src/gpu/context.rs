@@ -178,7 +178,7 @@ impl GpuContext {
         let adapter = adapters.remove(0);
         let info = adapter.get_info();
         let limits = adapter.limits();
-        // The cubic RBF's terms cancel to a millionth of their size (shaders/rbf_lattice.wgsl):
+        // The cubic RBF's terms cancel to a millionth of their size (shaders/nonrigid/rbf_lattice.wgsl):
         // its kernels run in f64, which Vulkan drivers on NVIDIA, AMD, Intel and lavapipe offer.
         if !adapter.features().contains(wgpu::Features::SHADER_F64) {
             return Err(Error::NoAdapter(format!(

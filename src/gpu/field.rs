@@ -1,33 +1,55 @@
-//! Host side of shaders/warp_field.wgsl, shaders/compose.wgsl, shaders/fade_warp.wgsl and
-//! shaders/invert_field.wgsl: the final field's kernels.
+//! Host side of the field family (shaders/field/): the final field's kernels (the warp on the
+//! grid, its fade off the bones, composition and inversion), their bindings, their compiled
+//! pipelines and the family's trait.
 
-use super::kernel::{cover, Binding};
+use super::context::GpuContext;
+use super::kernel::{cover, Binding, Kernel};
 use super::resident::GpuBuffer;
-use super::GpuBackend;
+use super::{compile, GpuBackend};
 use crate::abi::{ComposeParams, FadeParams, InvertParams, RbfGradParams};
+use crate::backend::field::Fields;
 use crate::error::Result;
 
 use Binding::{Read, ReadWrite, Uniform};
 
-/// warp_field bindings in the order the shader declares them.
-pub const WARP_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
-/// compose bindings.
-pub const COMPOSE_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
-/// fade_warp bindings.
-pub const FADE_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
-/// invert_field bindings.
-pub const INVERT_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite, ReadWrite];
+/// The family's bind group layouts, by kernel name (read through super::bindings).
+pub const BINDINGS: &[super::KernelBindings] = &[
+    ("warp_field", &[Uniform, Read, ReadWrite]),
+    ("compose", &[Uniform, Read, Read, ReadWrite]),
+    ("fade_warp", &[Uniform, Read, Read, ReadWrite]),
+    ("invert_field", &[Uniform, Read, ReadWrite, ReadWrite]),
+];
 
-impl GpuBackend {
+/// The family's compiled kernels.
+pub struct FieldKernels {
+    warp_field: Kernel,
+    compose: Kernel,
+    fade_warp: Kernel,
+    invert_field: Kernel,
+}
+
+impl FieldKernels {
+    /// Compiles the family's kernels.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        Ok(FieldKernels {
+            warp_field: compile(ctx, "warp_field")?,
+            compose: compile(ctx, "compose")?,
+            fade_warp: compile(ctx, "fade_warp")?,
+            invert_field: compile(ctx, "invert_field")?,
+        })
+    }
+}
+
+impl Fields for GpuBackend {
     /// The lattice interpolated at every voxel (3 floats per voxel).
-    pub fn record_warp_field(
+    fn warp_field(
         &self,
         params: &RbfGradParams,
         lattice: &GpuBuffer<f32>,
     ) -> Result<GpuBuffer<f32>> {
         let out = self.output_buffer("warp field", 3 * params.voxels())?;
         self.record(
-            &self.kernels.warp_field,
+            &self.kernels.field.warp_field,
             params,
             &[lattice.raw(), out.raw()],
             cover(params.dims, 4),
@@ -36,7 +58,7 @@ impl GpuBackend {
     }
 
     /// u = R + u0 ∘ (id + R) (3 floats per voxel).
-    pub fn record_compose(
+    fn compose(
         &self,
         params: &ComposeParams,
         warp: &GpuBuffer<f32>,
@@ -44,7 +66,7 @@ impl GpuBackend {
     ) -> Result<GpuBuffer<f32>> {
         let out = self.output_buffer("total field", 3 * params.voxels())?;
         self.record(
-            &self.kernels.compose,
+            &self.kernels.field.compose,
             params,
             &[warp.raw(), initial.raw(), out.raw()],
             cover(params.dims, 4),
@@ -53,7 +75,7 @@ impl GpuBackend {
     }
 
     /// The warp held off the bones (3 floats per voxel).
-    pub fn record_fade_warp(
+    fn fade_warp(
         &self,
         params: &FadeParams,
         warp: &GpuBuffer<f32>,
@@ -61,7 +83,7 @@ impl GpuBackend {
     ) -> Result<GpuBuffer<f32>> {
         let out = self.output_buffer("faded warp", 3 * params.voxels())?;
         self.record(
-            &self.kernels.fade_warp,
+            &self.kernels.field.fade_warp,
             params,
             &[warp.raw(), distance.raw(), out.raw()],
             cover(params.dims, 4),
@@ -70,7 +92,7 @@ impl GpuBackend {
     }
 
     /// The field's inverse on the output grid (3 floats per voxel) and its residual (1 float).
-    pub fn record_invert_field(
+    fn invert_field(
         &self,
         params: &InvertParams,
         field: &GpuBuffer<f32>,
@@ -78,7 +100,7 @@ impl GpuBackend {
         let out = self.output_buffer("inverse field", 3 * params.voxels())?;
         let residual = self.output_buffer("inverse residual", params.voxels())?;
         self.record(
-            &self.kernels.invert_field,
+            &self.kernels.field.invert_field,
             params,
             &[field.raw(), out.raw(), residual.raw()],
             cover(params.out_dims, 4),

@@ -1,22 +1,65 @@
-//! Host side of shaders/fold_stats.wgsl, shaders/mark_at_most.wgsl, shaders/dilate.wgsl and
-//! shaders/fold_smooth.wgsl.
+//! Host side of the fold family (shaders/fold/): the Jacobian determinant, the fold statistics
+//! and the fold repair's masks and smoothing, their bindings, their compiled pipelines and the
+//! family's trait.
 
-use super::kernel::{cover, groups, Binding};
+use super::context::GpuContext;
+use super::kernel::{cover, groups, Binding, Kernel};
 use super::resident::GpuBuffer;
-use super::GpuBackend;
-use crate::abi::{BoneLookupParams, DilateParams, ThresholdParams, FOLD_STATS_WIDTH};
+use super::{compile, GpuBackend};
+use crate::abi::{
+    BoneLookupParams, DilateParams, JacobianParams, ThresholdParams, FOLD_STATS_WIDTH,
+};
+use crate::backend::fold::Fold;
 use crate::error::Result;
 
 use Binding::{Read, ReadWrite, Uniform};
 
-/// fold_stats, mark_at_most and dilate bindings in the order the shaders declare them.
-pub const FOLD_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
-/// fold_smooth bindings.
-pub const SMOOTH_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, ReadWrite];
+/// The family's bind group layouts, by kernel name (read through super::bindings).
+pub const BINDINGS: &[super::KernelBindings] = &[
+    ("jacobian", &[Uniform, Read, ReadWrite]),
+    ("fold_stats", &[Uniform, Read, Read, ReadWrite]),
+    ("mark_at_most", &[Uniform, Read, Read, ReadWrite]),
+    ("dilate", &[Uniform, Read, Read, ReadWrite]),
+    ("fold_smooth", &[Uniform, Read, Read, Read, ReadWrite]),
+];
 
-impl GpuBackend {
+/// The family's compiled kernels.
+pub struct FoldKernels {
+    jacobian: Kernel,
+    fold_stats: Kernel,
+    mark_at_most: Kernel,
+    dilate: Kernel,
+    fold_smooth: Kernel,
+}
+
+impl FoldKernels {
+    /// Compiles the family's kernels.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        Ok(FoldKernels {
+            jacobian: compile(ctx, "jacobian")?,
+            fold_stats: compile(ctx, "fold_stats")?,
+            mark_at_most: compile(ctx, "mark_at_most")?,
+            dilate: compile(ctx, "dilate")?,
+            fold_smooth: compile(ctx, "fold_smooth")?,
+        })
+    }
+}
+
+impl Fold for GpuBackend {
+    /// det(I + du/dx) for every voxel.
+    fn jacobian(&self, params: &JacobianParams, field: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
+        let det = self.output_buffer("Jacobian determinant", params.voxels())?;
+        self.record(
+            &self.kernels.fold.jacobian,
+            params,
+            &[field.raw(), det.raw()],
+            cover(params.dims, 4),
+        )?;
+        Ok(det)
+    }
+
     /// FOLD_STATS_WIDTH floats of fold statistics per chunk.
-    pub fn record_fold_stats(
+    fn fold_stats(
         &self,
         params: &ThresholdParams,
         det: &GpuBuffer<f32>,
@@ -24,7 +67,7 @@ impl GpuBackend {
     ) -> Result<GpuBuffer<f32>> {
         let stats = self.output_buffer("fold statistics", FOLD_STATS_WIDTH * params.chunks())?;
         self.record(
-            &self.kernels.fold_stats,
+            &self.kernels.fold.fold_stats,
             params,
             &[det.raw(), held.raw(), stats.raw()],
             [groups(params.chunks(), 64), 1, 1],
@@ -33,7 +76,7 @@ impl GpuBackend {
     }
 
     /// The voxels not held at or below the threshold.
-    pub fn record_mark_at_most(
+    fn mark_at_most(
         &self,
         params: &ThresholdParams,
         value: &GpuBuffer<f32>,
@@ -41,7 +84,7 @@ impl GpuBackend {
     ) -> Result<GpuBuffer<f32>> {
         let mark = self.output_buffer("marked voxels", params.voxels())?;
         self.record(
-            &self.kernels.mark_at_most,
+            &self.kernels.fold.mark_at_most,
             params,
             &[value.raw(), held.raw(), mark.raw()],
             cover(params.dims, 4),
@@ -50,7 +93,7 @@ impl GpuBackend {
     }
 
     /// One axis of a box dilation.
-    pub fn record_dilate(
+    fn dilate(
         &self,
         params: &DilateParams,
         mask: &GpuBuffer<f32>,
@@ -58,7 +101,7 @@ impl GpuBackend {
     ) -> Result<GpuBuffer<f32>> {
         let out = self.output_buffer("dilated mask", params.voxels())?;
         self.record(
-            &self.kernels.dilate,
+            &self.kernels.fold.dilate,
             params,
             &[mask.raw(), held.raw(), out.raw()],
             cover(params.dims, 4),
@@ -67,7 +110,7 @@ impl GpuBackend {
     }
 
     /// One smoothing sweep over the region.
-    pub fn record_fold_smooth(
+    fn fold_smooth(
         &self,
         params: &BoneLookupParams,
         field: &GpuBuffer<f32>,
@@ -76,7 +119,7 @@ impl GpuBackend {
     ) -> Result<GpuBuffer<f32>> {
         let out = self.output_buffer("smoothed field", 3 * params.voxels())?;
         self.record(
-            &self.kernels.fold_smooth,
+            &self.kernels.fold.fold_smooth,
             params,
             &[field.raw(), region.raw(), labels.raw(), out.raw()],
             cover(params.geometry.target_dims, 4),

@@ -1,4 +1,4 @@
-//! The GPU backend: wgpu compute shaders, one host file per group of kernels.
+//! The GPU backend: wgpu compute shaders, one host file per kernel family.
 //!
 //! Data stays on the device (resident.rs): every kernel binds whole buffers and records its
 //! dispatch into one pending command encoder, submitted when something is downloaded. A
@@ -7,75 +7,43 @@
 
 pub mod buffer;
 pub mod context;
+pub mod correlation;
 pub mod dense;
 pub mod field;
 pub mod fold;
-pub mod jacobian;
 pub mod kernel;
 pub mod labels;
-pub mod lncc;
 pub mod nonrigid;
+pub mod reduce;
 pub mod regions;
 pub mod resident;
 pub mod rigid;
 pub mod sampling;
 pub mod skinning;
 
-use crate::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LnccParams, LnccTermsParams, LocalMomentsParams, RbfGradParams,
-    RbfLatticeParams, SplatParams, SsdParams, SumParams, ThresholdParams,
-};
-use crate::backend::{Backend, Core, CostImages, Element, Traffic};
+use crate::backend::{Core, Element, Traffic};
 use crate::error::Result;
 use context::GpuContext;
 use kernel::Kernel;
 use resident::GpuBuffer;
 
-/// The bind group layout of every kernel outside the families with tables of their own, by
-/// name (the names of crate::shaders::KERNELS).
-const BASE_BINDINGS: &[KernelBindings] = &[
-    ("compose", field::COMPOSE_BINDINGS),
-    ("dilate", fold::FOLD_BINDINGS),
-    ("fade_warp", field::FADE_BINDINGS),
-    ("mark_at_most", fold::FOLD_BINDINGS),
-    ("fold_smooth", fold::SMOOTH_BINDINGS),
-    ("fold_stats", fold::FOLD_BINDINGS),
-    ("gain_apply", nonrigid::GAIN_BINDINGS),
-    ("gain_ratio", nonrigid::GAIN_BINDINGS),
-    ("gain_terms", nonrigid::GAIN_TERMS_BINDINGS),
-    ("invert_field", field::INVERT_BINDINGS),
-    ("jacobian", jacobian::BINDINGS),
-    ("lattice_energy", nonrigid::ENERGY_BINDINGS),
-    ("lattice_splat", nonrigid::SPLAT_BINDINGS),
-    ("local_moments", lncc::MOMENTS_BINDINGS),
-    ("lncc", lncc::LNCC_BINDINGS),
-    ("lncc_terms", lncc::TERMS_BINDINGS),
-    ("lncc_gradient", lncc::GRADIENT_BINDINGS),
-    ("rbf_adjoint", nonrigid::ADJOINT_BINDINGS),
-    ("rbf_lattice", nonrigid::LATTICE_BINDINGS),
-    ("ssd_cells", nonrigid::SSD_BINDINGS),
-    ("sum_chunks", nonrigid::SUM_BINDINGS),
-    ("sum_partials", nonrigid::PARTIALS_BINDINGS),
-    ("sum_partials_f32", nonrigid::PARTIALS_BINDINGS),
-    ("warp_cost", nonrigid::COST_BINDINGS),
-    ("warp_field", field::WARP_BINDINGS),
-    ("warp_image", nonrigid::WARP_IMAGE_BINDINGS),
-];
-
 /// A kernel's name and bind group layout.
 pub type KernelBindings = (&'static str, &'static [kernel::Binding]);
 
-/// Every kernel's bind group layout, by name: the families' tables after the others'.
+/// Every kernel's bind group layout, by name: the families' tables one after the other.
 pub fn bindings() -> impl Iterator<Item = &'static KernelBindings> {
-    BASE_BINDINGS
+    sampling::BINDINGS
         .iter()
-        .chain(sampling::BINDINGS)
         .chain(labels::BINDINGS)
         .chain(regions::BINDINGS)
         .chain(rigid::BINDINGS)
         .chain(skinning::BINDINGS)
         .chain(dense::BINDINGS)
+        .chain(fold::BINDINGS)
+        .chain(correlation::BINDINGS)
+        .chain(field::BINDINGS)
+        .chain(reduce::BINDINGS)
+        .chain(nonrigid::BINDINGS)
 }
 
 fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
@@ -88,58 +56,6 @@ fn compile(ctx: &GpuContext, name: &'static str) -> Result<Kernel> {
 
 /// Every compiled kernel.
 pub struct Kernels {
-    /// shaders/fold_stats.wgsl
-    pub fold_stats: Kernel,
-    /// shaders/mark_at_most.wgsl
-    pub mark_at_most: Kernel,
-    /// shaders/dilate.wgsl
-    pub dilate: Kernel,
-    /// shaders/local_moments.wgsl
-    pub local_moments: Kernel,
-    /// shaders/lncc.wgsl
-    pub lncc: Kernel,
-    /// shaders/lncc_terms.wgsl
-    pub lncc_terms: Kernel,
-    /// shaders/lncc_gradient.wgsl
-    pub lncc_gradient: Kernel,
-    /// shaders/fold_smooth.wgsl
-    pub fold_smooth: Kernel,
-    /// shaders/ssd_cells.wgsl
-    pub ssd_cells: Kernel,
-    /// shaders/jacobian.wgsl
-    pub jacobian: Kernel,
-    /// shaders/warp_image.wgsl
-    pub warp_image: Kernel,
-    /// shaders/gain_terms.wgsl
-    pub gain_terms: Kernel,
-    /// shaders/gain_ratio.wgsl
-    pub gain_ratio: Kernel,
-    /// shaders/gain_apply.wgsl
-    pub gain_apply: Kernel,
-    /// shaders/lattice_splat.wgsl
-    pub lattice_splat: Kernel,
-    /// shaders/rbf_lattice.wgsl
-    pub rbf_lattice: Kernel,
-    /// shaders/warp_cost.wgsl
-    pub warp_cost: Kernel,
-    /// shaders/lattice_energy.wgsl
-    pub lattice_energy: Kernel,
-    /// shaders/rbf_adjoint.wgsl
-    pub rbf_adjoint: Kernel,
-    /// shaders/sum_chunks.wgsl
-    pub sum_chunks: Kernel,
-    /// shaders/sum_partials.wgsl over f64 partials
-    pub sum_partials: Kernel,
-    /// shaders/sum_partials.wgsl over f32 partials
-    pub sum_partials_f32: Kernel,
-    /// shaders/warp_field.wgsl
-    pub warp_field: Kernel,
-    /// shaders/compose.wgsl
-    pub compose: Kernel,
-    /// shaders/fade_warp.wgsl
-    pub fade_warp: Kernel,
-    /// shaders/invert_field.wgsl
-    pub invert_field: Kernel,
     /// The sampling family (shaders/sampling/).
     pub sampling: sampling::SamplingKernels,
     /// The label family (shaders/labels/).
@@ -152,6 +68,16 @@ pub struct Kernels {
     pub skinning: skinning::SkinningKernels,
     /// The dense stage's family (shaders/dense/).
     pub dense: dense::DenseKernels,
+    /// The fold family (shaders/fold/).
+    pub fold: fold::FoldKernels,
+    /// The correlation family (shaders/correlation/).
+    pub correlation: correlation::CorrelationKernels,
+    /// The field family (shaders/field/).
+    pub field: field::FieldKernels,
+    /// The reduce family (shaders/reduce/).
+    pub reduce: reduce::ReduceKernels,
+    /// The non-rigid family (shaders/nonrigid/).
+    pub nonrigid: nonrigid::NonRigidKernels,
 }
 
 /// The GPU backend with its compiled kernels.
@@ -174,38 +100,17 @@ impl GpuBackend {
     pub fn with_context(ctx: GpuContext) -> Result<Self> {
         Ok(GpuBackend {
             kernels: Kernels {
-                fold_stats: compile(&ctx, "fold_stats")?,
-                mark_at_most: compile(&ctx, "mark_at_most")?,
-                dilate: compile(&ctx, "dilate")?,
-                local_moments: compile(&ctx, "local_moments")?,
-                lncc: compile(&ctx, "lncc")?,
-                lncc_terms: compile(&ctx, "lncc_terms")?,
-                lncc_gradient: compile(&ctx, "lncc_gradient")?,
-                fold_smooth: compile(&ctx, "fold_smooth")?,
-                ssd_cells: compile(&ctx, "ssd_cells")?,
-                jacobian: compile(&ctx, "jacobian")?,
-                warp_image: compile(&ctx, "warp_image")?,
-                gain_terms: compile(&ctx, "gain_terms")?,
-                gain_ratio: compile(&ctx, "gain_ratio")?,
-                gain_apply: compile(&ctx, "gain_apply")?,
-                lattice_splat: compile(&ctx, "lattice_splat")?,
-                rbf_lattice: compile(&ctx, "rbf_lattice")?,
-                warp_cost: compile(&ctx, "warp_cost")?,
-                lattice_energy: compile(&ctx, "lattice_energy")?,
-                rbf_adjoint: compile(&ctx, "rbf_adjoint")?,
-                sum_chunks: compile(&ctx, "sum_chunks")?,
-                sum_partials: compile(&ctx, "sum_partials")?,
-                sum_partials_f32: compile(&ctx, "sum_partials_f32")?,
-                warp_field: compile(&ctx, "warp_field")?,
-                compose: compile(&ctx, "compose")?,
-                fade_warp: compile(&ctx, "fade_warp")?,
-                invert_field: compile(&ctx, "invert_field")?,
                 sampling: sampling::SamplingKernels::new(&ctx)?,
                 labels: labels::LabelKernels::new(&ctx)?,
                 regions: regions::RegionsKernels::new(&ctx)?,
                 rigid: rigid::RigidKernels::new(&ctx)?,
                 skinning: skinning::SkinningKernels::new(&ctx)?,
                 dense: dense::DenseKernels::new(&ctx)?,
+                fold: fold::FoldKernels::new(&ctx)?,
+                correlation: correlation::CorrelationKernels::new(&ctx)?,
+                field: field::FieldKernels::new(&ctx)?,
+                reduce: reduce::ReduceKernels::new(&ctx)?,
+                nonrigid: nonrigid::NonRigidKernels::new(&ctx)?,
             },
             ctx,
             peak_dispatch_bytes: Default::default(),
@@ -254,216 +159,5 @@ impl Core for GpuBackend {
     fn zeros(&self, what: &str, len: usize) -> Result<GpuBuffer<f32>> {
         // wgpu fills new buffers with zeros: nothing to upload.
         self.output_buffer(what, len)
-    }
-}
-
-impl Backend for GpuBackend {
-    fn ssd_cells(
-        &self,
-        params: &SsdParams,
-        images: &CostImages<GpuBuffer<f32>>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_ssd_cells(params, images)
-    }
-
-    fn jacobian(&self, params: &JacobianParams, field: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
-        self.record_jacobian(params, field)
-    }
-
-    fn fold_stats(
-        &self,
-        params: &ThresholdParams,
-        det: &GpuBuffer<f32>,
-        held: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_fold_stats(params, det, held)
-    }
-
-    fn mark_at_most(
-        &self,
-        params: &ThresholdParams,
-        value: &GpuBuffer<f32>,
-        held: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_mark_at_most(params, value, held)
-    }
-
-    fn dilate(
-        &self,
-        params: &DilateParams,
-        mask: &GpuBuffer<f32>,
-        held: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_dilate(params, mask, held)
-    }
-
-    fn local_moments(
-        &self,
-        params: &LocalMomentsParams,
-        input: &GpuBuffer<f32>,
-        other: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_local_moments(params, input, other)
-    }
-
-    fn lncc(&self, params: &LnccParams, sums: &GpuBuffer<f32>) -> Result<GpuBuffer<f32>> {
-        self.record_lncc(params, sums)
-    }
-
-    fn fold_smooth(
-        &self,
-        params: &BoneLookupParams,
-        field: &GpuBuffer<f32>,
-        region: &GpuBuffer<f32>,
-        labels: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_fold_smooth(params, field, region, labels)
-    }
-
-    fn warp_image(
-        &self,
-        params: &RbfGradParams,
-        lattice: &GpuBuffer<f32>,
-        moving: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_warp_image(params, lattice, moving)
-    }
-
-    fn gain_terms(
-        &self,
-        params: &GainParams,
-        warped: &GpuBuffer<f32>,
-        target: &GpuBuffer<f32>,
-    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
-        self.record_gain_terms(params, warped, target)
-    }
-
-    fn gain_ratio(
-        &self,
-        params: &GainParams,
-        product: &GpuBuffer<f32>,
-        energy: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_gain_ratio(params, product, energy)
-    }
-
-    fn gain_apply(
-        &self,
-        params: &GainParams,
-        gain: &GpuBuffer<f32>,
-        moving: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_gain_apply(params, gain, moving)
-    }
-
-    fn warp_field(
-        &self,
-        params: &RbfGradParams,
-        lattice: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_warp_field(params, lattice)
-    }
-
-    fn compose(
-        &self,
-        params: &ComposeParams,
-        warp: &GpuBuffer<f32>,
-        initial: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_compose(params, warp, initial)
-    }
-
-    fn fade_warp(
-        &self,
-        params: &FadeParams,
-        warp: &GpuBuffer<f32>,
-        distance: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_fade_warp(params, warp, distance)
-    }
-
-    fn invert_field(
-        &self,
-        params: &InvertParams,
-        field: &GpuBuffer<f32>,
-    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
-        self.record_invert_field(params, field)
-    }
-
-    fn rbf_lattice(
-        &self,
-        params: &RbfLatticeParams,
-        geometry: &GpuBuffer<f64>,
-        spline: &GpuBuffer<f64>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_rbf_lattice(params, geometry, spline)
-    }
-
-    fn lncc_terms(
-        &self,
-        params: &LnccTermsParams,
-        sums: &GpuBuffer<f32>,
-        covered: &GpuBuffer<f32>,
-    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
-        self.record_lncc_terms(params, sums, covered)
-    }
-
-    fn lncc_gradient(
-        &self,
-        params: &RbfGradParams,
-        lattice: &GpuBuffer<f32>,
-        moving: &GpuBuffer<f32>,
-        fixed: &GpuBuffer<f32>,
-        summed: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_lncc_gradient(params, lattice, [moving, fixed], summed)
-    }
-
-    fn warp_cost(
-        &self,
-        params: &RbfGradParams,
-        lattice: &GpuBuffer<f32>,
-        images: &CostImages<GpuBuffer<f32>>,
-    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
-        self.record_warp_cost(params, lattice, images)
-    }
-
-    fn lattice_splat(
-        &self,
-        params: &SplatParams,
-        values: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        self.record_lattice_splat(params, values)
-    }
-
-    fn lattice_energy(
-        &self,
-        params: &EnergyParams,
-        lattice: &GpuBuffer<f32>,
-        splat: &GpuBuffer<f32>,
-    ) -> Result<(GpuBuffer<f32>, GpuBuffer<f32>)> {
-        self.record_lattice_energy(params, lattice, splat)
-    }
-
-    fn rbf_adjoint(
-        &self,
-        params: &RbfLatticeParams,
-        geometry: &GpuBuffer<f64>,
-        spline: &GpuBuffer<f64>,
-        node_gradient: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f64>> {
-        self.record_rbf_adjoint(params, geometry, spline, node_gradient)
-    }
-
-    fn sum_partials<T: Element>(
-        &self,
-        partials: &GpuBuffer<T>,
-        values: usize,
-    ) -> Result<GpuBuffer<f64>> {
-        self.record_sum_partials(partials, values)
-    }
-
-    fn sum_chunks(&self, params: &SumParams, values: &GpuBuffer<f32>) -> Result<GpuBuffer<f64>> {
-        self.record_sum_chunks(params, values)
     }
 }

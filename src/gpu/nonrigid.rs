@@ -1,55 +1,84 @@
-//! Host side of the non-rigid stage's resident kernels: each records one dispatch on device
-//! buffers and returns its outputs as device buffers (see resident.rs). Whole grids are bound
-//! at once: a volume whose per-voxel gradient (12 bytes a voxel) exceeds the device's binding
-//! limit gets a `DeviceLimit` error naming it.
+//! Host side of the non-rigid family (shaders/nonrigid/): the adaptive stage's kernels, their
+//! bindings, their compiled pipelines and the family's trait. Each records one dispatch on
+//! device buffers and returns its outputs as device buffers (see resident.rs). Whole grids are
+//! bound at once: a volume whose per-voxel gradient (12 bytes a voxel) exceeds the device's
+//! binding limit gets a `DeviceLimit` error naming it.
 
-use super::kernel::{cover, groups, Binding};
+use super::context::GpuContext;
+use super::kernel::{cover, groups, Binding, Kernel};
 use super::resident::GpuBuffer;
-use super::GpuBackend;
+use super::{compile, GpuBackend};
 use crate::abi::{
-    EnergyParams, GainParams, PartialsParams, RbfGradParams, RbfLatticeParams, SplatParams,
-    SsdParams, SumParams,
+    EnergyParams, GainParams, RbfGradParams, RbfLatticeParams, SplatParams, SsdParams,
 };
-use crate::backend::{CostImages, Element};
+use crate::backend::nonrigid::{CostImages, NonRigid};
 use crate::error::Result;
 
 use Binding::{Read, ReadWrite, Uniform};
 
-/// rbf_lattice bindings in the order the shader declares them.
-pub const LATTICE_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
-/// warp_cost bindings.
-pub const COST_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, Read, ReadWrite, ReadWrite];
-/// lattice_splat bindings.
-pub const SPLAT_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
-/// lattice_energy bindings.
-pub const ENERGY_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite, ReadWrite];
-/// rbf_adjoint bindings.
-pub const ADJOINT_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, ReadWrite];
-/// sum_partials bindings.
-pub const PARTIALS_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
-/// sum_chunks bindings.
-pub const SUM_BINDINGS: &[Binding] = &[Uniform, Read, ReadWrite];
-/// warp_image bindings.
-pub const WARP_IMAGE_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
-/// ssd_cells bindings.
-pub const SSD_BINDINGS: &[Binding] = &[Uniform, Read, Read, Read, ReadWrite];
-/// gain_terms bindings.
-pub const GAIN_TERMS_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite, ReadWrite];
-/// gain_ratio and gain_apply bindings.
-pub const GAIN_BINDINGS: &[Binding] = &[Uniform, Read, Read, ReadWrite];
+/// The family's bind group layouts, by kernel name (read through super::bindings).
+pub const BINDINGS: &[super::KernelBindings] = &[
+    ("ssd_cells", &[Uniform, Read, Read, Read, ReadWrite]),
+    ("warp_image", &[Uniform, Read, Read, ReadWrite]),
+    ("gain_terms", &[Uniform, Read, Read, ReadWrite, ReadWrite]),
+    ("gain_ratio", &[Uniform, Read, Read, ReadWrite]),
+    ("gain_apply", &[Uniform, Read, Read, ReadWrite]),
+    ("rbf_lattice", &[Uniform, Read, Read, ReadWrite]),
+    (
+        "warp_cost",
+        &[Uniform, Read, Read, Read, Read, ReadWrite, ReadWrite],
+    ),
+    ("lattice_splat", &[Uniform, Read, ReadWrite]),
+    (
+        "lattice_energy",
+        &[Uniform, Read, Read, ReadWrite, ReadWrite],
+    ),
+    ("rbf_adjoint", &[Uniform, Read, Read, Read, ReadWrite]),
+];
 
-impl GpuBackend {
-    /// shaders/rbf_lattice.wgsl
-    pub fn record_rbf_lattice(
+/// The family's compiled kernels.
+pub struct NonRigidKernels {
+    ssd_cells: Kernel,
+    warp_image: Kernel,
+    gain_terms: Kernel,
+    gain_ratio: Kernel,
+    gain_apply: Kernel,
+    rbf_lattice: Kernel,
+    warp_cost: Kernel,
+    lattice_splat: Kernel,
+    lattice_energy: Kernel,
+    rbf_adjoint: Kernel,
+}
+
+impl NonRigidKernels {
+    /// Compiles the family's kernels.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        Ok(NonRigidKernels {
+            ssd_cells: compile(ctx, "ssd_cells")?,
+            warp_image: compile(ctx, "warp_image")?,
+            gain_terms: compile(ctx, "gain_terms")?,
+            gain_ratio: compile(ctx, "gain_ratio")?,
+            gain_apply: compile(ctx, "gain_apply")?,
+            rbf_lattice: compile(ctx, "rbf_lattice")?,
+            warp_cost: compile(ctx, "warp_cost")?,
+            lattice_splat: compile(ctx, "lattice_splat")?,
+            lattice_energy: compile(ctx, "lattice_energy")?,
+            rbf_adjoint: compile(ctx, "rbf_adjoint")?,
+        })
+    }
+}
+
+impl NonRigid for GpuBackend {
+    /// shaders/nonrigid/rbf_lattice.wgsl
+    fn rbf_lattice(
         &self,
         params: &RbfLatticeParams,
         geometry: &GpuBuffer<f64>,
         spline: &GpuBuffer<f64>,
     ) -> Result<GpuBuffer<f32>> {
         let values = self.output_buffer("warp at the lattice nodes", 3 * params.nodes())?;
-
         self.record(
-            &self.kernels.rbf_lattice,
+            &self.kernels.nonrigid.rbf_lattice,
             params,
             &[geometry.raw(), spline.raw(), values.raw()],
             cover(params.lattice, 4),
@@ -57,8 +86,8 @@ impl GpuBackend {
         Ok(values)
     }
 
-    /// shaders/warp_cost.wgsl
-    pub fn record_warp_cost(
+    /// shaders/nonrigid/warp_cost.wgsl
+    fn warp_cost(
         &self,
         params: &RbfGradParams,
         lattice: &GpuBuffer<f32>,
@@ -68,7 +97,7 @@ impl GpuBackend {
         let gradient = self.output_buffer("per-voxel cost gradient", 3 * nx * ny * nz)?;
         let rows = self.output_buffer("per-row cost", ny * nz)?;
         self.record(
-            &self.kernels.warp_cost,
+            &self.kernels.nonrigid.warp_cost,
             params,
             &[
                 lattice.raw(),
@@ -83,8 +112,8 @@ impl GpuBackend {
         Ok((gradient, rows))
     }
 
-    /// shaders/lattice_splat.wgsl
-    pub fn record_lattice_splat(
+    /// shaders/nonrigid/lattice_splat.wgsl
+    fn lattice_splat(
         &self,
         params: &SplatParams,
         values: &GpuBuffer<f32>,
@@ -92,7 +121,7 @@ impl GpuBackend {
         let nodes = params.nodes();
         let out = self.output_buffer("gradient at the lattice nodes", 3 * nodes)?;
         self.record(
-            &self.kernels.lattice_splat,
+            &self.kernels.nonrigid.lattice_splat,
             params,
             &[values.raw(), out.raw()],
             cover(params.dims, 4),
@@ -100,8 +129,8 @@ impl GpuBackend {
         Ok(out)
     }
 
-    /// shaders/lattice_energy.wgsl
-    pub fn record_lattice_energy(
+    /// shaders/nonrigid/lattice_energy.wgsl
+    fn lattice_energy(
         &self,
         params: &EnergyParams,
         lattice: &GpuBuffer<f32>,
@@ -110,7 +139,7 @@ impl GpuBackend {
         let gradient = self.output_buffer("cost gradient at the nodes", 3 * params.nodes())?;
         let energy = self.output_buffer("lattice energy terms", params.nodes())?;
         self.record(
-            &self.kernels.lattice_energy,
+            &self.kernels.nonrigid.lattice_energy,
             params,
             &[lattice.raw(), splat.raw(), gradient.raw(), energy.raw()],
             cover(params.dims, 4),
@@ -118,8 +147,8 @@ impl GpuBackend {
         Ok((gradient, energy))
     }
 
-    /// shaders/rbf_adjoint.wgsl
-    pub fn record_rbf_adjoint(
+    /// shaders/nonrigid/rbf_adjoint.wgsl
+    fn rbf_adjoint(
         &self,
         params: &RbfLatticeParams,
         geometry: &GpuBuffer<f64>,
@@ -132,7 +161,7 @@ impl GpuBackend {
             3 * rows * params.chunks(),
         )?;
         self.record(
-            &self.kernels.rbf_adjoint,
+            &self.kernels.nonrigid.rbf_adjoint,
             params,
             &[
                 geometry.raw(),
@@ -145,49 +174,8 @@ impl GpuBackend {
         Ok(partials)
     }
 
-    /// shaders/sum_partials.wgsl, pass after pass until one group is left.
-    pub fn record_sum_partials<T: Element>(
-        &self,
-        partials: &GpuBuffer<T>,
-        values: usize,
-    ) -> Result<GpuBuffer<f64>> {
-        let mut sums: Option<GpuBuffer<f64>> = None;
-        for pass in PartialsParams::passes(values, partials.len() / values.max(1)) {
-            let (kernel, input) = match &sums {
-                None if T::WGSL == "f32" => (&self.kernels.sum_partials_f32, partials.raw()),
-                None => (&self.kernels.sum_partials, partials.raw()),
-                Some(earlier) => (&self.kernels.sum_partials, earlier.raw()),
-            };
-            let out = self.output_buffer("summed partials", pass.groups() * values)?;
-            self.record(
-                kernel,
-                &pass,
-                &[input, out.raw()],
-                [groups(values, 64), pass.groups() as u32, 1],
-            )?;
-            sums = Some(out);
-        }
-        Ok(sums.expect("at least one pass"))
-    }
-
-    /// shaders/sum_chunks.wgsl
-    pub fn record_sum_chunks(
-        &self,
-        params: &SumParams,
-        values: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f64>> {
-        let sums = self.output_buffer("partial sums", params.chunks())?;
-        self.record(
-            &self.kernels.sum_chunks,
-            params,
-            &[values.raw(), sums.raw()],
-            [groups(params.chunks(), 64), 1, 1],
-        )?;
-        Ok(sums)
-    }
-
-    /// shaders/warp_image.wgsl
-    pub fn record_warp_image(
+    /// shaders/nonrigid/warp_image.wgsl
+    fn warp_image(
         &self,
         params: &RbfGradParams,
         lattice: &GpuBuffer<f32>,
@@ -195,7 +183,7 @@ impl GpuBackend {
     ) -> Result<GpuBuffer<f32>> {
         let warped = self.output_buffer("warped image", params.voxels())?;
         self.record(
-            &self.kernels.warp_image,
+            &self.kernels.nonrigid.warp_image,
             params,
             &[lattice.raw(), moving.raw(), warped.raw()],
             cover(params.dims, 4),
@@ -203,15 +191,15 @@ impl GpuBackend {
         Ok(warped)
     }
 
-    /// shaders/ssd_cells.wgsl
-    pub fn record_ssd_cells(
+    /// shaders/nonrigid/ssd_cells.wgsl
+    fn ssd_cells(
         &self,
         params: &SsdParams,
         images: &CostImages<GpuBuffer<f32>>,
     ) -> Result<GpuBuffer<f32>> {
         let partial = self.output_buffer("cell SSD partial sums", params.partials())?;
         self.record(
-            &self.kernels.ssd_cells,
+            &self.kernels.nonrigid.ssd_cells,
             params,
             &[
                 images.moving.raw(),
@@ -224,8 +212,8 @@ impl GpuBackend {
         Ok(partial)
     }
 
-    /// shaders/gain_terms.wgsl
-    pub fn record_gain_terms(
+    /// shaders/nonrigid/gain_terms.wgsl
+    fn gain_terms(
         &self,
         params: &GainParams,
         warped: &GpuBuffer<f32>,
@@ -234,7 +222,7 @@ impl GpuBackend {
         let product = self.output_buffer("gain product", params.voxels())?;
         let energy = self.output_buffer("gain energy", params.voxels())?;
         self.record(
-            &self.kernels.gain_terms,
+            &self.kernels.nonrigid.gain_terms,
             params,
             &[warped.raw(), target.raw(), product.raw(), energy.raw()],
             cover(params.dims, 4),
@@ -242,8 +230,8 @@ impl GpuBackend {
         Ok((product, energy))
     }
 
-    /// shaders/gain_ratio.wgsl
-    pub fn record_gain_ratio(
+    /// shaders/nonrigid/gain_ratio.wgsl
+    fn gain_ratio(
         &self,
         params: &GainParams,
         product: &GpuBuffer<f32>,
@@ -251,7 +239,7 @@ impl GpuBackend {
     ) -> Result<GpuBuffer<f32>> {
         let gain = self.output_buffer("gain", params.voxels())?;
         self.record(
-            &self.kernels.gain_ratio,
+            &self.kernels.nonrigid.gain_ratio,
             params,
             &[product.raw(), energy.raw(), gain.raw()],
             cover(params.dims, 4),
@@ -259,8 +247,8 @@ impl GpuBackend {
         Ok(gain)
     }
 
-    /// shaders/gain_apply.wgsl
-    pub fn record_gain_apply(
+    /// shaders/nonrigid/gain_apply.wgsl
+    fn gain_apply(
         &self,
         params: &GainParams,
         gain: &GpuBuffer<f32>,
@@ -268,7 +256,7 @@ impl GpuBackend {
     ) -> Result<GpuBuffer<f32>> {
         let gained = self.output_buffer("moving image with its gain", params.voxels())?;
         self.record(
-            &self.kernels.gain_apply,
+            &self.kernels.nonrigid.gain_apply,
             params,
             &[gain.raw(), moving.raw(), gained.raw()],
             cover(params.dims, 4),

@@ -42,7 +42,7 @@ impl Regions for GpuBackend {
             &self.kernels.regions.edt,
             params,
             &[input.raw(), out.raw()],
-            [groups(a, 8), groups(b, 8), params.stack[0]],
+            [groups(a, 8), groups(b, 8), params.volumes],
         )?;
         Ok(out)
     }

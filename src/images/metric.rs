@@ -1,7 +1,7 @@
 //! Similarity per cell: the SSD between two volumes summed over each cell of a cell grid.
 //!
 //! Both backends produce the same partial sums (one per (x, z) column and y-cell, see
-//! shaders/ssd_cells.wgsl); this module folds them in f64 in one fixed order, so the per-cell
+//! shaders/nonrigid/ssd_cells.wgsl); this module folds them in f64 in one fixed order, so the per-cell
 //! sums do not depend on thread scheduling.
 
 use crate::error::{Error, Result};
@@ -51,7 +51,7 @@ pub fn check_cells(dims: [usize; 3], cells: [usize; 3]) -> Result<()> {
     Ok(())
 }
 
-/// Folds column partial sums (layout of shaders/ssd_cells.wgsl over the whole volume:
+/// Folds column partial sums (layout of shaders/nonrigid/ssd_cells.wgsl over the whole volume:
 /// partial[(z * nx + x) * cy + c]) into per-cell sums, in f64, always in the same order.
 pub fn fold_ssd_partials(dims: [usize; 3], cells: [usize; 3], partial: &[f32]) -> CellSsd {
     let [nx, ny, nz] = dims;

@@ -47,7 +47,7 @@ impl fmt::Display for Similarity {
 
 /// The LNCC image term through a warp, on one grid: K Σ_w c_w (1 − ρ_w²) over the windows w
 /// of (2 radius + 1)³ voxels centred on each voxel (c_w the coverage at the centre), and its
-/// exact gradient with respect to the warped image (shaders/lncc_terms.wgsl), brought through
+/// exact gradient with respect to the warped image (shaders/correlation/lncc_terms.wgsl), brought through
 /// the warp as the SSD's is. Five box-sum passes and three kernels; nothing comes back.
 pub struct LnccCost {
     passes: [LocalMomentsParams; 3],

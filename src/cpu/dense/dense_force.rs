@@ -3,7 +3,7 @@
 use crate::abi::dense::ForceParams;
 use crate::backend::dense::ForceImages;
 use crate::cpu::common::{is_covered, voxel_index};
-use crate::cpu::lncc::window_at;
+use crate::cpu::window::window_at;
 use glam::Vec3;
 use rayon::prelude::*;
 

@@ -1,7 +1,7 @@
 //! CPU twin of shaders/dense/field_combine.wgsl.
 
 use crate::abi::dense::CombineParams;
-use crate::cpu::fade_warp::fade_at;
+use crate::cpu::fade::fade_at;
 use rayon::prelude::*;
 
 /// Fills `out` (3 floats per voxel) with fade · (a_scale · a + b_scale · b).

@@ -24,7 +24,7 @@ pub fn bone_at_source(
                 for i in 0..nx {
                     let v = voxel_index(i, j, k as u32, dims) as usize;
                     let u = [field[3 * v], field[3 * v + 1], field[3 * v + 2]];
-                    let found = if residual[v] <= params.limit[0] {
+                    let found = if residual[v] <= params.limit {
                         bone_at(params, labels, [i as f32, j as f32, k as f32], u)
                     } else {
                         0

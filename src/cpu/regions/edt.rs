@@ -20,7 +20,7 @@ struct Lines<'a> {
 impl Lines<'_> {
     /// Voxel (line position q) of line (a, b) in the volume's flat index.
     fn voxel_of(&self, q: u32, a: u32, b: u32) -> usize {
-        let c = match self.params.dims[3] {
+        let c = match self.params.axis {
             0 => [q, a, b],
             1 => [a, q, b],
             _ => [a, b, q],
@@ -31,7 +31,7 @@ impl Lines<'_> {
     /// The squared distance so far at line position q of line (a, b) of volume s.
     fn sample(&self, q: u32, (a, b, s): (u32, u32, u32)) -> f32 {
         let v = self.voxel_of(q, a, b);
-        if self.params.stack[1] == 1 {
+        if self.params.first == 1 {
             return if floor(self.input[v] + 0.5) == (s + 1) as f32 {
                 0.0
             } else {
@@ -45,7 +45,7 @@ impl Lines<'_> {
     /// lower envelope (`hull`, `bounds`) of their parabolas, then each position's lowest.
     fn pass(&self, line: (u32, u32, u32), scratch: &mut Scratch, out: &mut [f32]) {
         let Scratch { f, hull, bounds } = scratch;
-        let h = self.params.spacing[self.params.dims[3] as usize];
+        let h = self.params.spacing[self.params.axis as usize];
         f.clear();
         f.extend((0..out.len() as u32).map(|q| self.sample(q, line)));
         hull.clear();
@@ -84,7 +84,7 @@ impl Lines<'_> {
                 let e = xq - hull[k] as f32 * h;
                 value = e * e + f[hull[k]];
             }
-            *out = if self.params.stack[2] == 1 {
+            *out = if self.params.last == 1 {
                 value.sqrt()
             } else {
                 value
@@ -113,7 +113,7 @@ pub fn edt(params: &EdtParams, input: &[f32], output: &mut [f32]) {
         voxels,
     };
     let [na, nb] = params.lines();
-    let axis = params.dims[3] as usize;
+    let axis = params.axis as usize;
     let n = d[axis];
     let mut by_line = vec![0.0f32; output.len()];
     by_line

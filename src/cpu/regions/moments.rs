@@ -13,7 +13,7 @@ pub fn moments(params: &MomentsParams, values: &[f32], moments: &mut [f64]) {
         let chunk = c * per_chunk..((c + 1) * per_chunk).min(voxels);
         for (v, &value) in values[chunk.clone()].iter().enumerate() {
             let v = chunk.start + v;
-            if value >= params.threshold[0] {
+            if value >= params.threshold {
                 let p = [
                     (v % nx) as f32,
                     ((v / nx) % ny) as f32,

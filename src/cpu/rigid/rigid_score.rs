@@ -19,7 +19,8 @@ pub fn rigid_score(
         mask,
         target,
     } = *images;
-    let [nx, ny, nz, count] = params.dims;
+    let [nx, ny, nz, _] = params.dims;
+    let count = params.candidates;
     let tdims = [
         params.target_dims[0],
         params.target_dims[1],

@@ -128,7 +128,7 @@ struct Images<'a> {
 #[inline(always)]
 fn bones_at(images: &Images, x: &Points, wanted: &Mask) -> [u32; LANES] {
     let params = images.params;
-    let bones = params.blend[0];
+    let bones = params.bones;
     let n = dims3(params.label_dims);
     let q = Points::affine(&params.world_to_label, x);
     let mut inside = [bones; LANES];
@@ -167,7 +167,7 @@ impl Cells {
             return;
         }
         self.first[l] = first;
-        let bones = images.params.blend[0] as usize;
+        let bones = images.params.bones as usize;
         for c in 0..8 {
             let at = corner_index(c, ends, n) as usize * bones;
             // MAX_SKIN_BONES values read at once where the grid reaches that far (those past
@@ -204,7 +204,7 @@ impl Cells {
 #[inline(always)]
 fn blend(images: &Images, x: &Points, wanted: &Mask, cells: &mut Cells) -> Blend {
     let params = images.params;
-    let bones = params.blend[0];
+    let bones = params.bones;
     let n = dims3(params.weight_dims);
     let inside = bones_at(images, x, wanted);
     let s = Points::affine(&params.world_to_weight, x);
@@ -223,7 +223,7 @@ fn blend(images: &Images, x: &Points, wanted: &Mask, cells: &mut Cells) -> Blend
             cells.hold(images, l, ends, n);
         }
     }
-    let mut b = match params.blend[2] == 1 {
+    let mut b = match params.blending == 1 {
         true => dual_quaternion_blend(params, cells, &t, x),
         false => linear_blend(params, cells, &t, x),
     };
@@ -250,7 +250,7 @@ fn rigid_in_lane(params: &SkinBlendParams, bone: u32, x: Vec3, l: usize, b: &mut
 #[inline(always)]
 fn linear_blend(params: &SkinBlendParams, cells: &Cells, t: &Points, x: &Points) -> Blend {
     let mut b = Blend::default();
-    for j in 0..params.blend[0] as usize {
+    for j in 0..params.bones as usize {
         let w = cells.weight(j, t);
         let m = &params.forward[3 * j..3 * j + 3];
         let moved = Points::affine(m, x);
@@ -271,7 +271,7 @@ fn linear_blend(params: &SkinBlendParams, cells: &Cells, t: &Points, x: &Points)
 fn dual_quaternion_blend(params: &SkinBlendParams, cells: &Cells, t: &Points, x: &Points) -> Blend {
     let mut real = [[0.0f32; LANES]; 4];
     let mut dual = [[0.0f32; LANES]; 4];
-    for j in 0..params.blend[0] as usize {
+    for j in 0..params.bones as usize {
         let w = cells.weight(j, t);
         let (qr, qd) = (params.dual[2 * j], params.dual[2 * j + 1]);
         for c in 0..4 {
@@ -376,7 +376,7 @@ fn blend_row(images: &Images, [j, k]: [u32; 2], field: &mut [f32], residual: &mu
 /// at lengths 1, ½, … until the miss falls. The lanes step together, each its own steps.
 #[inline(always)]
 fn preimage(images: &Images, p: &Points, cells: &mut Cells) -> (Points, Lanes) {
-    let max_steps = images.params.blend[1];
+    let max_steps = images.params.iterations;
     let (mut x, mut err, mut b) = best_candidate(images, p, cells);
     let mut steps = [0u32; LANES];
     let mut step = Points::default();
@@ -452,7 +452,7 @@ fn best_candidate(images: &Images, p: &Points, cells: &mut Cells) -> (Points, La
     let mut x = *p;
     let mut best = [NOT_CHOSEN; LANES];
     let mut b = Blend::default();
-    for j in 0..params.blend[0] as usize {
+    for j in 0..params.bones as usize {
         let candidate = Points::affine(&params.inverse[3 * j..3 * j + 3], p);
         let at = blend(images, &candidate, &[true; LANES], cells);
         let miss = at.point.minus(p).length();

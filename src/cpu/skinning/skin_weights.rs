@@ -6,8 +6,8 @@ use rayon::prelude::*;
 /// Fills `weight` (bones per voxel) from `distance` (one volume per bone), each bone's
 /// distances scaled by its reach.
 pub fn skin_weights(params: &SkinWeightsParams, distance: &[f32], weight: &mut [f32]) {
-    let bones = params.weights[0] as usize;
-    let power = params.weights[1];
+    let bones = params.bones as usize;
+    let power = params.power;
     let voxels = weight.len() / bones.max(1);
     let scaled = |j: usize, v: usize| distance[j * voxels + v] * params.reach[j / 4][j % 4];
     weight.par_chunks_mut(bones).enumerate().for_each(|(v, w)| {
