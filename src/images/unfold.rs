@@ -330,7 +330,7 @@ impl Stencil {
 
     /// Whether voxel n is a bone contact (`held`: bone numbers, 0 for tissue): along one axis
     /// its two stencil neighbours held in two different bones, or all six held, in two
-    /// different bones — the host twin of shaders/fold_stats.wgsl's.
+    /// different bones — the host twin of shaders/fold/fold_stats.wgsl's.
     fn is_contact(&self, held: &[f32], n: usize) -> bool {
         let spans_along_an_axis = self
             .around(n)
