@@ -3,17 +3,7 @@
 use super::*;
 
 /// How the bones' rigid motions are blended across soft tissue.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Default,
-    serde::Serialize,
-    serde::Deserialize,
-    clap::ValueEnum,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Blending {
     /// Σ_j w_j M_j (the paper's linear blend skinning).

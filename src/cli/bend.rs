@@ -1,8 +1,8 @@
 //! `posereg bend SOURCE --labels LABELS --degrees D [--axis ...] -o DIR`: the paper's synthetic
 //! experiment — bend a labelled volume with volume skeletal deformation and keep the truth.
 
+use super::BlendingFlag;
 use clap::Args;
-use posereg::abi::Blending;
 use posereg::device::{open_backend, DeviceWanted};
 use posereg::init::repose::{bend, check_bend_degrees};
 use posereg::jobs::posed::{load_posable, write_posed};
@@ -28,8 +28,8 @@ pub struct BendArgs {
     #[arg(long, value_delimiter = ',', num_args = 6)]
     pub axis: Option<Vec<f64>>,
     /// How the bone motions are blended across the soft tissue.
-    #[arg(long, value_enum, default_value_t = Blending::Linear)]
-    pub blending: Blending,
+    #[arg(long, value_enum, default_value_t = BlendingFlag::Linear)]
+    pub blending: BlendingFlag,
     /// Output folder.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -79,7 +79,7 @@ pub fn run(args: &BendArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
         &labels,
         args.degrees,
         Some(axis),
-        args.blending,
+        args.blending.into(),
     ))?;
     let knee = [axis.point.x, axis.point.y, axis.point.z];
     write_posed(&opened, &args.output, (&source, &labels), &bent, knee)?;

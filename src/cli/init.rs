@@ -1,8 +1,8 @@
 //! `posereg init --source S --source-labels L --target T -o DIR`: the articulated
 //! initialisation alone (per-bone rigid, skinning weights, volume skeletal deformation).
 
+use super::BlendingFlag;
 use clap::Args;
-use posereg::abi::Blending;
 use posereg::device::DeviceWanted;
 use posereg::init::articulated::InitOptions;
 use posereg::io::config::load_options;
@@ -29,7 +29,7 @@ pub struct InitArgs {
     pub config: Option<PathBuf>,
     /// How the bone motions are blended across the soft tissue [default: dual-quaternion].
     #[arg(long, value_enum)]
-    pub blending: Option<Blending>,
+    pub blending: Option<BlendingFlag>,
     /// How far a small bone's tissue reaches, e.g. 1,1.5,2 (init.reach): several rising limits
     /// are tried and the limit where the fit to the target peaks kept; one fixes it.
     #[arg(long, value_delimiter = ',')]
@@ -120,7 +120,7 @@ impl InitArgs {
             options.bones = self.bones.clone();
         }
         if let Some(blending) = self.blending {
-            options.blending = blending;
+            options.blending = blending.into();
         }
         if let Some(reach) = &self.reach {
             options.reach = reach.clone();

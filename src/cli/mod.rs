@@ -15,7 +15,8 @@ pub mod register;
 pub mod resample;
 pub mod series;
 
-use clap::{Parser, Subcommand};
+use clap::{Parser, Subcommand, ValueEnum};
+use posereg::abi::Blending;
 use posereg::device::{DeviceChoice, DeviceWanted};
 use posereg::gpu::context::AdapterChoice;
 use posereg::jobs::reporter::Reporter;
@@ -113,5 +114,24 @@ fn run_command(command: Command, device: &DeviceWanted, reporter: &Reporter) -> 
         Command::Register(args) => register::run(&args, device, reporter),
         Command::Resample(args) => resample::run(&args, device, reporter),
         Command::Series(args) => series::run(&args, device, reporter),
+    }
+}
+
+/// --blending's values, named as the settings file names them: the library's `Blending` is
+/// ABI vocabulary and knows nothing of the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BlendingFlag {
+    /// Σ_j w_j M_j (the paper's linear blend skinning).
+    Linear,
+    /// The normalised blend of the motions' unit dual quaternions.
+    DualQuaternion,
+}
+
+impl From<BlendingFlag> for Blending {
+    fn from(flag: BlendingFlag) -> Self {
+        match flag {
+            BlendingFlag::Linear => Blending::Linear,
+            BlendingFlag::DualQuaternion => Blending::DualQuaternion,
+        }
     }
 }

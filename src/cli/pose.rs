@@ -3,8 +3,8 @@
 //! kinematics.csv reports them), with its exact truth: for checking a result, and for making
 //! test pairs whose motion is not a rotation about one axis.
 
+use super::BlendingFlag;
 use clap::Args;
-use posereg::abi::Blending;
 use posereg::device::{open_backend, DeviceWanted};
 use posereg::init::repose::{check_pose_change, pose};
 use posereg::jobs::posed::{load_posable, write_posed};
@@ -46,8 +46,8 @@ pub struct PoseArgs {
     #[arg(long, value_enum)]
     pub side: Option<Side>,
     /// How the bone motions are blended across the soft tissue.
-    #[arg(long, value_enum, default_value_t = Blending::Linear)]
-    pub blending: Blending,
+    #[arg(long, value_enum, default_value_t = BlendingFlag::Linear)]
+    pub blending: BlendingFlag,
     /// Output folder.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -72,7 +72,7 @@ pub fn run(args: &PoseArgs, device: &DeviceWanted, reporter: &Reporter) -> anyho
     let (opened, line) = open_backend(device)?;
     reporter.say(&line);
     let posed = posereg::on_backend!(opened, backend => pose(
-        backend, &source, &labels, change, args.side, args.blending,
+        backend, &source, &labels, change, args.side, args.blending.into(),
     ))?;
     let axis = posereg::joints::joint::flexion_axis(
         &labels,

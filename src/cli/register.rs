@@ -3,8 +3,8 @@
 //! bones/*.tfm, jacobian.nii.gz, report.json and quicklook.png.
 
 use super::init::{with_label_map, PairArgs};
+use super::BlendingFlag;
 use clap::Args;
-use posereg::abi::Blending;
 use posereg::device::DeviceWanted;
 use posereg::images::similarity::Similarity;
 use posereg::io::config::{load_options, options_toml};
@@ -39,7 +39,7 @@ pub struct RegisterArgs {
     pub bones: Option<Vec<u16>>,
     /// How the bone motions are blended across the soft tissue (init.blending).
     #[arg(long, value_enum)]
-    pub blending: Option<Blending>,
+    pub blending: Option<BlendingFlag>,
     /// How far a small bone's tissue reaches, e.g. 1,1.5,2 (init.reach): several rising limits
     /// are tried and the limit where the fit to the target peaks kept; one fixes it.
     #[arg(long, value_delimiter = ',')]
@@ -91,7 +91,7 @@ impl RegisterArgs {
             options.init.bones = bones.clone();
         }
         if let Some(blending) = self.blending {
-            options.init.blending = blending;
+            options.init.blending = blending.into();
         }
         if let Some(reach) = &self.reach {
             options.init.reach = reach.clone();
