@@ -1,10 +1,10 @@
 //! The push that lifts the folds smoothing leaves (fold_repair.rs): each folded voxel moves its
 //! movable neighbours along the gradient of its own Jacobian determinant until it unfolds,
-//! bones held at their motions, in sweeps of 27 colours whose pushes run at once.
+//! bones held at their motions, sequentially on the host.
 
 use crate::volume::{Field, Grid};
 use glam::Vec3;
-use rayon::prelude::*;
+use std::collections::BTreeSet;
 
 /// Jacobian determinant below which a voxel counts as folded (or about to fold) for repair.
 pub const FOLD_THRESHOLD: f32 = 0.05;
@@ -70,136 +70,70 @@ pub struct Held<'a> {
 
 /// [`unfold`]'s sweeps over the voxels `to_lift` (voxel, det) flags, until none is left or
 /// [`UNFOLD_STEPS`] sweeps have run; returns the sweeps.
-///
-/// A sweep pushes the flagged voxels colour by colour ([`colour`]): the pushes of one colour
-/// read and write disjoint neighbourhoods, so they run at once, in any order, with the same
-/// result (what a device pass over one colour's work list computes), and each colour sees the
-/// pushes of the colours before it (Gauss-Seidel between colours: simultaneous pushes on a
-/// shared neighbour can cancel and stall).
 fn push_folds(
     stencil: &Stencil,
     field: &mut Field,
     det: &mut [f32],
-    rigid: &[f32],
+    rigid_in: &[f32],
     in_bone: &(dyn Fn(usize, [f32; 3]) -> bool + Sync),
-    to_lift: &(dyn Fn(usize, f32) -> bool + Sync),
+    to_lift: &dyn Fn(usize, f32) -> bool,
 ) -> usize {
-    let push = Push {
-        stencil,
-        rigid,
-        in_bone,
-        largest_step: field.grid.finest_spacing() as f32 / 4.0,
-    };
-    // The sweep (from 1) in which each tissue voxel was last blocked: no fraction of a push
-    // could move it without entering a bone. The next sweep leaves it too and lifts the
-    // folds beside it by their other neighbours.
-    let mut blocked = vec![0u32; det.len()];
+    let rigid = |q: usize| rigid_in[q] > 0.0;
+    let largest_step = field.grid.finest_spacing() as f32 / 4.0;
+    // Tissue voxels that no fraction of the last step could move without entering a bone: the
+    // next step leaves them and lifts the folds beside them by their other neighbours.
+    let mut blocked = BTreeSet::new();
+    // The determinants are kept up to date locally: moving voxel q changes det J only at q
+    // and its six neighbours (whose differences it enters).
     // Folded voxels that map into a bone count too: they stay, their neighbours move.
     let mut bad = ToLift::new((0..det.len()).map(|n| to_lift(n, det[n])).collect());
     let mut steps = 0;
     while bad.count > 0 && steps < UNFOLD_STEPS {
-        steps += 1;
-        let sweep = steps as u32;
-        let by_colour = by_colour(stencil, &bad.sweep());
-        let mut moved = Vec::new();
-        for voxels in &by_colour {
-            let blocked_lately = &blocked;
-            let left = |q: usize| blocked_lately[q] == 0 || blocked_lately[q] + 1 < sweep;
-            let pushes: Vec<Vec<Move>> = voxels
-                .par_iter()
-                .map(|&n| push.moves(field, n, &left))
+        // One sweep over the folded voxels in index order, each push applied at once so the
+        // next voxel sees it (Gauss-Seidel: simultaneous pushes on a shared neighbour can
+        // cancel and stall).
+        let refused_before = std::mem::take(&mut blocked);
+        for n in bad.sweep() {
+            let (now, g) = stencil.determinant(field, n);
+            if now > FOLD_THRESHOLD {
+                continue;
+            }
+            // ∂det/∂u at each neighbour in the stencil that may move, with the neighbour
+            // opposite it across n.
+            let movable: Vec<(usize, Vec3, usize)> = (0..3)
+                .zip(stencil.around(n))
+                .flat_map(|(a, (lo, hi, factor))| {
+                    [(hi, g[a] * factor, lo), (lo, -g[a] * factor, hi)]
+                })
+                .filter(|&(q, _, _)| {
+                    q != n && !rigid(q) && !refused_before.contains(&q) && !blocked.contains(&q)
+                })
                 .collect();
-            for (q, to) in pushes.into_iter().flatten() {
-                match to {
-                    Some(u) => {
-                        field.data[q] = u;
-                        moved.push(q);
+            let norm: f32 = movable.iter().map(|(_, gq, _)| gq.length_squared()).sum();
+            if norm <= f32::EPSILON {
+                continue;
+            }
+            let s = (UNFOLD_TARGET - now) / norm;
+            for (q, gq, opposite) in movable {
+                let shift = (gq * s).clamp_length_max(largest_step);
+                let moved = outside_bones(field, q, shift, in_bone)
+                    .or_else(|| bone_extended(field, rigid_in, n, opposite));
+                match moved {
+                    Some(moved) => field.data[q] = moved,
+                    None => {
+                        blocked.insert(q);
+                        continue;
                     }
-                    None => blocked[q] = sweep,
+                }
+                for v in stencil.touched_by(q) {
+                    det[v] = stencil.determinant(field, v).0;
+                    bad.set(v, to_lift(v, det[v]));
                 }
             }
         }
-        // Moving voxel q changes det J only at q and its six neighbours (whose differences
-        // it enters): those are refreshed, and flagged or not for the next sweep.
-        let mut touched: Vec<usize> = moved.iter().flat_map(|&q| stencil.touched_by(q)).collect();
-        touched.sort_unstable();
-        touched.dedup();
-        let refreshed: Vec<f32> = touched
-            .par_iter()
-            .map(|&v| stencil.determinant(field, v).0)
-            .collect();
-        for (v, d) in touched.into_iter().zip(refreshed) {
-            det[v] = d;
-            bad.set(v, to_lift(v, d));
-        }
+        steps += 1;
     }
     steps
-}
-
-/// A neighbour's new displacement, or None where it is blocked (see [`Push::moves`]).
-type Move = (usize, Option<[f32; 3]>);
-
-/// The voxel colours of the push: i mod 3 + 3 (j mod 3) + 9 (k mod 3). Two voxels of one
-/// colour lie at least three steps apart, so the neighbourhoods one push reads and writes (the
-/// voxel and its six stencil neighbours) never overlap.
-fn colour(stencil: &Stencil, n: usize) -> usize {
-    let [nx, ny, _] = stencil.dims;
-    n % nx % 3 + 3 * (n / nx % ny % 3) + 9 * (n / (nx * ny) % 3)
-}
-
-/// `voxels` (in index order) split by colour, each colour's in index order.
-fn by_colour(stencil: &Stencil, voxels: &[usize]) -> [Vec<usize>; 27] {
-    let mut split: [Vec<usize>; 27] = Default::default();
-    for &n in voxels {
-        split[colour(stencil, n)].push(n);
-    }
-    split
-}
-
-/// What one voxel's push needs besides the field.
-struct Push<'a> {
-    stencil: &'a Stencil,
-    /// The bone whose motion each voxel's displacement is (0: none); those never move.
-    rigid: &'a [f32],
-    in_bone: &'a (dyn Fn(usize, [f32; 3]) -> bool + Sync),
-    /// Longest move of one neighbour in one push (mm).
-    largest_step: f32,
-}
-
-impl Push<'_> {
-    /// The push of voxel n when it is still folded: each of its stencil neighbours that may
-    /// move (`left`: not blocked this sweep or the last, not rigid) moves along the gradient
-    /// of n's determinant, far enough together to lift n (linearised) to [`UNFOLD_TARGET`],
-    /// unless that carries its source point into a bone; the moves in order, each seeing the
-    /// ones before (a neighbour extended from the bone reads the one across n).
-    fn moves(&self, field: &Field, n: usize, left: &(dyn Fn(usize) -> bool + Sync)) -> Vec<Move> {
-        let (now, g) = self.stencil.determinant(field, n);
-        if now > FOLD_THRESHOLD {
-            return Vec::new();
-        }
-        // ∂det/∂u at each neighbour in the stencil that may move, with the neighbour
-        // opposite it across n.
-        let movable: Vec<(usize, Vec3, usize)> = (0..3)
-            .zip(self.stencil.around(n))
-            .flat_map(|(a, (lo, hi, factor))| [(hi, g[a] * factor, lo), (lo, -g[a] * factor, hi)])
-            .filter(|&(q, _, _)| q != n && self.rigid[q] <= 0.0 && left(q))
-            .collect();
-        let norm: f32 = movable.iter().map(|(_, gq, _)| gq.length_squared()).sum();
-        if norm <= f32::EPSILON {
-            return Vec::new();
-        }
-        let s = (UNFOLD_TARGET - now) / norm;
-        let mut moves: Vec<Move> = Vec::with_capacity(movable.len());
-        for (q, gq, opposite) in movable {
-            let shift = (gq * s).clamp_length_max(self.largest_step);
-            let across = moves.iter().rev().find(|m| m.0 == opposite);
-            let opposite_u = across.and_then(|m| m.1).unwrap_or(field.data[opposite]);
-            let to = outside_bones(field.data[q], q, shift, self.in_bone)
-                .or_else(|| bone_extended(self.rigid, n, field.data[n], (opposite, opposite_u)));
-            moves.push((q, to));
-        }
-        moves
-    }
 }
 
 /// The voxels [`unfold`] lifts: a flag per voxel, and the voxels that may be flagged (those of
@@ -245,40 +179,35 @@ impl ToLift {
     }
 }
 
-/// Voxel q's displacement `u` moved by `shift`, or, beside a bone where the full step would carry
+/// Voxel q's displacement moved by `shift`, or, beside a bone where the full step would carry
 /// its source point into it, by the longest of 1/2, 1/4, 1/8 of it that does not; None when
 /// none of them stays out (a voxel already inside a bone may move).
 fn outside_bones(
-    u: [f32; 3],
+    field: &Field,
     q: usize,
     shift: Vec3,
     in_bone: &(dyn Fn(usize, [f32; 3]) -> bool + Sync),
 ) -> Option<[f32; 3]> {
-    let from = Vec3::from_array(u);
+    let from = Vec3::from_array(field.data[q]);
     [1.0, 0.5, 0.25, 0.125]
         .into_iter()
         .map(|f| (from + shift * f).to_array())
-        .find(|&moved| !in_bone(q, moved) || in_bone(q, u))
+        .find(|&moved| !in_bone(q, moved) || in_bone(q, field.data[q]))
 }
 
-/// The displacement that extends the rigid motion of the bone holding voxel n (displaced by
-/// `u_n`) one voxel past it, to the neighbour across n from `opposite` (2 u(n) − u(opposite),
-/// exact for the bone's affine motion), where n and `opposite` are held in the same bone; None otherwise. A tissue
+/// The displacement that extends the rigid motion of the bone holding voxel n one voxel past
+/// it, to the neighbour across n from `opposite` (2 u(n) − u(opposite), exact for the bone's
+/// affine motion), where n and `opposite` are held in the same bone; None otherwise. A tissue
 /// voxel beside a folded bone voxel whose every push would enter that bone then moves with the
 /// bone instead: at a deep bend the tissue voxel between femur and tibia can be on the wrong
 /// side of the femur's surface, and no push that stays out of the bone lifts the fold.
-fn bone_extended(
-    held: &[f32],
-    n: usize,
-    u_n: [f32; 3],
-    (opposite, u_opposite): (usize, [f32; 3]),
-) -> Option<[f32; 3]> {
+fn bone_extended(field: &Field, held: &[f32], n: usize, opposite: usize) -> Option<[f32; 3]> {
     let bone = held[n];
     if bone <= 0.0 || opposite == n || held[opposite] != bone {
         return None;
     }
-    let extended = 2.0 * Vec3::from_array(u_n) - Vec3::from_array(u_opposite);
-    Some(extended.to_array())
+    let u = |v: usize| Vec3::from_array(field.data[v]);
+    Some((2.0 * u(n) - u(opposite)).to_array())
 }
 
 /// The Jacobian kernel's finite-difference stencil on a grid, on the host: which neighbours it
@@ -546,38 +475,5 @@ mod tests {
         for m in (0..grid.len()).filter(|&m| held[m] > 0.0) {
             assert_eq!(before[m], field.data[m], "bone voxel {m} moved");
         }
-    }
-
-    /// A colour's pushes touch disjoint neighbourhoods, so the sweeps give the same bits on
-    /// one thread and on several: a field folded in many places at once (a wave of u_x whose
-    /// slope falls below −1 in bands), unfolded on pools of 1 and 3 threads.
-    #[test]
-    fn the_coloured_sweeps_give_the_same_field_on_any_number_of_threads() {
-        let n = 20;
-        let grid = Grid::new([n, n, n], Affine::identity()).unwrap();
-        let data: Vec<[f32; 3]> = (0..grid.len())
-            .map(|m| {
-                let (i, j) = ((m % n) as f32, ((m / n) % n) as f32);
-                [1.6 * (0.9 * i + 0.3 * j).sin(), 0.2 * (0.5 * i).cos(), 0.0]
-            })
-            .collect();
-        let none = vec![0.0; grid.len()];
-        let unfolded_on = |threads: usize| {
-            let mut field = Image::from_data(grid.clone(), data.clone()).unwrap();
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            let held = Held {
-                bones: &none,
-                rigid: &none,
-            };
-            let (least, _) = pool.install(|| unfolded(&mut field, held, &|_, _| false));
-            (field.data, least)
-        };
-        let (one, least) = unfolded_on(1);
-        assert!(least > FOLD_THRESHOLD, "least det {least}");
-        let (three, _) = unfolded_on(3);
-        assert!(one == three, "the fields differ between 1 and 3 threads");
     }
 }
