@@ -186,7 +186,8 @@ pub trait Core {
 
 /// A place kernels run: the core and every kernel family. Host code (registration loops,
 /// commands) is written against these traits only, so every stage runs on either backend and
-/// the two can be compared.
+/// the two can be compared. Each backend says it is one (`impl Backend for CpuBackend {}`),
+/// and the compiler checks that it has every family.
 pub trait Backend:
     Core
     + sampling::Sampling
@@ -200,23 +201,6 @@ pub trait Backend:
     + field::Fields
     + reduce::Reduce
     + nonrigid::NonRigid
-{
-}
-
-/// Every type with the core and every family is a backend.
-impl<T> Backend for T where
-    T: Core
-        + sampling::Sampling
-        + labels::LabelMaps
-        + regions::Regions
-        + rigid::Rigid
-        + skinning::Skinning
-        + dense::Dense
-        + fold::Fold
-        + correlation::Correlation
-        + field::Fields
-        + reduce::Reduce
-        + nonrigid::NonRigid
 {
 }
 

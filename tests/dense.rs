@@ -14,8 +14,9 @@ use posereg::backend::box_sums;
 use posereg::backend::dense::{largest_vectors, smooth, ForceImages};
 use posereg::backend::prelude::*;
 use posereg::cpu::CpuBackend;
+use posereg::jobs::demo::DemoPair;
 use posereg::labels as label;
-use posereg::phantom::{generate, Phantom, PhantomSize, PhantomSpec};
+use posereg::phantom::{Phantom, PhantomSize};
 use posereg::pipeline::register::{register, Inputs, RegisterOptions};
 use posereg::progress::Silent;
 use posereg::volume::{Field, Grid, Volume};
@@ -436,16 +437,11 @@ fn the_refinement_leaves_the_bones_as_they_were_and_stays_invertible() {
 
 /// The quarter phantom straight and bent 30°.
 fn quarter_pair_at_30() -> (Phantom, Phantom) {
-    let spec = |flexion_degrees, seed| PhantomSpec {
+    let pair = DemoPair {
         size: PhantomSize::Quarter,
-        flexion_degrees,
-        seed,
-        ..Default::default()
+        flexion: 30.0,
     };
-    (
-        generate(&spec(0.0, 1)).unwrap(),
-        generate(&spec(30.0, 2)).unwrap(),
-    )
+    pair.generate().unwrap()
 }
 
 /// The default settings with the dense refinement on.

@@ -27,7 +27,7 @@ pub mod sampling;
 pub mod skinning;
 mod window;
 
-use crate::backend::{Core, Element, Traffic};
+use crate::backend::{Backend, Core, Element, Traffic};
 use crate::error::Result;
 use std::sync::Arc;
 
@@ -63,6 +63,8 @@ fn zeroed<T: Element>(len: usize) -> Vec<T> {
 /// Runs every kernel on the host's cores.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct CpuBackend;
+
+impl Backend for CpuBackend {}
 
 impl Core for CpuBackend {
     type Buffer<T: Element> = Arc<Vec<T>>;

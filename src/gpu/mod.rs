@@ -21,7 +21,7 @@ pub mod rigid;
 pub mod sampling;
 pub mod skinning;
 
-use crate::backend::{Core, Element, Traffic};
+use crate::backend::{Backend, Core, Element, Traffic};
 use crate::error::Result;
 use context::GpuContext;
 use kernel::Kernel;
@@ -136,6 +136,8 @@ impl GpuBackend {
             .fetch_max(bytes, std::sync::atomic::Ordering::Relaxed);
     }
 }
+
+impl Backend for GpuBackend {}
 
 impl Core for GpuBackend {
     type Buffer<T: Element> = GpuBuffer<T>;

@@ -7,7 +7,6 @@ use crate::backend::Core;
 use crate::device::{open_backend, DeviceChoice, DeviceWanted, Opened};
 use crate::error::Result;
 use crate::gpu::context::AdapterChoice;
-use crate::phantom::{generate, PhantomSpec};
 use crate::pipeline::bench::{peak_rss_mib, time_registrations, Sizes, Timed};
 use crate::progress::Progress;
 
@@ -23,13 +22,7 @@ pub fn run_bench(
     (kinds, adapter): (&[DeviceChoice], Option<AdapterChoice>),
     progress: &dyn Progress,
 ) -> Result<()> {
-    let spec = |flexion_degrees, seed| PhantomSpec {
-        size: demo.size,
-        flexion_degrees,
-        seed,
-        ..Default::default()
-    };
-    let pair = (generate(&spec(0.0, 1))?, generate(&spec(demo.flexion, 2))?);
+    let pair = demo.generate()?;
     let (size, flexion) = (demo.size, demo.flexion);
     let dims = size.dims();
     progress.result(&format!(

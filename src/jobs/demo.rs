@@ -11,7 +11,7 @@ use crate::io::nifti::{save_labels, save_volume, DataType};
 use crate::io::transform::BoneTransforms;
 use crate::joints::joint::rotation_degrees;
 use crate::labels as label;
-use crate::phantom::{generate, PhantomSize, PhantomSpec};
+use crate::phantom::{generate, Phantom, PhantomSize, PhantomSpec};
 use crate::pipeline::inputs::{Pair, PairPaths};
 use crate::pipeline::register::RegisterOptions;
 use crate::progress::Progress;
@@ -29,6 +29,19 @@ pub struct DemoPair {
     pub flexion: f64,
 }
 
+impl DemoPair {
+    /// The phantom straight (seed 1) and bent by `flexion` (seed 2), each with its truth.
+    pub fn generate(&self) -> Result<(Phantom, Phantom)> {
+        let spec = |flexion_degrees, seed| PhantomSpec {
+            size: self.size,
+            flexion_degrees,
+            seed,
+            ..Default::default()
+        };
+        Ok((generate(&spec(0.0, 1))?, generate(&spec(self.flexion, 2))?))
+    }
+}
+
 /// Makes the pair, registers it with `options`, writes everything into `folder` and tells the
 /// figures against the truth and where the outputs are.
 pub fn run_demo(
@@ -41,18 +54,11 @@ pub fn run_demo(
     let _folder = crate::io::prepare_output_folder(folder)?;
     let (opened, line) = open_backend(device)?;
     progress.say(&line);
-    let spec = |flexion_degrees, seed| PhantomSpec {
-        size: demo.size,
-        flexion_degrees,
-        seed,
-        ..Default::default()
-    };
     progress.result(&format!(
         "making a {:?} knee phantom straight and bent {}° ...",
         demo.size, demo.flexion
     ));
-    let source = generate(&spec(0.0, 1))?;
-    let target = generate(&spec(demo.flexion, 2))?;
+    let (source, target) = demo.generate()?;
     let truth = (target.truth_field, target.truth, target.labels);
     let pair = Pair {
         source: source.image,
