@@ -79,7 +79,8 @@ impl std::ops::AddAssign for Traffic {
 }
 
 /// Element types a device buffer may hold: f32 for volumes and lattices, f64 where sums of
-/// large terms cancel (the cubic RBF, reductions).
+/// large terms cancel (the cubic RBF, reductions), u32 for voxel indices (lists of voxels:
+/// an f32 holds whole numbers exactly only up to 2²⁴).
 pub trait Element: bytemuck::Pod + Send + Sync + Into<f64> {
     /// Its WGSL type.
     const WGSL: &'static str;
@@ -89,6 +90,9 @@ impl Element for f32 {
 }
 impl Element for f64 {
     const WGSL: &'static str = "f64";
+}
+impl Element for u32 {
+    const WGSL: &'static str = "u32";
 }
 
 /// An image whose voxels are held where a backend computes; its grid stays on the host. A

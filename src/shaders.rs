@@ -73,6 +73,16 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         ],
     ),
     (
+        "region_surface",
+        &[
+            COMMON,
+            (
+                "labels/region_surface.wgsl",
+                include_str!("../shaders/labels/region_surface.wgsl"),
+            ),
+        ],
+    ),
+    (
         "bone_at_source",
         &[
             COMMON,
@@ -362,6 +372,13 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
                 include_str!("../shaders/nonrigid/lattice_energy.wgsl"),
             ),
         ],
+    ),
+    (
+        "list_flagged",
+        &[(
+            "reduce/list_flagged.wgsl",
+            include_str!("../shaders/reduce/list_flagged.wgsl"),
+        )],
     ),
     (
         "sum_chunks",

@@ -1237,3 +1237,70 @@ fn lncc_cost_outputs<B: Backend>(
         .unwrap();
     b.download(&[&terms, &rows, &gradient]).unwrap()
 }
+
+/// The flagged values of an array and their indices, listed chunk by chunk where each backend
+/// computes: the same list on both, and the host's own filter of the array, at a length that
+/// leaves the last chunk short.
+#[test]
+fn flagged_values_are_listed_in_index_order() {
+    let values: Vec<f32> = (0..5000u32)
+        .map(|k| match (k * 7919) % 10 {
+            0..=6 => 0.0,
+            r => (r - 6) as f32 - (k % 3 == 0) as u8 as f32 * 4.5,
+        })
+        .collect();
+    let want: Vec<(u32, f32)> = (0..values.len() as u32)
+        .zip(values.iter().copied())
+        .filter(|&(_, v)| v > 0.0)
+        .collect();
+    assert!(want.len() > 500 && values.iter().any(|&v| v < 0.0));
+    let listed =
+        |got: (Vec<u32>, Vec<f32>)| -> Vec<(u32, f32)> { got.0.into_iter().zip(got.1).collect() };
+    let cpu = posereg::backend::reduce::flagged(
+        &CpuBackend,
+        &std::sync::Arc::new(values.clone()),
+        values.len(),
+    )
+    .unwrap();
+    assert_eq!(listed(cpu), want);
+    let Some(gpu) = gpu() else { return };
+    let on_gpu = gpu.upload("values", values.clone()).unwrap();
+    let got = posereg::backend::reduce::flagged(gpu, &on_gpu, values.len()).unwrap();
+    assert_eq!(listed(got), want);
+}
+
+/// The boundary voxels of two regions on an odd grid: a 5×5×5 cube (its 98 outer voxels) and
+/// the slab beside it (where it touches the cube and the grid's inside), the same on both
+/// backends.
+#[test]
+fn region_surfaces_parity() {
+    let grid = oblique_grid([9, 8, 7]);
+    let [nx, ny, _] = grid.dims;
+    let regions: Vec<f32> = (0..grid.len())
+        .map(|v| {
+            let (i, j, k) = (v % nx, v / nx % ny, v / (nx * ny));
+            match (i, j, k) {
+                (1..=5, 1..=5, 1..=5) => 2.0,
+                (7.., _, _) => 1.0,
+                _ => 0.0,
+            }
+        })
+        .collect();
+    let params = posereg::abi::SurfaceParams::new(&grid);
+    let cpu = CpuBackend
+        .region_surface(&params, &std::sync::Arc::new(regions.clone()))
+        .unwrap()
+        .to_vec();
+    let cube = cpu.iter().filter(|&&s| s == 2.0).count();
+    assert_eq!(cube, 125 - 27, "the cube's outer voxels");
+    // The slab x ≥ 7 meets other values only at x = 7 (the grid's faces are not boundaries).
+    let slab: Vec<usize> = (0..grid.len()).filter(|&v| cpu[v] == 1.0).collect();
+    assert_eq!(slab.len(), ny * grid.dims[2]);
+    assert!(slab.iter().all(|&v| v % nx == 7));
+    let Some(gpu) = gpu() else { return };
+    let up = gpu.upload("regions", regions.clone()).unwrap();
+    let got = gpu
+        .download_one(&gpu.region_surface(&params, &up).unwrap())
+        .unwrap();
+    assert_eq!(got, cpu);
+}

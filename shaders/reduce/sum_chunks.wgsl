@@ -1,5 +1,5 @@
-// sum_chunks.wgsl: sums of (v - shift)^power (power 1 or 2) over consecutive chunks of an f32
-// array, in f64, each in index order, so a reduction's partial sums are the same bits on the
+// sum_chunks.wgsl: sums of (v - shift)^power (power 1 or 2; power 0 counts the values above
+// the shift) over consecutive chunks of an f32 array, in f64, each in index order, so a reduction's partial sums are the same bits on the
 // CPU twin and from run to run. The host adds the few partials (a chunk holds
 // SumParams.counts.y values). Squares about the mean give a variance without cancellation.
 //
@@ -13,7 +13,7 @@
 struct SumParams {
     counts: vec4<u32>,  // values, values per chunk, chunks, unused
     shift: f32,
-    power: u32,         // 1 or 2
+    power: u32,         // 0 (a count), 1 or 2
     pad0: u32,
     pad1: u32,
 }
@@ -32,7 +32,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var sum = 0.0lf;
     for (var v = c * n.y; v < min((c + 1u) * n.y, n.x); v = v + 1u) {
         let d = f64(values[v]) - f64(params.shift);
-        sum = sum + select(d, d * d, params.power == 2u);
+        var term = d;
+        if (params.power == 2u) {
+            term = d * d;
+        } else if (params.power == 0u) {
+            term = select(0.0lf, 1.0lf, d > 0.0lf);
+        }
+        sum = sum + term;
     }
     sums[c] = sum;
 }

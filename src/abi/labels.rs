@@ -61,6 +61,28 @@ impl LabelParams {
     }
 }
 
+/// Keep in sync with `SurfaceParams` in shaders/labels/region_surface.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SurfaceParams {
+    /// nx, ny, nz of the region map, unused.
+    pub dims: [u32; 4],
+}
+
+impl SurfaceParams {
+    /// For a region map on `grid`.
+    pub fn new(grid: &Grid) -> Self {
+        SurfaceParams {
+            dims: dims4(grid, 0),
+        }
+    }
+
+    /// Voxels of the region map.
+    pub fn voxels(&self) -> usize {
+        count(&self.dims)
+    }
+}
+
 /// Keep in sync with `BoneLookupParams` in shaders/bone_lookup.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]

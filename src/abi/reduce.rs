@@ -13,7 +13,7 @@ pub struct SumParams {
     pub counts: [u32; 4],
     /// Shift subtracted from each value before the power.
     pub shift: f32,
-    /// The power (1 or 2).
+    /// The power (1 or 2; 0 counts the values above the shift).
     pub power: u32,
     /// Padding to 16 bytes.
     pub pad: [u32; 2],
@@ -38,12 +38,42 @@ impl SumParams {
         p
     }
 
+    /// Counts of the values above `shift` among `values` values, per chunk.
+    pub fn count_above(values: usize, shift: f32) -> Self {
+        let mut p = SumParams::new(values);
+        p.power = 0;
+        p.shift = shift;
+        p
+    }
+
     /// Values summed.
     pub fn values(&self) -> usize {
         self.counts[0] as usize
     }
 
     /// Chunks, hence sums.
+    pub fn chunks(&self) -> usize {
+        self.counts[2] as usize
+    }
+}
+
+/// Keep in sync with `ListParams` in shaders/reduce/list_flagged.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ListParams {
+    /// Values, values per chunk ([`SUM_CHUNK`], as sum_chunks counts them), chunks, unused.
+    pub counts: [u32; 4],
+}
+
+impl ListParams {
+    /// Lists the flagged values among `values` values, chunk by chunk.
+    pub fn new(values: usize) -> Self {
+        ListParams {
+            counts: chunking(values, SUM_CHUNK, 0),
+        }
+    }
+
+    /// Chunks, hence offsets.
     pub fn chunks(&self) -> usize {
         self.counts[2] as usize
     }

@@ -2,7 +2,7 @@
 //! abi::labels, cpu::labels, gpu::labels).
 
 use super::Core;
-use crate::abi::{BoneLookupParams, LabelParams};
+use crate::abi::{BoneLookupParams, LabelParams, SurfaceParams};
 use crate::error::Result;
 
 /// Kernels that read label maps.
@@ -24,5 +24,13 @@ pub trait LabelMaps: Core {
         field: &Self::Buffer<f32>,
         residual: &Self::Buffer<f32>,
         labels: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// Per voxel of a region map (a region's number per voxel, 0 for none): its number where
+    /// one of its six neighbours inside the grid has another, else 0 (each region's boundary).
+    fn region_surface(
+        &self,
+        params: &SurfaceParams,
+        regions: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 }

@@ -2,7 +2,7 @@
 //! results (shaders/reduce/, abi::reduce, cpu::reduce, gpu::reduce).
 
 use super::{Core, Element};
-use crate::abi::SumParams;
+use crate::abi::{ListParams, SumParams};
 use crate::error::Result;
 
 /// Kernels reducing a buffer to a few sums.
@@ -21,6 +21,17 @@ pub trait Reduce: Core {
         params: &SumParams,
         values: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f64>>;
+
+    /// The flagged values (> 0) of `flags` and their indices, in index order (`listed` of
+    /// them): each chunk of `params` writes its own from its entry in `offsets`, the flagged
+    /// values before it ([`flagged`] counts them).
+    fn list_flagged(
+        &self,
+        params: &ListParams,
+        flags: &Self::Buffer<f32>,
+        offsets: &Self::Buffer<u32>,
+        listed: usize,
+    ) -> Result<(Self::Buffer<u32>, Self::Buffer<f32>)>;
 }
 
 /// Σ (v − shift)^power over all of `values` (`params`), reduced where the backend computes; the
@@ -28,4 +39,27 @@ pub trait Reduce: Core {
 pub fn total<B: Reduce>(backend: &B, params: &SumParams, values: &B::Buffer<f32>) -> Result<f64> {
     let sums = backend.sum_chunks(params, values)?;
     Ok(backend.download_one(&sums)?.iter().sum())
+}
+
+/// The flagged values (> 0) among the `len` values of `flags` and their indices, in index
+/// order: the flags are counted per chunk where the backend computes (one f64 per chunk comes
+/// back), each chunk's offset goes up, and only the list comes back, not the array.
+pub fn flagged<B: Reduce>(
+    backend: &B,
+    flags: &B::Buffer<f32>,
+    len: usize,
+) -> Result<(Vec<u32>, Vec<f32>)> {
+    let counts = SumParams::count_above(len, 0.0);
+    let counts = backend.download_one(&backend.sum_chunks(&counts, flags)?)?;
+    let mut offsets = Vec::with_capacity(counts.len());
+    let mut listed = 0u32;
+    for count in counts {
+        offsets.push(listed);
+        listed += count as u32;
+    }
+    let offsets = backend.upload("offsets of the flagged values", offsets)?;
+    let params = ListParams::new(len);
+    let (indices, values) = backend.list_flagged(&params, flags, &offsets, listed as usize)?;
+    let indices = backend.download_one(&indices)?;
+    Ok((indices, backend.download_one(&values)?))
 }

@@ -3,9 +3,10 @@
 
 mod bone_at_source;
 mod label_index;
+mod region_surface;
 
 use super::{filled, CpuBackend};
-use crate::abi::{BoneLookupParams, LabelParams};
+use crate::abi::{BoneLookupParams, LabelParams, SurfaceParams};
 use crate::backend::labels::LabelMaps;
 use crate::error::Result;
 use std::sync::Arc;
@@ -26,6 +27,16 @@ impl LabelMaps for CpuBackend {
     ) -> Result<Arc<Vec<f32>>> {
         filled(params.voxels(), |out| {
             bone_at_source::bone_at_source(params, field, residual, labels, out)
+        })
+    }
+
+    fn region_surface(
+        &self,
+        params: &SurfaceParams,
+        regions: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| {
+            region_surface::region_surface(params, regions, out)
         })
     }
 }

@@ -1,10 +1,11 @@
 //! CPU twins of the reduce family's kernels (shaders/reduce/).
 
+mod list_flagged;
 mod sum_chunks;
 mod sum_partials;
 
 use super::{filled, zeroed, CpuBackend};
-use crate::abi::{PartialsParams, SumParams};
+use crate::abi::{ListParams, PartialsParams, SumParams};
 use crate::backend::reduce::Reduce;
 use crate::backend::Element;
 use crate::error::Result;
@@ -32,5 +33,17 @@ impl Reduce for CpuBackend {
         filled(params.chunks(), |out| {
             sum_chunks::sum_chunks(params, values, out)
         })
+    }
+
+    fn list_flagged(
+        &self,
+        params: &ListParams,
+        flags: &Arc<Vec<f32>>,
+        offsets: &Arc<Vec<u32>>,
+        listed: usize,
+    ) -> Result<(Arc<Vec<u32>>, Arc<Vec<f32>>)> {
+        let (mut indices, mut values) = (zeroed(listed), zeroed(listed));
+        list_flagged::list_flagged(params, flags, offsets, &mut indices, &mut values);
+        Ok((Arc::new(indices), Arc::new(values)))
     }
 }

@@ -5,7 +5,7 @@ use super::context::GpuContext;
 use super::kernel::{cover, Binding, Kernel};
 use super::resident::GpuBuffer;
 use super::{compile, GpuBackend};
-use crate::abi::{BoneLookupParams, LabelParams};
+use crate::abi::{BoneLookupParams, LabelParams, SurfaceParams};
 use crate::backend::labels::LabelMaps;
 use crate::error::Result;
 
@@ -15,12 +15,14 @@ use Binding::{Read, ReadWrite, Uniform};
 pub const BINDINGS: &[super::KernelBindings] = &[
     ("label_index", &[Uniform, Read, ReadWrite]),
     ("bone_at_source", &[Uniform, Read, Read, Read, ReadWrite]),
+    ("region_surface", &[Uniform, Read, ReadWrite]),
 ];
 
 /// The family's compiled kernels.
 pub struct LabelKernels {
     label_index: Kernel,
     bone_at_source: Kernel,
+    region_surface: Kernel,
 }
 
 impl LabelKernels {
@@ -29,6 +31,7 @@ impl LabelKernels {
         Ok(LabelKernels {
             label_index: compile(ctx, "label_index")?,
             bone_at_source: compile(ctx, "bone_at_source")?,
+            region_surface: compile(ctx, "region_surface")?,
         })
     }
 }
@@ -62,5 +65,21 @@ impl LabelMaps for GpuBackend {
             cover(params.geometry.target_dims, 4),
         )?;
         Ok(bone)
+    }
+
+    /// Each region's boundary voxels.
+    fn region_surface(
+        &self,
+        params: &SurfaceParams,
+        regions: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let surface = self.output_buffer("region surfaces", params.voxels())?;
+        self.record(
+            &self.kernels.labels.region_surface,
+            params,
+            &[regions.raw(), surface.raw()],
+            cover(params.dims, 4),
+        )?;
+        Ok(surface)
     }
 }

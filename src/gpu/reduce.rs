@@ -5,7 +5,7 @@ use super::context::GpuContext;
 use super::kernel::{groups, Binding, Kernel};
 use super::resident::GpuBuffer;
 use super::{compile, GpuBackend};
-use crate::abi::{PartialsParams, SumParams};
+use crate::abi::{ListParams, PartialsParams, SumParams};
 use crate::backend::reduce::Reduce;
 use crate::backend::Element;
 use crate::error::Result;
@@ -17,6 +17,7 @@ pub const BINDINGS: &[super::KernelBindings] = &[
     ("sum_chunks", &[Uniform, Read, ReadWrite]),
     ("sum_partials", &[Uniform, Read, ReadWrite]),
     ("sum_partials_f32", &[Uniform, Read, ReadWrite]),
+    ("list_flagged", &[Uniform, Read, Read, ReadWrite, ReadWrite]),
 ];
 
 /// The family's compiled kernels.
@@ -26,6 +27,7 @@ pub struct ReduceKernels {
     sum_partials: Kernel,
     /// shaders/reduce/sum_partials.wgsl over f32 partials.
     sum_partials_f32: Kernel,
+    list_flagged: Kernel,
 }
 
 impl ReduceKernels {
@@ -35,6 +37,7 @@ impl ReduceKernels {
             sum_chunks: compile(ctx, "sum_chunks")?,
             sum_partials: compile(ctx, "sum_partials")?,
             sum_partials_f32: compile(ctx, "sum_partials_f32")?,
+            list_flagged: compile(ctx, "list_flagged")?,
         })
     }
 }
@@ -76,5 +79,24 @@ impl Reduce for GpuBackend {
             [groups(params.chunks(), 64), 1, 1],
         )?;
         Ok(sums)
+    }
+
+    /// One invocation per chunk, each writing from its offset.
+    fn list_flagged(
+        &self,
+        params: &ListParams,
+        flags: &GpuBuffer<f32>,
+        offsets: &GpuBuffer<u32>,
+        listed: usize,
+    ) -> Result<(GpuBuffer<u32>, GpuBuffer<f32>)> {
+        let indices = self.output_buffer("flagged voxels", listed)?;
+        let values = self.output_buffer("flagged values", listed)?;
+        self.record(
+            &self.kernels.reduce.list_flagged,
+            params,
+            &[flags.raw(), offsets.raw(), indices.raw(), values.raw()],
+            [groups(params.chunks(), 64), 1, 1],
+        )?;
+        Ok((indices, values))
     }
 }

@@ -1,18 +1,18 @@
 //! Where the initialisation puts the bones in the target, and the pins the adaptive stage
 //! holds on their surfaces: the bone each target voxel's source point lies in (computed where
-//! the backend computes; the map comes back once for the pins).
+//! the backend computes; the boundaries of that map come back as a list for the pins).
 
-use crate::abi::BoneLookupParams;
+use crate::abi::{BoneLookupParams, SurfaceParams};
+use crate::backend::reduce::flagged;
 use crate::backend::{Backend, DeviceImage};
 use crate::error::Result;
 use crate::init::articulated::{InitialImages, PairImages};
-use crate::volume::Grid;
 use nalgebra::Vector3;
 
 /// Up to `per_bone` points on the surface in the target of each of `bones` bones: boundary
 /// voxels of the region whose source point the initial field puts in that bone (`bone_map`,
-/// [`initial_bones`]), spread by farthest-point sampling. The map (one value per voxel) comes
-/// back for the boundaries and the sampling.
+/// [`initial_bones`]), spread by farthest-point sampling. The boundaries are found where the
+/// backend computes and only they come back (as a list), not the map.
 pub fn bone_pins<B: Backend>(
     backend: &B,
     bone_map: &DeviceImage<B>,
@@ -20,11 +20,17 @@ pub fn bone_pins<B: Backend>(
     per_bone: usize,
 ) -> Result<Vec<Vector3<f64>>> {
     let grid = &bone_map.grid;
-    let bone_of = backend.download_one(&bone_map.data)?;
+    let surface = backend.region_surface(&SurfaceParams::new(grid), &bone_map.data)?;
+    let (voxels, bone_of) = flagged(backend, &surface, grid.len())?;
     let mut pins = Vec::new();
     for index in 1..=bones {
-        let inside: Vec<bool> = bone_of.iter().map(|&b| b == index as f32).collect();
-        pins.extend(spread(&surface_points(grid, &inside), per_bone));
+        let points: Vec<Vector3<f64>> = voxels
+            .iter()
+            .zip(&bone_of)
+            .filter(|&(_, &bone)| bone == index as f32)
+            .map(|(&v, _)| grid.world_of(v as usize))
+            .collect();
+        pins.extend(spread(&points, per_bone));
     }
     Ok(pins)
 }
@@ -49,29 +55,6 @@ pub fn initial_bones<B: Backend>(
         data,
         grid: grid.clone(),
     })
-}
-
-/// World positions of the voxels of `inside` with a 6-neighbour outside it.
-fn surface_points(grid: &Grid, inside: &[bool]) -> Vec<Vector3<f64>> {
-    let d = grid.dims;
-    (0..grid.len())
-        .filter(|&n| {
-            if !inside[n] {
-                return false;
-            }
-            let (i, j, k) = (n % d[0], (n / d[0]) % d[1], n / (d[0] * d[1]));
-            let neighbours = [
-                (i > 0).then(|| n - 1),
-                (i + 1 < d[0]).then(|| n + 1),
-                (j > 0).then(|| n - d[0]),
-                (j + 1 < d[1]).then(|| n + d[0]),
-                (k > 0).then(|| n - d[0] * d[1]),
-                (k + 1 < d[2]).then(|| n + d[0] * d[1]),
-            ];
-            neighbours.iter().any(|m| m.is_some_and(|m| !inside[m]))
-        })
-        .map(|n| grid.world_of(n))
-        .collect()
 }
 
 /// Up to `count` of `points`, each farthest from those chosen before it, from the first.
