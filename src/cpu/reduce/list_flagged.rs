@@ -11,13 +11,13 @@ pub fn list_flagged(
     indices: &mut [u32],
     values: &mut [f32],
 ) {
-    let [len, per_chunk, chunks, _] = params.counts.map(|c| c as usize);
-    for c in 0..chunks {
-        let mut at = offsets[c] as usize;
-        for v in c * per_chunk..((c + 1) * per_chunk).min(len) {
-            let flag = flags[v];
+    let [_, per_chunk, chunks, _] = params.counts.map(|c| c as usize);
+    let chunked = flags.chunks(per_chunk).zip(offsets).take(chunks);
+    for (c, (chunk, &offset)) in chunked.enumerate() {
+        let mut at = offset as usize;
+        for (k, &flag) in chunk.iter().enumerate() {
             if flag > 0.0 {
-                indices[at] = v as u32;
+                indices[at] = (c * per_chunk + k) as u32;
                 values[at] = flag;
                 at += 1;
             }
