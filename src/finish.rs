@@ -10,7 +10,7 @@ use crate::images::compose::compose;
 use crate::images::fold_repair::{
     bones_at_source, determinant, rigid_bones, unfold_registration, FoldRepair, Folds, SourceLabels,
 };
-use crate::images::inverse::invert;
+use crate::images::inverse::{invert, round_trip, RoundTrip};
 use crate::images::regions;
 use crate::init::articulated::{InitialImages, PairImages};
 use crate::nonrigid::adaptive::Adaptive;
@@ -114,8 +114,8 @@ pub struct Finished {
     pub jacobian: Volume,
     /// Its inverse, on the source's grid.
     pub inverse: Field,
-    /// How far the inverse misses, per source voxel (mm).
-    pub inverse_residual: Vec<f32>,
+    /// How closely the inverse undoes the field.
+    pub round_trip: RoundTrip,
     /// Its folds.
     pub folds: Folds,
 }
@@ -134,8 +134,9 @@ pub fn outputs<B: Backend>(
     let warped = backend.resample(&resample, &pair.source.data, &field.data)?;
     let source_grid = &pair.source.grid;
     let (inverse, residual) = invert(backend, field, source_grid)?;
-    let wanted = [&field.data, &warped, &det, &inverse.data, &residual];
-    let [field, warped, jacobian, inverse, residual] = backend
+    let round_trip = round_trip(backend, &residual, &pair.source)?;
+    let wanted = [&field.data, &warped, &det, &inverse.data];
+    let [field, warped, jacobian, inverse] = backend
         .download(&wanted)?
         .try_into()
         .map_err(|_| Error::Gpu("a download returned the wrong number of buffers".into()))?;
@@ -144,7 +145,7 @@ pub fn outputs<B: Backend>(
         warped: Image::from_data(grid.clone(), warped)?,
         jacobian: Image::from_data(grid.clone(), jacobian)?,
         inverse: Image::from_data(source_grid.clone(), bytemuck::cast_vec(inverse))?,
-        inverse_residual: residual,
+        round_trip,
         folds,
     })
 }

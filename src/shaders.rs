@@ -331,6 +331,13 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         ],
     ),
     (
+        "round_trip_stats",
+        &[(
+            "field/round_trip_stats.wgsl",
+            include_str!("../shaders/field/round_trip_stats.wgsl"),
+        )],
+    ),
+    (
         "invert_field",
         &[
             COMMON,

@@ -1304,3 +1304,63 @@ fn region_surfaces_parity() {
         .unwrap();
     assert_eq!(got, cpu);
 }
+
+/// The round trip's statistics per chunk of source voxels on both backends, and their totals
+/// against the host's own count over the body (source > 0): residuals with and without a
+/// preimage (< 0), some beyond 0.1 mm, at a length that leaves the last chunk short.
+#[test]
+fn round_trip_statistics_parity() {
+    use posereg::abi::{RoundTripParams, ROUND_TRIP_WIDTH};
+    let voxels = 3000;
+    let residual: Vec<f32> = (0..voxels)
+        .map(|k| ((k * 7919) % 997) as f32 * 2e-4 - 0.02)
+        .collect();
+    let source: Vec<f32> = (0..voxels).map(|k| (k % 5) as f32 - 1.0).collect();
+    let params = RoundTripParams::new(voxels, 0.1);
+    let totals = |stats: &[f64]| -> [f64; ROUND_TRIP_WIDTH] {
+        stats.chunks(ROUND_TRIP_WIDTH).fold([0.0; 5], |t, c| {
+            [
+                t[0] + c[0],
+                t[1].max(c[1]),
+                t[2] + c[2],
+                t[3] + c[3],
+                t[4] + c[4],
+            ]
+        })
+    };
+    let cpu = CpuBackend
+        .round_trip_stats(
+            &params,
+            &std::sync::Arc::new(residual.clone()),
+            &std::sync::Arc::new(source.clone()),
+        )
+        .unwrap();
+    let inside: Vec<f32> = (0..voxels)
+        .filter(|&k| source[k] > 0.0)
+        .map(|k| residual[k])
+        .collect();
+    let seen: Vec<f32> = inside.iter().copied().filter(|&r| r >= 0.0).collect();
+    let want = [
+        seen.iter().map(|&r| r as f64).sum::<f64>(),
+        seen.iter().fold(0.0f64, |m, &r| m.max(r as f64)),
+        seen.len() as f64,
+        seen.iter().filter(|&&r| r > 0.1).count() as f64,
+        (inside.len() - seen.len()) as f64,
+    ];
+    let got = totals(&cpu);
+    assert!((got[0] - want[0]).abs() < 1e-9 * want[0]);
+    assert_eq!(got[1..], want[1..]);
+    assert!(
+        want[3] > 0.0 && want[4] > 0.0,
+        "the fixture has far voxels and voxels without a preimage"
+    );
+    let Some(gpu) = gpu() else { return };
+    let stats = gpu
+        .round_trip_stats(
+            &params,
+            &gpu.upload("residual", residual).unwrap(),
+            &gpu.upload("source", source).unwrap(),
+        )
+        .unwrap();
+    assert_eq!(gpu.download_one(&stats).unwrap(), cpu.to_vec());
+}

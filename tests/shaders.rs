@@ -5,8 +5,8 @@ use posereg::abi::{
     BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
     InvertParams, JacobianParams, LabelParams, ListParams, LnccParams, LnccTermsParams,
     LocalMomentsParams, MomentsParams, PartialsParams, PyramidParams, RbfGradParams,
-    RbfLatticeParams, ResampleParams, RigidParams, ScoreParams, SkinBlendParams, SkinWeightsParams,
-    SplatParams, SsdParams, SumParams, SurfaceParams, ThresholdParams,
+    RbfLatticeParams, ResampleParams, RigidParams, RoundTripParams, ScoreParams, SkinBlendParams,
+    SkinWeightsParams, SplatParams, SsdParams, SumParams, SurfaceParams, ThresholdParams,
 };
 use posereg::shaders::{locate, source, KERNELS};
 use std::mem::size_of;
@@ -70,7 +70,7 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
     use posereg::abi::dense;
-    let pairs: [(&str, &str, usize); 43] = [
+    let pairs: [(&str, &str, usize); 44] = [
         ("warp_image", "RbfGradParams", size_of::<RbfGradParams>()),
         ("gain_terms", "GainParams", size_of::<GainParams>()),
         ("gain_ratio", "GainParams", size_of::<GainParams>()),
@@ -89,6 +89,11 @@ fn abi_structs_match_their_wgsl_twins() {
         ("lattice_energy", "EnergyParams", size_of::<EnergyParams>()),
         ("sum_chunks", "SumParams", size_of::<SumParams>()),
         ("list_flagged", "ListParams", size_of::<ListParams>()),
+        (
+            "round_trip_stats",
+            "RoundTripParams",
+            size_of::<RoundTripParams>(),
+        ),
         ("warp_field", "RbfGradParams", size_of::<RbfGradParams>()),
         ("compose", "ComposeParams", size_of::<ComposeParams>()),
         ("fade_warp", "FadeParams", size_of::<FadeParams>()),

@@ -101,3 +101,36 @@ impl InvertParams {
         count(&self.out_dims)
     }
 }
+
+/// Values per chunk of the round-trip statistics (shaders/field/round_trip_stats.wgsl): the sum
+/// and largest residual, the voxels with a preimage, those beyond the far distance, those
+/// without a preimage.
+pub const ROUND_TRIP_WIDTH: usize = 5;
+
+/// Keep in sync with `RoundTripParams` in shaders/field/round_trip_stats.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct RoundTripParams {
+    /// Voxels, voxels per chunk (abi::SUM_CHUNK), chunks, unused.
+    pub counts: [u32; 4],
+    /// Residual (mm) beyond which a voxel counts as far.
+    pub far: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
+}
+
+impl RoundTripParams {
+    /// Over `voxels` source voxels, counting those farther than `far` mm.
+    pub fn new(voxels: usize, far: f32) -> Self {
+        RoundTripParams {
+            counts: chunking(voxels, SUM_CHUNK, 0),
+            far,
+            pad: [0; 3],
+        }
+    }
+
+    /// Chunks, hence [`ROUND_TRIP_WIDTH`] values each.
+    pub fn chunks(&self) -> usize {
+        self.counts[2] as usize
+    }
+}

@@ -2,7 +2,7 @@
 //! the initial field and inversion (shaders/field/, abi::field, cpu::field, gpu::field).
 
 use super::Core;
-use crate::abi::{ComposeParams, FadeParams, InvertParams, RbfGradParams};
+use crate::abi::{ComposeParams, FadeParams, InvertParams, RbfGradParams, RoundTripParams};
 use crate::error::Result;
 
 /// Kernels of displacement fields (named `Fields`: crate::volume::Field is the field itself).
@@ -41,4 +41,15 @@ pub trait Fields: Core {
         params: &InvertParams,
         field: &Self::Buffer<f32>,
     ) -> Result<(Self::Buffer<f32>, Self::Buffer<f32>)>;
+
+    /// Per chunk of `params`' source voxels inside the body (`source` > 0): the sum and largest
+    /// of the round-trip `residual`s (mm) of those with a preimage (≥ 0), their count, those
+    /// beyond `params`' far distance, and the count without a preimage (abi::ROUND_TRIP_WIDTH
+    /// values, in f64).
+    fn round_trip_stats(
+        &self,
+        params: &RoundTripParams,
+        residual: &Self::Buffer<f32>,
+        source: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f64>>;
 }

@@ -3,10 +3,13 @@
 mod compose;
 mod fade_warp;
 mod invert_field;
+mod round_trip_stats;
 mod warp_field;
 
 use super::{filled, filled_pair, CpuBackend};
-use crate::abi::{ComposeParams, FadeParams, InvertParams, RbfGradParams};
+use crate::abi::{
+    ComposeParams, FadeParams, InvertParams, RbfGradParams, RoundTripParams, ROUND_TRIP_WIDTH,
+};
 use crate::backend::field::Fields;
 use crate::error::Result;
 use std::sync::Arc;
@@ -47,6 +50,17 @@ impl Fields for CpuBackend {
     ) -> Result<(Arc<Vec<f32>>, Arc<Vec<f32>>)> {
         filled_pair([3 * params.voxels(), params.voxels()], |out, residual| {
             invert_field::invert_field(params, field, out, residual);
+        })
+    }
+
+    fn round_trip_stats(
+        &self,
+        params: &RoundTripParams,
+        residual: &Arc<Vec<f32>>,
+        source: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f64>>> {
+        filled(ROUND_TRIP_WIDTH * params.chunks(), |out| {
+            round_trip_stats::round_trip_stats(params, residual, source, out)
         })
     }
 }

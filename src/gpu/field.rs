@@ -3,10 +3,12 @@
 //! pipelines and the family's trait.
 
 use super::context::GpuContext;
-use super::kernel::{cover, Binding, Kernel};
+use super::kernel::{cover, groups, Binding, Kernel};
 use super::resident::GpuBuffer;
 use super::{compile, GpuBackend};
-use crate::abi::{ComposeParams, FadeParams, InvertParams, RbfGradParams};
+use crate::abi::{
+    ComposeParams, FadeParams, InvertParams, RbfGradParams, RoundTripParams, ROUND_TRIP_WIDTH,
+};
 use crate::backend::field::Fields;
 use crate::error::Result;
 
@@ -18,6 +20,7 @@ pub const BINDINGS: &[super::KernelBindings] = &[
     ("compose", &[Uniform, Read, Read, ReadWrite]),
     ("fade_warp", &[Uniform, Read, Read, ReadWrite]),
     ("invert_field", &[Uniform, Read, ReadWrite, ReadWrite]),
+    ("round_trip_stats", &[Uniform, Read, Read, ReadWrite]),
 ];
 
 /// The family's compiled kernels.
@@ -26,6 +29,7 @@ pub struct FieldKernels {
     compose: Kernel,
     fade_warp: Kernel,
     invert_field: Kernel,
+    round_trip_stats: Kernel,
 }
 
 impl FieldKernels {
@@ -36,6 +40,7 @@ impl FieldKernels {
             compose: compile(ctx, "compose")?,
             fade_warp: compile(ctx, "fade_warp")?,
             invert_field: compile(ctx, "invert_field")?,
+            round_trip_stats: compile(ctx, "round_trip_stats")?,
         })
     }
 }
@@ -106,5 +111,23 @@ impl Fields for GpuBackend {
             cover(params.out_dims, 4),
         )?;
         Ok((out, residual))
+    }
+
+    /// One invocation per chunk of source voxels.
+    fn round_trip_stats(
+        &self,
+        params: &RoundTripParams,
+        residual: &GpuBuffer<f32>,
+        source: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f64>> {
+        let stats =
+            self.output_buffer("round-trip statistics", ROUND_TRIP_WIDTH * params.chunks())?;
+        self.record(
+            &self.kernels.field.round_trip_stats,
+            params,
+            &[residual.raw(), source.raw(), stats.raw()],
+            [groups(params.chunks(), 64), 1, 1],
+        )?;
+        Ok(stats)
     }
 }

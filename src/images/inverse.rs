@@ -2,7 +2,7 @@
 //! images and labels drawn on the target can be brought back onto the source
 //! (`inverse_field.nii.gz`, `posereg apply --inverse`), with how well it undoes the field.
 
-use crate::abi::InvertParams;
+use crate::abi::{InvertParams, RoundTripParams, ROUND_TRIP_WIDTH};
 use crate::backend::{Backend, DeviceImage};
 use crate::error::Result;
 use crate::volume::Grid;
@@ -41,30 +41,33 @@ pub fn invert<B: Backend>(
     Ok((inverse, residual))
 }
 
-/// The round trip of a residual volume over the voxels `inside` accepts.
-pub fn round_trip(
-    residual: &[f32],
-    inside: impl Fn(usize) -> bool,
-    over: &'static str,
-) -> RoundTrip {
-    let (mut sum, mut max, mut with, mut without, mut far) = (0.0f64, 0.0f64, 0, 0, 0);
-    for (n, &r) in residual.iter().enumerate() {
-        match (inside(n), r < 0.0) {
-            (false, _) => {}
-            (true, true) => without += 1,
-            (true, false) => {
-                sum += r as f64;
-                max = max.max(r as f64);
-                with += 1;
-                far += (r > 0.1) as usize;
-            }
-        }
+/// Residual (mm) beyond which the inversion counts as not converged.
+const FAR_MM: f32 = 0.1;
+
+/// The round trip of the inverse whose per-voxel `residual` (see [`invert`]) is on the grid of
+/// `source`, over the source's body (its voxels above 0), reduced where the backend computes:
+/// only a few numbers per chunk of voxels come back.
+pub fn round_trip<B: Backend>(
+    backend: &B,
+    residual: &B::Buffer<f32>,
+    source: &DeviceImage<B>,
+) -> Result<RoundTrip> {
+    let params = RoundTripParams::new(source.grid.len(), FAR_MM);
+    let stats =
+        backend.download_one(&backend.round_trip_stats(&params, residual, &source.data)?)?;
+    let (mut sum, mut max, mut with, mut far, mut without) = (0.0f64, 0.0f64, 0.0, 0.0, 0.0);
+    for chunk in stats.chunks_exact(ROUND_TRIP_WIDTH) {
+        sum += chunk[0];
+        max = max.max(chunk[1]);
+        with += chunk[2];
+        far += chunk[3];
+        without += chunk[4];
     }
-    RoundTrip {
-        mean_mm: if with > 0 { sum / with as f64 } else { 0.0 },
+    Ok(RoundTrip {
+        mean_mm: if with > 0.0 { sum / with } else { 0.0 },
         max_mm: max,
-        over_tenth_mm: far as f64 / with.max(1) as f64,
-        without_preimage: without as f64 / (with + without).max(1) as f64,
-        over,
-    }
+        over_tenth_mm: far / with.max(1.0),
+        without_preimage: without / (with + without).max(1.0),
+        over: "the source's voxels above 0 (its body)",
+    })
 }

@@ -36,8 +36,15 @@ pub fn run_bench(
         mib(sizes.outputs)
     ));
     progress.result(&format!(
-        "{:<52} {:>10} {:>10} {:>10} {:>10} {:>10}",
-        "backend", "init s", "adaptive s", "dense s", "finish s", "total s"
+        "{:<52} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",
+        "backend",
+        "init s",
+        "adaptive s",
+        "compose s",
+        "dense s",
+        "unfold s",
+        "finish s",
+        "total s"
     ));
     let mut totals = Vec::new();
     for &kind in kinds {
@@ -59,14 +66,16 @@ pub fn run_bench(
 fn tell_row(describe: &str, timed: &Timed, sizes: &Sizes, progress: &dyn Progress) {
     let t = &timed.stages;
     progress.result(&format!(
-        "{describe:<52} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2}",
-        t.initialisation, t.adaptive, t.dense, t.finish, timed.total
+        "{describe:<52} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2}",
+        t.initialisation, t.adaptive, t.composition, t.dense, t.unfolding, t.finish, timed.total
     ));
     let stages = &timed.traffic;
     for (stage, traffic) in [
         ("initialisation", stages.initialisation),
         ("adaptive", stages.adaptive),
+        ("composition", stages.composition),
         ("dense", stages.dense),
+        ("unfolding", stages.unfolding),
         ("finish", stages.finish),
         ("registration", stages.total),
     ] {

@@ -42,7 +42,9 @@ pub fn time_registrations<B: Backend>(
         stages: StageTimes {
             initialisation: m(|t| t.initialisation),
             adaptive: m(|t| t.adaptive),
+            composition: m(|t| t.composition),
             dense: m(|t| t.dense),
+            unfolding: m(|t| t.unfolding),
             finish: m(|t| t.finish),
         },
         total: m(StageTimes::total),

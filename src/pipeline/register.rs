@@ -9,7 +9,7 @@ use crate::error::Result;
 use crate::finish::{composed, outputs, unfolded};
 use crate::images::coverage::mask_and_coverage;
 use crate::images::fold_repair::{FoldRepair, SourceLabels};
-use crate::images::inverse::{round_trip, RoundTrip};
+use crate::images::inverse::RoundTrip;
 use crate::init::articulated::{initialise, InitialImages, Initialisation, PairImages, Start};
 use crate::init::pins::{bone_pins, initial_bones};
 use crate::io::transform::BoneTransforms;
@@ -65,11 +65,15 @@ pub struct StageTraffic {
     pub initialisation: Traffic,
     /// Adaptive RBF stage.
     pub adaptive: Traffic,
-    /// The dense refinement, with the composition and unfolding of the field it refines.
+    /// The adaptive warp scaled until it does not fold and composed with the initial field.
+    pub composition: Traffic,
+    /// The dense refinement (nothing when it is off).
     pub dense: Traffic,
+    /// The unfolding of the whole field where it still folds.
+    pub unfolding: Traffic,
     /// The final fold check, resampling, inverse and the download of the outputs.
     pub finish: Traffic,
-    /// The four together.
+    /// The stages together.
     pub total: Traffic,
 }
 
@@ -80,8 +84,12 @@ pub struct StageTimes {
     pub initialisation: f64,
     /// Adaptive RBF stage.
     pub adaptive: f64,
-    /// The dense refinement, with the composition and unfolding of the field it refines.
+    /// The adaptive warp scaled until it does not fold and composed with the initial field.
+    pub composition: f64,
+    /// The dense refinement (0 when it is off).
     pub dense: f64,
+    /// The unfolding of the whole field where it still folds.
+    pub unfolding: f64,
     /// The final fold check, resampling and inverse.
     pub finish: f64,
 }
@@ -89,7 +97,12 @@ pub struct StageTimes {
 impl StageTimes {
     /// The whole registration.
     pub fn total(&self) -> f64 {
-        self.initialisation + self.adaptive + self.dense + self.finish
+        self.initialisation
+            + self.adaptive
+            + self.composition
+            + self.dense
+            + self.unfolding
+            + self.finish
     }
 }
 
@@ -185,16 +198,17 @@ pub fn register_observed<B: Backend>(
     let (field, scale) = composed(backend, &pair, images, &adaptive, held, margin)?;
     progress.step(&format!("warp scale {scale}"));
     progress.end();
+    laps.lap(); // the composition
     let bones_held = start.bone_map.as_ref().map(|map| (map, bones.len()));
     let refinement = (field, &mask);
     let (field, dense) = refined(backend, &pair, refinement, bones_held, options, progress)?;
+    laps.lap(); // the dense stage
     let whole = unfolded(backend, (field, scale), &labels, images, held, margin)?;
-    laps.lap(); // the composition, the dense stage and the unfolding
+    laps.lap(); // the unfolding
     progress.begin("resampling and inverse", 1);
     let finished = outputs(backend, &pair, &whole.field, &whole.held)?;
     progress.end();
     laps.lap(); // the finish
-    let source = inputs.source;
     let voxels = inputs.target.grid.len() as f64;
     Ok(Registration {
         init: start.init,
@@ -204,11 +218,7 @@ pub fn register_observed<B: Backend>(
         warped: finished.warped,
         jacobian: finished.jacobian,
         inverse: finished.inverse,
-        round_trip: round_trip(
-            &finished.inverse_residual,
-            |n| source.data[n] > 0.0,
-            "the source's voxels above 0 (its body)",
-        ),
+        round_trip: finished.round_trip,
         min_jacobian: finished.folds.min,
         folded_share: finished.folds.folded as f64 / voxels,
         contact_share: finished.folds.contacts as f64 / voxels,
@@ -247,31 +257,37 @@ impl<'b, B: Backend> Laps<'b, B> {
         self.last = now;
     }
 
-    /// The four stages' seconds.
+    /// The stages' seconds.
     fn times(&self) -> StageTimes {
-        let [initialisation, adaptive, dense, finish] = self.stages().map(|l| l.0);
+        let [initialisation, adaptive, composition, dense, unfolding, finish] =
+            self.stages().map(|l| l.0);
         StageTimes {
             initialisation,
             adaptive,
+            composition,
             dense,
+            unfolding,
             finish,
         }
     }
 
-    /// The four stages' traffic, and the whole run's.
+    /// The stages' traffic, and the whole run's.
     fn traffic(&self) -> StageTraffic {
-        let [initialisation, adaptive, dense, finish] = self.stages().map(|l| l.1);
+        let [initialisation, adaptive, composition, dense, unfolding, finish] =
+            self.stages().map(|l| l.1);
         StageTraffic {
             initialisation,
             adaptive,
+            composition,
             dense,
+            unfolding,
             finish,
             total: self.last.1 - self.first,
         }
     }
 
-    fn stages(&self) -> [(f64, Traffic); 4] {
-        self.laps[..].try_into().expect("four stages timed")
+    fn stages(&self) -> [(f64, Traffic); 6] {
+        self.laps[..].try_into().expect("six stages timed")
     }
 }
 
