@@ -1364,3 +1364,21 @@ fn round_trip_statistics_parity() {
         .unwrap();
     assert_eq!(gpu.download_one(&stats).unwrap(), cpu.to_vec());
 }
+
+/// An empty buffer comes back empty (a list of no flagged voxels, for one): the staging
+/// buffer is never empty, and its padding is not read as values.
+#[test]
+fn an_empty_download_is_empty() {
+    let flags = vec![0.0f32; 3000];
+    let listed = posereg::backend::reduce::flagged(
+        &CpuBackend,
+        &std::sync::Arc::new(flags.clone()),
+        flags.len(),
+    )
+    .unwrap();
+    assert!(listed.0.is_empty() && listed.1.is_empty());
+    let Some(gpu) = gpu() else { return };
+    let up = gpu.upload("flags", flags.clone()).unwrap();
+    let listed = posereg::backend::reduce::flagged(gpu, &up, flags.len()).unwrap();
+    assert!(listed.0.is_empty() && listed.1.is_empty());
+}

@@ -132,7 +132,9 @@ impl GpuBackend {
         ctx.counters.submit();
         ctx.counters.down(total);
         let bytes = super::buffer::map_and_read(ctx, &staging)?;
-        let mut all: Vec<T> = bytemuck::pod_collect_to_vec(&bytes);
+        // The staging buffer is at least 4 bytes (wgpu refuses empty ones): only `total` of them
+        // were copied.
+        let mut all: Vec<T> = bytemuck::pod_collect_to_vec(&bytes[..total as usize]);
         let mut out = Vec::with_capacity(buffers.len());
         for b in buffers.iter().rev() {
             out.push(all.split_off(all.len() - b.len));
