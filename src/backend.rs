@@ -177,7 +177,16 @@ pub trait Core {
     fn download<T: Element>(&self, buffers: &[&Self::Buffer<T>]) -> Result<Vec<Vec<T>>>;
 
     /// `len` zeros where kernels can read them, without an upload.
-    fn zeros(&self, what: &str, len: usize) -> Result<Self::Buffer<f32>>;
+    fn zeros<T: Element>(&self, what: &str, len: usize) -> Result<Self::Buffer<T>>;
+
+    /// A copy of `buffer` where the backend computes, not shared with it: for the kernels
+    /// that write a buffer in place (the fold push), which must not change one that others
+    /// hold.
+    fn duplicate<T: Element>(
+        &self,
+        what: &str,
+        buffer: &Self::Buffer<T>,
+    ) -> Result<Self::Buffer<T>>;
 
     /// Brings one buffer back ([`Core::download`]).
     fn download_one<T: Element>(&self, buffer: &Self::Buffer<T>) -> Result<Vec<T>> {

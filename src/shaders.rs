@@ -25,6 +25,18 @@ const THRESHOLD: (&str, &str) = (
     "fold/threshold.wgsl",
     include_str!("../shaders/fold/threshold.wgsl"),
 );
+const CONTACTS: (&str, &str) = (
+    "fold/contacts.wgsl",
+    include_str!("../shaders/fold/contacts.wgsl"),
+);
+const LIFT_RULE: (&str, &str) = (
+    "fold/lift_rule.wgsl",
+    include_str!("../shaders/fold/lift_rule.wgsl"),
+);
+const STENCIL: (&str, &str) = (
+    "fold/stencil.wgsl",
+    include_str!("../shaders/fold/stencil.wgsl"),
+);
 const GAIN: (&str, &str) = (
     "nonrigid/gain.wgsl",
     include_str!("../shaders/nonrigid/gain.wgsl"),
@@ -101,6 +113,7 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
         &[
             COMMON,
             THRESHOLD,
+            CONTACTS,
             (
                 "fold/fold_stats.wgsl",
                 include_str!("../shaders/fold/fold_stats.wgsl"),
@@ -190,6 +203,46 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             (
                 "fold/dilate.wgsl",
                 include_str!("../shaders/fold/dilate.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "fold_candidates",
+        &[
+            COMMON,
+            CONTACTS,
+            LIFT_RULE,
+            (
+                "fold/fold_candidates.wgsl",
+                include_str!("../shaders/fold/fold_candidates.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "fold_push",
+        &[
+            COMMON,
+            SAMPLE,
+            GEOMETRY,
+            LABELS,
+            BONE_LOOKUP,
+            STENCIL,
+            (
+                "fold/fold_push.wgsl",
+                include_str!("../shaders/fold/fold_push.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "fold_refresh",
+        &[
+            COMMON,
+            CONTACTS,
+            LIFT_RULE,
+            STENCIL,
+            (
+                "fold/fold_refresh.wgsl",
+                include_str!("../shaders/fold/fold_refresh.wgsl"),
             ),
         ],
     ),

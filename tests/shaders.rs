@@ -2,11 +2,12 @@
 //! has the same size in Rust and WGSL.
 
 use posereg::abi::{
-    BoneLookupParams, ComposeParams, DilateParams, EdtParams, EnergyParams, FadeParams, GainParams,
-    InvertParams, JacobianParams, LabelParams, ListParams, LnccParams, LnccTermsParams,
-    LocalMomentsParams, MomentsParams, PartialsParams, PyramidParams, RbfGradParams,
-    RbfLatticeParams, ResampleParams, RigidParams, RoundTripParams, ScoreParams, SkinBlendParams,
-    SkinWeightsParams, SplatParams, SsdParams, SumParams, SurfaceParams, ThresholdParams,
+    BoneLookupParams, CandidateParams, ComposeParams, DilateParams, EdtParams, EnergyParams,
+    FadeParams, GainParams, InvertParams, JacobianParams, LabelParams, ListParams, LnccParams,
+    LnccTermsParams, LocalMomentsParams, MomentsParams, PartialsParams, PushParams, PyramidParams,
+    RbfGradParams, RbfLatticeParams, RefreshParams, ResampleParams, RigidParams, RoundTripParams,
+    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
+    SurfaceParams, ThresholdParams,
 };
 use posereg::shaders::{locate, source, KERNELS};
 use std::mem::size_of;
@@ -70,7 +71,7 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
     use posereg::abi::dense;
-    let pairs: [(&str, &str, usize); 44] = [
+    let pairs: [(&str, &str, usize); 47] = [
         ("warp_image", "RbfGradParams", size_of::<RbfGradParams>()),
         ("gain_terms", "GainParams", size_of::<GainParams>()),
         ("gain_ratio", "GainParams", size_of::<GainParams>()),
@@ -132,6 +133,13 @@ fn abi_structs_match_their_wgsl_twins() {
             size_of::<ThresholdParams>(),
         ),
         ("dilate", "DilateParams", size_of::<DilateParams>()),
+        (
+            "fold_candidates",
+            "CandidateParams",
+            size_of::<CandidateParams>(),
+        ),
+        ("fold_push", "PushParams", size_of::<PushParams>()),
+        ("fold_refresh", "RefreshParams", size_of::<RefreshParams>()),
         ("edt", "EdtParams", size_of::<EdtParams>()),
         ("moments", "MomentsParams", size_of::<MomentsParams>()),
         (

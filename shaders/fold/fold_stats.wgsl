@@ -5,7 +5,7 @@
 // contacts with det <= 0. The host combines the chunks (min of minima, sums of counts, exact
 // in f32 for a chunk's 1024 voxels).
 //
-// A bone contact is a voxel whose stencil (the voxels its central differences take; the voxel
+// A bone contact (fold/contacts.wgsl) is a voxel whose stencil (the voxels its central differences take; the voxel
 // itself on a face) spans two bones held rigid (held values are bone numbers): either along
 // one axis its two neighbours are held in two different bones, or all six neighbours are held,
 // in two different bones. Where bones slide on each other at a joint the field jumps from one
@@ -25,39 +25,6 @@
 @group(0) @binding(1) var<storage, read> det: array<f32>;
 @group(0) @binding(2) var<storage, read> held: array<f32>;
 @group(0) @binding(3) var<storage, read_write> stats: array<f32>;
-
-// The voxel one step from voxel c along `axis` (0..2) in direction `step` (-1 or 1), the
-// voxel itself at the volume's faces.
-fn face_neighbour(c: vec3<u32>, axis: u32, step: i32) -> u32 {
-    let d = params.dims.xyz;
-    var p = c;
-    if (step < 0 && p[axis] > 0u) {
-        p[axis] = p[axis] - 1u;
-    }
-    if (step > 0 && p[axis] + 1u < d[axis]) {
-        p[axis] = p[axis] + 1u;
-    }
-    return voxel_index(p.x, p.y, p.z, d);
-}
-
-// Whether voxel v is a bone contact (the header's).
-fn is_contact(v: u32) -> bool {
-    let d = params.dims.xyz;
-    let c = vec3<u32>(v % d.x, (v / d.x) % d.y, v / (d.x * d.y));
-    let first = held[face_neighbour(c, 0u, -1)];
-    var all_held = true;
-    var two_bones = false;
-    var spans_along_an_axis = false;
-    for (var axis = 0u; axis < 3u; axis = axis + 1u) {
-        let lo = held[face_neighbour(c, axis, -1)];
-        let hi = held[face_neighbour(c, axis, 1)];
-        let both_held = is_held(lo) && is_held(hi);
-        all_held = all_held && both_held;
-        two_bones = two_bones || lo != first || hi != first;
-        spans_along_an_axis = spans_along_an_axis || (both_held && lo != hi);
-    }
-    return spans_along_an_axis || (all_held && two_bones);
-}
 
 @compute @workgroup_size(64, 1, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {

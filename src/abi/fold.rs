@@ -103,3 +103,147 @@ impl DilateParams {
         count(&self.dims)
     }
 }
+
+/// Which voxels a pass of the fold push leaves (abi::CandidateParams::spared).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Spared {
+    /// The voxels whose six stencil neighbours all lie in bones, two different ones.
+    EnclosedByBones = 1,
+    /// Every bone contact (shaders/fold/contacts.wgsl).
+    Contacts = 2,
+}
+
+/// Keep in sync with `CandidateParams` in shaders/fold/fold_candidates.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct CandidateParams {
+    /// nx, ny, nz, unused.
+    pub dims: [u32; 4],
+    /// det J at or below which a voxel is lifted.
+    pub threshold: f32,
+    /// [`Spared`] as a number.
+    pub spared: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 2],
+}
+
+impl CandidateParams {
+    /// The voxels of `grid` at or below `threshold`, those `spared` aside.
+    pub fn new(grid: &Grid, threshold: f32, spared: Spared) -> Self {
+        CandidateParams {
+            dims: dims4(grid, 0),
+            threshold,
+            spared: spared as u32,
+            pad: [0; 2],
+        }
+    }
+
+    /// Voxels of the grid.
+    pub fn voxels(&self) -> usize {
+        count(&self.dims)
+    }
+}
+
+/// Keep in sync with `PushParams` in shaders/fold/fold_push.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct PushParams {
+    /// The field's grid → the source label grid (bone_lookup.wgsl's).
+    pub geometry: ResampleParams,
+    /// The bones' codes.
+    pub codes: LabelCodes,
+    /// nx, ny, nz of the field's grid, unused.
+    pub dims: [u32; 4],
+    /// Rows of the inverse of the grid's linear part: d(index)/d(world mm).
+    pub mm_to_index: [[f32; 4]; 3],
+    /// This colour's voxels in the sweep's list: first..end.
+    pub first: u32,
+    /// One past the last.
+    pub end: u32,
+    /// The sweep, from 1 (blocked voxels are stamped with it).
+    pub sweep: u32,
+    /// Padding.
+    pub pad0: u32,
+    /// Longest move of one neighbour in one push (mm).
+    pub largest_step: f32,
+    /// det J at or below which a voxel is pushed.
+    pub threshold: f32,
+    /// det J a push aims for.
+    pub aim: f32,
+    /// Padding to 16 bytes.
+    pub pad1: u32,
+}
+
+impl PushParams {
+    /// The pushes of `voxels` (a range of the sweep's list) in sweep `sweep` on `grid`, bones
+    /// looked up by `lookup`; `(threshold, target)` the determinants pushed and aimed for.
+    pub fn new(
+        lookup: &BoneLookupParams,
+        grid: &Grid,
+        voxels: std::ops::Range<usize>,
+        sweep: u32,
+        (threshold, target): (f32, f32),
+    ) -> Self {
+        PushParams {
+            geometry: lookup.geometry,
+            codes: lookup.codes,
+            dims: dims4(grid, 0),
+            mm_to_index: mm_to_index_rows(grid),
+            first: voxels.start as u32,
+            end: voxels.end as u32,
+            sweep,
+            pad0: 0,
+            largest_step: grid.finest_spacing() as f32 / 4.0,
+            threshold,
+            aim: target,
+            pad1: 0,
+        }
+    }
+
+    /// Voxels this dispatch pushes.
+    pub fn pushed(&self) -> usize {
+        (self.end - self.first) as usize
+    }
+}
+
+/// Keep in sync with `RefreshParams` in shaders/fold/fold_refresh.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct RefreshParams {
+    /// nx, ny, nz of the field's grid, unused.
+    pub dims: [u32; 4],
+    /// Rows of the inverse of the grid's linear part: d(index)/d(world mm).
+    pub mm_to_index: [[f32; 4]; 3],
+    /// The listed voxels refreshed around: first..end.
+    pub first: u32,
+    /// One past the last.
+    pub end: u32,
+    /// [`Spared`] as a number.
+    pub spared: u32,
+    /// det J at or below which a voxel is lifted.
+    pub threshold: f32,
+}
+
+impl RefreshParams {
+    /// Around `voxels` (a range of a list) on `grid`, for the pass that spares `spared`.
+    pub fn new(
+        grid: &Grid,
+        voxels: std::ops::Range<usize>,
+        threshold: f32,
+        spared: Spared,
+    ) -> Self {
+        RefreshParams {
+            dims: dims4(grid, 0),
+            mm_to_index: mm_to_index_rows(grid),
+            first: voxels.start as u32,
+            end: voxels.end as u32,
+            spared: spared as u32,
+            threshold,
+        }
+    }
+
+    /// Listed voxels this dispatch refreshes around.
+    pub fn listed(&self) -> usize {
+        (self.end - self.first) as usize
+    }
+}

@@ -2,7 +2,10 @@
 //! masks and smoothing (shaders/fold/, abi::fold, cpu::fold, gpu::fold).
 
 use super::Core;
-use crate::abi::{BoneLookupParams, DilateParams, JacobianParams, ThresholdParams};
+use crate::abi::{
+    BoneLookupParams, CandidateParams, DilateParams, JacobianParams, PushParams, RefreshParams,
+    ThresholdParams,
+};
 use crate::error::Result;
 
 /// Kernels finding and repairing folds.
@@ -54,4 +57,40 @@ pub trait Fold: Core {
         region: &Self::Buffer<f32>,
         labels: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
+
+    /// On the voxels a pass of the fold push lifts (det J at or below `params`' threshold,
+    /// those it spares aside, by the bones `held`: bone numbers, 0 for tissue) 1, or 2 where
+    /// the voxel is a bone contact along one axis (a pass that lifts those); else 0.
+    fn fold_candidates(
+        &self,
+        params: &CandidateParams,
+        det: &Self::Buffer<f32>,
+        held: &Self::Buffer<f32>,
+    ) -> Result<Self::Buffer<f32>>;
+
+    /// One colour's pushes in a sweep of the fold push (shaders/fold/fold_push.wgsl): each of
+    /// `params`' range of `voxels` still folded moves its stencil neighbours to lift it, none
+    /// `rigid` (> 0), none into a bone of the source `labels`. `field` and `blocked` (the sweep
+    /// each voxel was last blocked in) are written in place: buffers made for this
+    /// (Core::duplicate, Core::zeros) and shared with nothing else.
+    fn fold_push(
+        &self,
+        params: &PushParams,
+        voxels: &Self::Buffer<u32>,
+        rigid_and_labels: (&Self::Buffer<f32>, &Self::Buffer<f32>),
+        field: &mut Self::Buffer<f32>,
+        blocked: &mut Self::Buffer<u32>,
+    ) -> Result<()>;
+
+    /// After a sweep of the fold push, the `flags` of fold_candidates refreshed within two
+    /// steps of each of `params`' range of the sweep's `voxels`, where the sweep's pushes can
+    /// have changed det J of `field` (`held` as for fold_candidates). `flags` is written in
+    /// place (a buffer made for this and shared with nothing else).
+    fn fold_refresh(
+        &self,
+        params: &RefreshParams,
+        voxels: &Self::Buffer<u32>,
+        field_and_held: (&Self::Buffer<f32>, &Self::Buffer<f32>),
+        flags: &mut Self::Buffer<f32>,
+    ) -> Result<()>;
 }

@@ -1,15 +1,21 @@
 //! CPU twins of the fold family's kernels (shaders/fold/).
 
+mod contacts;
 mod dilate;
+mod fold_candidates;
+mod fold_push;
+mod fold_refresh;
 mod fold_smooth;
 mod fold_stats;
 mod jacobian;
 mod mark_at_most;
+mod stencil;
 mod threshold;
 
 use super::{filled, CpuBackend};
 use crate::abi::{
-    BoneLookupParams, DilateParams, JacobianParams, ThresholdParams, FOLD_STATS_WIDTH,
+    BoneLookupParams, CandidateParams, DilateParams, JacobianParams, PushParams, RefreshParams,
+    ThresholdParams, FOLD_STATS_WIDTH,
 };
 use crate::backend::fold::Fold;
 use crate::error::Result;
@@ -65,5 +71,48 @@ impl Fold for CpuBackend {
         filled(3 * params.voxels(), |out| {
             fold_smooth::fold_smooth(params, field, region, labels, out)
         })
+    }
+
+    fn fold_candidates(
+        &self,
+        params: &CandidateParams,
+        det: &Arc<Vec<f32>>,
+        held: &Arc<Vec<f32>>,
+    ) -> Result<Arc<Vec<f32>>> {
+        filled(params.voxels(), |out| {
+            fold_candidates::fold_candidates(params, det, held, out)
+        })
+    }
+
+    fn fold_push(
+        &self,
+        params: &PushParams,
+        voxels: &Arc<Vec<u32>>,
+        (rigid, labels): (&Arc<Vec<f32>>, &Arc<Vec<f32>>),
+        field: &mut Arc<Vec<f32>>,
+        blocked: &mut Arc<Vec<u32>>,
+    ) -> Result<()> {
+        let buffers = fold_push::PushBuffers {
+            voxels,
+            rigid,
+            labels,
+            // Unshared as the trait asks, so nothing is copied.
+            field: Arc::make_mut(field).as_mut_slice(),
+            blocked: Arc::make_mut(blocked).as_mut_slice(),
+        };
+        fold_push::fold_push(params, buffers);
+        Ok(())
+    }
+
+    fn fold_refresh(
+        &self,
+        params: &RefreshParams,
+        voxels: &Arc<Vec<u32>>,
+        (field, held): (&Arc<Vec<f32>>, &Arc<Vec<f32>>),
+        flags: &mut Arc<Vec<f32>>,
+    ) -> Result<()> {
+        let flags = Arc::make_mut(flags).as_mut_slice();
+        fold_refresh::fold_refresh(params, voxels, (field, held), flags);
+        Ok(())
     }
 }

@@ -73,8 +73,12 @@ impl Core for CpuBackend {
         Ok(Arc::new(data))
     }
 
-    fn zeros(&self, _what: &str, len: usize) -> Result<Arc<Vec<f32>>> {
+    fn zeros<T: Element>(&self, _what: &str, len: usize) -> Result<Arc<Vec<T>>> {
         Ok(Arc::new(zeroed(len)))
+    }
+
+    fn duplicate<T: Element>(&self, _what: &str, buffer: &Arc<Vec<T>>) -> Result<Arc<Vec<T>>> {
+        Ok(Arc::new(buffer.to_vec()))
     }
 
     fn download<T: Element>(&self, buffers: &[&Arc<Vec<T>>]) -> Result<Vec<Vec<T>>> {

@@ -7,7 +7,8 @@ use super::kernel::{cover, groups, Binding, Kernel};
 use super::resident::GpuBuffer;
 use super::{compile, GpuBackend};
 use crate::abi::{
-    BoneLookupParams, DilateParams, JacobianParams, ThresholdParams, FOLD_STATS_WIDTH,
+    BoneLookupParams, CandidateParams, DilateParams, JacobianParams, PushParams, RefreshParams,
+    ThresholdParams, FOLD_STATS_WIDTH,
 };
 use crate::backend::fold::Fold;
 use crate::error::Result;
@@ -21,6 +22,12 @@ pub const BINDINGS: &[super::KernelBindings] = &[
     ("mark_at_most", &[Uniform, Read, Read, ReadWrite]),
     ("dilate", &[Uniform, Read, Read, ReadWrite]),
     ("fold_smooth", &[Uniform, Read, Read, Read, ReadWrite]),
+    ("fold_candidates", &[Uniform, Read, Read, ReadWrite]),
+    (
+        "fold_push",
+        &[Uniform, Read, Read, Read, ReadWrite, ReadWrite],
+    ),
+    ("fold_refresh", &[Uniform, Read, Read, Read, ReadWrite]),
 ];
 
 /// The family's compiled kernels.
@@ -30,6 +37,9 @@ pub struct FoldKernels {
     mark_at_most: Kernel,
     dilate: Kernel,
     fold_smooth: Kernel,
+    fold_candidates: Kernel,
+    fold_push: Kernel,
+    fold_refresh: Kernel,
 }
 
 impl FoldKernels {
@@ -41,6 +51,9 @@ impl FoldKernels {
             mark_at_most: compile(ctx, "mark_at_most")?,
             dilate: compile(ctx, "dilate")?,
             fold_smooth: compile(ctx, "fold_smooth")?,
+            fold_candidates: compile(ctx, "fold_candidates")?,
+            fold_push: compile(ctx, "fold_push")?,
+            fold_refresh: compile(ctx, "fold_refresh")?,
         })
     }
 }
@@ -125,5 +138,55 @@ impl Fold for GpuBackend {
             cover(params.geometry.target_dims, 4),
         )?;
         Ok(out)
+    }
+
+    /// The voxels a pass lifts.
+    fn fold_candidates(
+        &self,
+        params: &CandidateParams,
+        det: &GpuBuffer<f32>,
+        held: &GpuBuffer<f32>,
+    ) -> Result<GpuBuffer<f32>> {
+        let flags = self.output_buffer("voxels to lift", params.voxels())?;
+        self.record(
+            &self.kernels.fold.fold_candidates,
+            params,
+            &[det.raw(), held.raw(), flags.raw()],
+            cover(params.dims, 4),
+        )?;
+        Ok(flags)
+    }
+
+    /// One invocation per voxel of the colour, writing the field in place.
+    fn fold_push(
+        &self,
+        params: &PushParams,
+        voxels: &GpuBuffer<u32>,
+        (rigid, labels): (&GpuBuffer<f32>, &GpuBuffer<f32>),
+        field: &mut GpuBuffer<f32>,
+        blocked: &mut GpuBuffer<u32>,
+    ) -> Result<()> {
+        let bound = [
+            voxels.raw(),
+            rigid.raw(),
+            labels.raw(),
+            field.raw(),
+            blocked.raw(),
+        ];
+        let workgroups = [groups(params.pushed(), 64), 1, 1];
+        self.record(&self.kernels.fold.fold_push, params, &bound, workgroups)
+    }
+
+    /// One invocation per listed voxel, writing the flags in place.
+    fn fold_refresh(
+        &self,
+        params: &RefreshParams,
+        voxels: &GpuBuffer<u32>,
+        (field, held): (&GpuBuffer<f32>, &GpuBuffer<f32>),
+        flags: &mut GpuBuffer<f32>,
+    ) -> Result<()> {
+        let bound = [voxels.raw(), field.raw(), held.raw(), flags.raw()];
+        let workgroups = [groups(params.listed(), 64), 1, 1];
+        self.record(&self.kernels.fold.fold_refresh, params, &bound, workgroups)
     }
 }

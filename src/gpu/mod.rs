@@ -158,8 +158,14 @@ impl Core for GpuBackend {
         self.ctx.counters.read()
     }
 
-    fn zeros(&self, what: &str, len: usize) -> Result<GpuBuffer<f32>> {
+    fn zeros<T: Element>(&self, what: &str, len: usize) -> Result<GpuBuffer<T>> {
         // wgpu fills new buffers with zeros: nothing to upload.
         self.output_buffer(what, len)
+    }
+
+    fn duplicate<T: Element>(&self, what: &str, buffer: &GpuBuffer<T>) -> Result<GpuBuffer<T>> {
+        let copy = self.output_buffer(what, buffer.len())?;
+        self.record_copy(buffer, &copy)?;
+        Ok(copy)
     }
 }

@@ -96,6 +96,21 @@ impl GpuBackend {
         kernel.dispatch(ctx, encoder, &bound, workgroups)
     }
 
+    /// Records a copy of `from` into `to` (as long as `from`), after the work recorded so far.
+    pub fn record_copy<T: Element>(&self, from: &GpuBuffer<T>, to: &GpuBuffer<T>) -> Result<()> {
+        let ctx = self.context();
+        let mut pending = self
+            .pending
+            .lock()
+            .expect("no kernel panicked while recording");
+        let encoder =
+            pending.get_or_insert_with(|| ctx.device.create_command_encoder(&Default::default()));
+        if from.bytes() > 0 {
+            encoder.copy_buffer_to_buffer(&from.buffer, 0, &to.buffer, 0, from.bytes());
+        }
+        Ok(())
+    }
+
     /// Submits the recorded work with copies of `buffers` into one staging buffer, waits once,
     /// and returns their contents.
     pub fn download_buffers<T: Element>(&self, buffers: &[&GpuBuffer<T>]) -> Result<Vec<Vec<T>>> {

@@ -3,18 +3,16 @@
 //! behind the knee), and the pull-back of a folded blend has no consistent answer there. Two
 //! steps, both leaving bones rigid: broad local smoothing (kernels, where the backend
 //! computes), then a targeted push on whatever smoothing could not undo (folds pinned by a
-//! bone; images::unfold, a sequential sweep on the host, run only when folds are left). The
-//! push also serves a registration's total field ([`unfold_registration`]) and the phantom's
-//! truth field.
+//! bone; images::unfold, also where the backend computes, run only when folds are left). The
+//! push also serves a registration's total field ([`unfold_registration`]).
 
 use crate::abi::{
     BoneLookupParams, DilateParams, JacobianParams, ThresholdParams, FOLD_STATS_WIDTH,
 };
 use crate::backend::{Backend, DeviceImage};
 use crate::error::Result;
-use crate::images::unfold::{unfold, Held};
-use crate::sample::bone_at;
-use crate::volume::{Field, Grid, Image, Labels};
+use crate::images::unfold::{unfold, Bones, Held};
+use crate::volume::{Field, Grid, Labels};
 
 pub use crate::images::unfold::FOLD_THRESHOLD;
 
@@ -99,8 +97,7 @@ pub fn host_determinant<B: Backend>(backend: &B, field: &Field) -> Result<Vec<f3
     backend.download_one(&backend.jacobian(&params, &values)?)
 }
 
-/// The source label map, on the host (for the push, which runs there) and where the backend
-/// computes.
+/// The source label map, on the host (its grid) and where the backend computes.
 pub struct SourceLabels<'a, B: Backend> {
     /// On the host.
     pub host: &'a Labels,
@@ -163,7 +160,7 @@ pub fn repair_folds<B: Backend>(
     }
     if folds.low > 0 {
         (field, report.folded_after, report.unfold_steps) =
-            unfold_on_host(backend, field, &det, (&held, None), labels, bones)?;
+            unfold_field(backend, field, (&held, None), labels, bones)?;
     }
     Ok((field, report))
 }
@@ -207,8 +204,7 @@ pub fn bones_at_source<B: Backend>(
     backend.bone_at_source(&lookup, &field.data, &anywhere, &labels.device.data)
 }
 
-/// Unfolds a registration's total field, whose Jacobian determinant is `det` with fold
-/// statistics `folds`: [`unfold`] with the voxels `held` in a bone ([`bones_at_source`]) placing
+/// Unfolds a registration's total field, whose fold statistics are `folds`: [`unfold`] with the voxels `held` in a bone ([`bones_at_source`]) placing
 /// the bone contacts, the voxels at their bone's motion (`rigid`, [`rigid_bones`]; None: those
 /// held) held, and tissue pushed into a bone only as its last resort. The adaptive warp is smooth and does
 /// not fold (its step control sees to that), but composed with an initial field that is sharply
@@ -216,7 +212,7 @@ pub fn bones_at_source<B: Backend>(
 pub fn unfold_registration<B: Backend>(
     backend: &B,
     field: DeviceImage<B>,
-    (det, folds): (&B::Buffer<f32>, &Folds),
+    folds: &Folds,
     (held, rigid): (&B::Buffer<f32>, Option<&B::Buffer<f32>>),
     labels: &SourceLabels<B>,
     bones: &[u16],
@@ -231,53 +227,34 @@ pub fn unfold_registration<B: Backend>(
         // 46% of the voxels, and unfolding took 150 s): left as it is for the checks to report.
         return Ok((field, report));
     }
-    let (field, left, steps) = unfold_on_host(backend, field, det, (held, rigid), labels, bones)?;
+    let (field, left, steps) = unfold_field(backend, field, (held, rigid), labels, bones)?;
     report.folded_after = left;
     report.unfold_steps = steps;
     Ok((field, report))
 }
 
-/// [`unfold`] on the host: the field, its determinant, the held voxels and the rigid ones
-/// (None: those held) come back (one wait), the unfolded field goes up again, and the kernel
-/// counts the voxels still at or below the threshold. Returns the field, that count and the
-/// steps taken.
-fn unfold_on_host<B: Backend>(
+/// [`unfold`] where the backend computes, the voxels `held` in bones placing the contacts and
+/// those at their bone's motion (`rigid`; None: those held) not moved; then the kernel counts
+/// the voxels still at or below the threshold. Returns the field, that count and the sweeps
+/// taken.
+fn unfold_field<B: Backend>(
     backend: &B,
     field: DeviceImage<B>,
-    det: &B::Buffer<f32>,
     (held, rigid): (&B::Buffer<f32>, Option<&B::Buffer<f32>>),
     labels: &SourceLabels<B>,
     bones: &[u16],
 ) -> Result<(DeviceImage<B>, usize, usize)> {
-    let mut wanted = vec![&field.data, det, held];
-    wanted.extend(rigid);
-    let mut host = backend.download(&wanted)?;
-    let rigid_host = rigid.and_then(|_| host.pop());
-    let (held_host, det_host) = (
-        host.pop().unwrap_or_default(),
-        host.pop().unwrap_or_default(),
-    );
-    let values = host.pop().unwrap_or_default();
-    let mut unfolded = Image::from_data(field.grid.clone(), bytemuck::cast_vec(values))?;
     let lookup = BoneLookupParams::new(&labels.host.grid, &field.grid, bones, f32::MAX)?;
-    let codes: Vec<f32> = labels.host.data.iter().map(|&l| l as f32).collect();
-    let dims = field.grid.dims;
-    let in_bone = |n: usize, u: [f32; 3]| {
-        let p = [
-            n % dims[0],
-            (n / dims[0]) % dims[1],
-            n / (dims[0] * dims[1]),
-        ]
-        .map(|c| c as f32);
-        bone_at(&lookup, &codes, p, u) > 0
+    let held = Held {
+        bones: held,
+        rigid: rigid.unwrap_or(held),
     };
-    let on_host = Held {
-        bones: &held_host,
-        rigid: rigid_host.as_deref().unwrap_or(&held_host),
+    let bones = Bones {
+        lookup: &lookup,
+        labels: &labels.device.data,
     };
-    let steps = unfold(&mut unfolded, det_host, on_host, &in_bone);
-    let field = DeviceImage::upload_field(backend, "unfolded field", unfolded)?;
-    let (_, folds) = determinant(backend, &field, held)?;
+    let (field, steps) = unfold(backend, &field, &held, &bones)?;
+    let (_, folds) = determinant(backend, &field, held.bones)?;
     Ok((field, folds.low, steps))
 }
 

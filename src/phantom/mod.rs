@@ -10,12 +10,12 @@ pub mod acquisition;
 pub mod anatomy;
 pub mod flexion;
 pub mod shapes;
+mod unfold;
 
 use crate::backend::Backend;
 use crate::cpu::CpuBackend;
 use crate::error::{Error, Result};
 use crate::images::fold_repair::host_determinant;
-use crate::images::unfold::{unfold, Held};
 use crate::io::transform::{BoneTransform, BoneTransforms};
 use crate::volume::{Affine, Field, Grid, Image, Labels, Volume};
 use acquisition::{add_rician_noise, BiasField};
@@ -23,6 +23,7 @@ use anatomy::BONES;
 use flexion::Flexion;
 use glam::Vec3;
 use rayon::prelude::*;
+use unfold::{unfold, Held};
 
 /// Grid presets covering the same field of view (170 × 320 × 307 mm).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]

@@ -1,9 +1,11 @@
 //! CPU twin of shaders/reduce/list_flagged.wgsl.
 
 use crate::abi::ListParams;
+use rayon::prelude::*;
 
 /// Writes the flagged values (> 0) of `flags` and their indices into `indices` and `values`,
-/// chunk by chunk from each chunk's offset in `offsets`.
+/// chunk by chunk from each chunk's offset in `offsets` (the chunks in parallel: each writes
+/// its own part of the list, from its offset to the next chunk's).
 pub fn list_flagged(
     params: &ListParams,
     flags: &[f32],
@@ -11,16 +13,41 @@ pub fn list_flagged(
     indices: &mut [u32],
     values: &mut [f32],
 ) {
-    let [_, per_chunk, chunks, _] = params.counts.map(|c| c as usize);
-    let chunked = flags.chunks(per_chunk).zip(offsets).take(chunks);
-    for (c, (chunk, &offset)) in chunked.enumerate() {
-        let mut at = offset as usize;
-        for (k, &flag) in chunk.iter().enumerate() {
-            if flag > 0.0 {
-                indices[at] = (c * per_chunk + k) as u32;
-                values[at] = flag;
-                at += 1;
+    let [len, per_chunk, chunks, _] = params.counts.map(|c| c as usize);
+    let first = params.first as usize;
+    let parts = split_at_offsets(indices, &offsets[..chunks])
+        .into_iter()
+        .zip(split_at_offsets(values, &offsets[..chunks]));
+    let chunked: Vec<_> = flags[first..first + len]
+        .chunks(per_chunk)
+        .enumerate()
+        .zip(parts)
+        .collect();
+    chunked
+        .into_par_iter()
+        .for_each(|((c, chunk), (indices, values))| {
+            let mut at = 0;
+            for (k, &flag) in chunk.iter().enumerate() {
+                if flag > 0.0 {
+                    indices[at] = (first + c * per_chunk + k) as u32;
+                    values[at] = flag;
+                    at += 1;
+                }
             }
-        }
+        });
+}
+
+/// `list` cut at each chunk's offset (the first is 0): each chunk's part of it.
+fn split_at_offsets<'a, T>(list: &'a mut [T], offsets: &[u32]) -> Vec<&'a mut [T]> {
+    let mut parts = Vec::with_capacity(offsets.len());
+    let mut rest = list;
+    for pair in offsets.windows(2) {
+        let (part, after) = rest.split_at_mut((pair[1] - pair[0]) as usize);
+        parts.push(part);
+        rest = after;
     }
+    if !offsets.is_empty() {
+        parts.push(rest);
+    }
+    parts
 }

@@ -1,0 +1,34 @@
+// fold_candidates.wgsl: the voxels the fold push lifts in its pass (src/images/unfold.rs;
+// lift_rule.wgsl's codes: 0 not, 1 or 2 lifted), over the whole grid (fold_refresh keeps
+// the flags up to date around the pushed voxels afterwards).
+//
+// Bindings (group 0):
+//   0 uniform  CandidateParams
+//   1 storage  det: array<f32>    1 float per voxel
+//   2 storage  held: array<f32>   1 float per voxel (bone numbers, 0 for tissue)
+//   3 storage  flags: array<f32>  1 float per voxel (read_write)
+// Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(nz/4)).
+
+// Keep in sync with abi::CandidateParams.
+struct CandidateParams {
+    dims: vec4<u32>,   // nx, ny, nz, unused
+    threshold: f32,    // det J at or below which a voxel is lifted
+    spared: u32,       // 1: voxels enclosed by two bones; 2: every bone contact
+    pad0: u32,
+    pad1: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: CandidateParams;
+@group(0) @binding(1) var<storage, read> det: array<f32>;
+@group(0) @binding(2) var<storage, read> held: array<f32>;
+@group(0) @binding(3) var<storage, read_write> flags: array<f32>;
+
+@compute @workgroup_size(4, 4, 4)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let d = params.dims.xyz;
+    if (gid.x >= d.x || gid.y >= d.y || gid.z >= d.z) {
+        return;
+    }
+    let v = voxel_index(gid.x, gid.y, gid.z, d);
+    flags[v] = lift_code(v, det[v]);
+}
