@@ -87,28 +87,32 @@ impl GpuBackend {
         let mut bound = vec![&uniform];
         bound.extend_from_slice(buffers);
         self.note_dispatch_bytes(bound.iter().map(|b| b.size()).sum());
-        let mut pending = self
-            .pending
-            .lock()
-            .expect("no kernel panicked while recording");
-        let encoder =
-            pending.get_or_insert_with(|| ctx.device.create_command_encoder(&Default::default()));
-        kernel.dispatch(ctx, encoder, &bound, workgroups)
+        self.recording(|encoder| kernel.dispatch(ctx, encoder, &bound, workgroups))
     }
 
     /// Records a copy of `from` into `to` (as long as `from`), after the work recorded so far.
     pub fn record_copy<T: Element>(&self, from: &GpuBuffer<T>, to: &GpuBuffer<T>) -> Result<()> {
+        self.recording(|encoder| {
+            if from.bytes() > 0 {
+                encoder.copy_buffer_to_buffer(&from.buffer, 0, &to.buffer, 0, from.bytes());
+            }
+            Ok(())
+        })
+    }
+
+    /// Runs `record` on the encoder of the work recorded so far (a new one when there is none).
+    fn recording(
+        &self,
+        record: impl FnOnce(&mut wgpu::CommandEncoder) -> Result<()>,
+    ) -> Result<()> {
         let ctx = self.context();
         let mut pending = self
             .pending
             .lock()
             .expect("no kernel panicked while recording");
-        let encoder =
-            pending.get_or_insert_with(|| ctx.device.create_command_encoder(&Default::default()));
-        if from.bytes() > 0 {
-            encoder.copy_buffer_to_buffer(&from.buffer, 0, &to.buffer, 0, from.bytes());
-        }
-        Ok(())
+        record(
+            pending.get_or_insert_with(|| ctx.device.create_command_encoder(&Default::default())),
+        )
     }
 
     /// Submits the recorded work with copies of `buffers` into one staging buffer, waits once,
