@@ -204,10 +204,11 @@ pub fn bones_at_source<B: Backend>(
     backend.bone_at_source(&lookup, &field.data, &anywhere, &labels.device.data)
 }
 
-/// Unfolds a registration's total field, whose fold statistics are `folds`: [`unfold`] with the voxels `held` in a bone ([`bones_at_source`]) placing
-/// the bone contacts, the voxels at their bone's motion (`rigid`, [`rigid_bones`]; None: those
-/// held) held, and tissue pushed into a bone only as its last resort. The adaptive warp is smooth and does
-/// not fold (its step control sees to that), but composed with an initial field that is sharply
+/// Unfolds a registration's total field, whose fold statistics are `folds`: [`unfold`] with the
+/// voxels `held` in a bone ([`bones_at_source`]) placing the bone contacts, the voxels at their
+/// bone's motion (`rigid`, [`rigid_bones`]; None: those held) held, and tissue pushed into a
+/// bone only as its last resort. The adaptive warp is smooth and does not fold (its step
+/// control sees to that), but composed with an initial field that is sharply
 /// compressed behind a bent knee it can carry a few voxels past each other there.
 pub fn unfold_registration<B: Backend>(
     backend: &B,

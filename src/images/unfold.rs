@@ -89,9 +89,9 @@ pub fn unfold<B: Backend>(
 
 /// One pass of [`unfold`], sparing the voxels `spared` names: sweeps until no voxel is left to
 /// lift, [`UNFOLD_STEPS`] have run, or [`CONTACTS_ALONE`] have left only bone contacts;
-/// returns the sweeps. After each, the flags of the voxels
-/// to lift are refreshed around the pushed ones (nothing else can have changed) and the next
-/// list is made from the span of voxel indices they lie in.
+/// returns the sweeps. After each, the flags of the voxels to lift are refreshed around the
+/// pushed ones (nothing else can have changed) and the next list is made from the span of
+/// voxel indices they lie in.
 fn push_pass<B: Backend>(
     backend: &B,
     (grid, pushed): (&Grid, &mut B::Buffer<f32>),
@@ -110,8 +110,7 @@ fn push_pass<B: Backend>(
     let (mut sweep, mut contacts_alone) = (0, 0);
     while !voxels.is_empty() && sweep < UNFOLD_STEPS && contacts_alone < CONTACTS_ALONE {
         sweep += 1;
-        let span = near(grid, &voxels);
-        let order_len = voxels.len();
+        let (span, all) = (near(grid, &voxels), 0..voxels.len());
         let (order, colours) = by_colour(grid, voxels);
         let order = backend.upload("voxels to lift", order)?;
         // The colours forward on odd sweeps and backward on even ones (symmetric Gauss–Seidel):
@@ -121,7 +120,6 @@ fn push_pass<B: Backend>(
             1 => colours.iter().collect(),
             _ => colours.iter().rev().collect(),
         };
-        let all = 0..order_len;
         for voxels in colours.into_iter().filter(|c| !c.is_empty()) {
             let limits = (FOLD_THRESHOLD, UNFOLD_TARGET);
             let params = PushParams::new(bones.lookup, grid, voxels.clone(), sweep as u32, limits);
