@@ -37,6 +37,14 @@ const STENCIL: (&str, &str) = (
     "fold/stencil.wgsl",
     include_str!("../shaders/fold/stencil.wgsl"),
 );
+const PUSH_LIST: (&str, &str) = (
+    "fold/push_list.wgsl",
+    include_str!("../shaders/fold/push_list.wgsl"),
+);
+const LIST_APPEND: (&str, &str) = (
+    "fold/list_append.wgsl",
+    include_str!("../shaders/fold/list_append.wgsl"),
+);
 const GAIN: (&str, &str) = (
     "nonrigid/gain.wgsl",
     include_str!("../shaders/nonrigid/gain.wgsl"),
@@ -212,6 +220,8 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             COMMON,
             CONTACTS,
             LIFT_RULE,
+            PUSH_LIST,
+            LIST_APPEND,
             (
                 "fold/fold_candidates.wgsl",
                 include_str!("../shaders/fold/fold_candidates.wgsl"),
@@ -227,6 +237,7 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             LABELS,
             BONE_LOOKUP,
             STENCIL,
+            PUSH_LIST,
             (
                 "fold/fold_push.wgsl",
                 include_str!("../shaders/fold/fold_push.wgsl"),
@@ -240,9 +251,22 @@ pub const KERNELS: &[(&str, &[(&str, &str)])] = &[
             CONTACTS,
             LIFT_RULE,
             STENCIL,
+            PUSH_LIST,
+            LIST_APPEND,
             (
                 "fold/fold_refresh.wgsl",
                 include_str!("../shaders/fold/fold_refresh.wgsl"),
+            ),
+        ],
+    ),
+    (
+        "fold_advance",
+        &[
+            COMMON,
+            PUSH_LIST,
+            (
+                "fold/fold_advance.wgsl",
+                include_str!("../shaders/fold/fold_advance.wgsl"),
             ),
         ],
     ),

@@ -2,12 +2,12 @@
 //! has the same size in Rust and WGSL.
 
 use posereg::abi::{
-    BoneLookupParams, CandidateParams, ComposeParams, DilateParams, EdtParams, EnergyParams,
-    FadeParams, GainParams, InvertParams, JacobianParams, LabelParams, ListParams, LnccParams,
-    LnccTermsParams, LocalMomentsParams, MomentsParams, PartialsParams, PushParams, PyramidParams,
-    RbfGradParams, RbfLatticeParams, RefreshParams, ResampleParams, RigidParams, RoundTripParams,
-    ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams, SumParams,
-    SurfaceParams, ThresholdParams,
+    AdvanceParams, BoneLookupParams, CandidateParams, ComposeParams, DilateParams, EdtParams,
+    EnergyParams, FadeParams, GainParams, InvertParams, JacobianParams, LabelParams, ListParams,
+    LnccParams, LnccTermsParams, LocalMomentsParams, MomentsParams, PartialsParams, PushParams,
+    PyramidParams, RbfGradParams, RbfLatticeParams, RefreshParams, ResampleParams, RigidParams,
+    RoundTripParams, ScoreParams, SkinBlendParams, SkinWeightsParams, SplatParams, SsdParams,
+    SumParams, SurfaceParams, ThresholdParams,
 };
 use posereg::shaders::{locate, source, KERNELS};
 use std::mem::size_of;
@@ -71,7 +71,7 @@ fn wgsl_struct_size(kernel: &str, name: &str) -> u32 {
 #[test]
 fn abi_structs_match_their_wgsl_twins() {
     use posereg::abi::dense;
-    let pairs: [(&str, &str, usize); 47] = [
+    let pairs: [(&str, &str, usize); 48] = [
         ("warp_image", "RbfGradParams", size_of::<RbfGradParams>()),
         ("gain_terms", "GainParams", size_of::<GainParams>()),
         ("gain_ratio", "GainParams", size_of::<GainParams>()),
@@ -140,6 +140,7 @@ fn abi_structs_match_their_wgsl_twins() {
         ),
         ("fold_push", "PushParams", size_of::<PushParams>()),
         ("fold_refresh", "RefreshParams", size_of::<RefreshParams>()),
+        ("fold_advance", "AdvanceParams", size_of::<AdvanceParams>()),
         ("edt", "EdtParams", size_of::<EdtParams>()),
         ("moments", "MomentsParams", size_of::<MomentsParams>()),
         (

@@ -11,16 +11,18 @@
 // The voxels of one colour (i mod 3, j mod 3, k mod 3) lie at least three steps apart, so the
 // neighbourhoods their pushes read and write never overlap: every invocation writes the field
 // in place, in any order, with the same result, and each colour sees the colours before it.
+// The colour's voxels are its bucket of the sweep's list, as many as the state counts
+// (push_list.wgsl).
 //
 // Bindings (group 0):
 //   0 uniform  PushParams
-//   1 storage  voxels: array<u32>    the sweep's voxels, by colour; this dispatch's are
-//                                    first..end
+//   1 storage  voxels: array<u32>    the sweep's list (push_list.wgsl)
 //   2 storage  rigid: array<f32>     1 float per voxel (> 0: at its bone's motion)
 //   3 storage  labels: array<f32>    the source label map, 1 float per voxel
 //   4 storage  field: array<f32>     3 floats per voxel (u, mm), written in place
 //   5 storage  blocked: array<u32>   1 per voxel: the sweep it was last blocked in, 0 never
-// Dispatch: workgroups (ceil((end - first) / 64), 1, 1).
+//   6 storage  state: array<u32>     the push's state
+// Dispatch: indirect, fold_advance.wgsl's workgroup counts for the colour.
 
 // Keep in sync with abi::PushParams.
 struct PushParams {
@@ -28,14 +30,14 @@ struct PushParams {
     codes: LabelCodes,           // the bones
     dims: vec4<u32>,             // nx, ny, nz of the field's grid, unused
     mm_to_index: array<vec4<f32>, 3>,
-    first: u32,                  // this colour's voxels in `voxels`
-    end: u32,
-    sweep: u32,                  // from 1
+    colour: u32,                 // the colour pushed (push_list.wgsl)
     pad0: u32,
+    pad1: u32,
+    pad2: u32,
     largest_step: f32,           // longest move of one neighbour (mm)
     threshold: f32,              // det J at or below which a voxel is pushed
     aim: f32,                    // det J a push aims for
-    pad1: u32,
+    pad3: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: PushParams;
@@ -44,6 +46,7 @@ struct PushParams {
 @group(0) @binding(3) var<storage, read> labels: array<f32>;
 @group(0) @binding(4) var<storage, read_write> field: array<f32>;
 @group(0) @binding(5) var<storage, read_write> blocked: array<u32>;
+@group(0) @binding(6) var<storage, read> state: array<u32>;
 
 fn sampled_value(index: u32) -> f32 {
     return labels[index];
@@ -88,21 +91,21 @@ fn move_neighbour(n: u32, q: u32, opposite: u32, shift: vec3<f32>) {
         set_displacement(q, 2.0 * displacement(n) - displacement(opposite));
         return;
     }
-    blocked[q] = params.sweep;
+    blocked[q] = state[STATE_SWEEP];
 }
 
 fn may_move(n: u32, q: u32) -> bool {
     let stamp = blocked[q];
-    return q != n && rigid[q] <= 0.0 && (stamp == 0u || stamp + 1u < params.sweep);
+    return q != n && rigid[q] <= 0.0 && (stamp == 0u || stamp + 1u < state[STATE_SWEEP]);
 }
 
 @compute @workgroup_size(64, 1, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let t = params.first + gid.x;
-    if (t >= params.end) {
+    let t = entry_of(gid);
+    if (t >= state[STATE_CURRENT + params.colour]) {
         return;
     }
-    let n = voxels[t];
+    let n = voxels[bucket_start(params.colour, params.dims.xyz) + t];
     let c = voxel_of(n);
     let now = det_and_gradient(c, n);
     if (now.det > params.threshold) {

@@ -156,14 +156,11 @@ pub struct PushParams {
     pub dims: [u32; 4],
     /// Rows of the inverse of the grid's linear part: d(index)/d(world mm).
     pub mm_to_index: [[f32; 4]; 3],
-    /// This colour's voxels in the sweep's list: first..end.
-    pub first: u32,
-    /// One past the last.
-    pub end: u32,
-    /// The sweep, from 1 (blocked voxels are stamped with it).
-    pub sweep: u32,
+    /// The colour pushed (shaders/fold/push_list.wgsl); the sweep and how many of its
+    /// voxels there are come from the push's state.
+    pub colour: u32,
     /// Padding.
-    pub pad0: u32,
+    pub pad0: [u32; 3],
     /// Longest move of one neighbour in one push (mm).
     pub largest_step: f32,
     /// det J at or below which a voxel is pushed.
@@ -175,13 +172,12 @@ pub struct PushParams {
 }
 
 impl PushParams {
-    /// The pushes of `voxels` (a range of the sweep's list) in sweep `sweep` on `grid`, bones
-    /// looked up by `lookup`; `(threshold, target)` the determinants pushed and aimed for.
+    /// The pushes of colour `colour`'s voxels on `grid`, bones looked up by `lookup`;
+    /// `(threshold, target)` the determinants pushed and aimed for.
     pub fn new(
         lookup: &BoneLookupParams,
         grid: &Grid,
-        voxels: std::ops::Range<usize>,
-        sweep: u32,
+        colour: u32,
         (threshold, target): (f32, f32),
     ) -> Self {
         PushParams {
@@ -189,20 +185,13 @@ impl PushParams {
             codes: lookup.codes,
             dims: dims4(grid, 0),
             mm_to_index: mm_to_index_rows(grid),
-            first: voxels.start as u32,
-            end: voxels.end as u32,
-            sweep,
-            pad0: 0,
+            colour,
+            pad0: [0; 3],
             largest_step: grid.finest_spacing() as f32 / 4.0,
             threshold,
             aim: target,
             pad1: 0,
         }
-    }
-
-    /// Voxels this dispatch pushes.
-    pub fn pushed(&self) -> usize {
-        (self.end - self.first) as usize
     }
 }
 
@@ -214,36 +203,75 @@ pub struct RefreshParams {
     pub dims: [u32; 4],
     /// Rows of the inverse of the grid's linear part: d(index)/d(world mm).
     pub mm_to_index: [[f32; 4]; 3],
-    /// The listed voxels refreshed around: first..end.
-    pub first: u32,
-    /// One past the last.
-    pub end: u32,
     /// [`Spared`] as a number.
     pub spared: u32,
     /// det J at or below which a voxel is lifted.
     pub threshold: f32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 2],
 }
 
 impl RefreshParams {
-    /// Around `voxels` (a range of a list) on `grid`, for the pass that spares `spared`.
-    pub fn new(
-        grid: &Grid,
-        voxels: std::ops::Range<usize>,
-        threshold: f32,
-        spared: Spared,
-    ) -> Self {
+    /// On `grid`, for the pass that spares `spared`.
+    pub fn new(grid: &Grid, threshold: f32, spared: Spared) -> Self {
         RefreshParams {
             dims: dims4(grid, 0),
             mm_to_index: mm_to_index_rows(grid),
-            first: voxels.start as u32,
-            end: voxels.end as u32,
             spared: spared as u32,
             threshold,
+            pad: [0; 2],
         }
     }
+}
 
-    /// Listed voxels this dispatch refreshes around.
-    pub fn listed(&self) -> usize {
-        (self.end - self.first) as usize
+/// Keep in sync with `AdvanceParams` in shaders/fold/fold_advance.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct AdvanceParams {
+    /// The pass ends after these sweeps.
+    pub most_sweeps: u32,
+    /// ... or after these sweeps in a row have left only bone contacts to lift.
+    pub contacts_alone: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 2],
+}
+
+impl AdvanceParams {
+    /// A pass of at most `most_sweeps`, ended after `contacts_alone` that leave only bone
+    /// contacts.
+    pub fn new(most_sweeps: usize, contacts_alone: usize) -> Self {
+        AdvanceParams {
+            most_sweeps: most_sweeps as u32,
+            contacts_alone: contacts_alone as u32,
+            pad: [0; 2],
+        }
     }
+}
+
+/// The fold push's state on the device, one u32 each (shaders/fold/push_list.wgsl has the
+/// layout and says what each holds).
+pub mod push_state {
+    /// The sweep under way, from 1.
+    pub const SWEEP: usize = 0;
+    /// 1 once the pass has ended.
+    pub const STOPPED: usize = 1;
+    /// Sweeps in a row that left only bone contacts.
+    pub const CONTACTS_ALONE: usize = 2;
+    /// Voxels of the next list that are not bone contacts.
+    pub const LIFTED: usize = 3;
+    /// 27 counts: this sweep's list, by colour.
+    pub const CURRENT: usize = 4;
+    /// 27 counts: the next sweep's list, by colour.
+    pub const NEXT: usize = 31;
+    /// The colours (i mod 3 + 3 (j mod 3) + 9 (k mod 3)).
+    pub const COLOURS: usize = 27;
+    /// Invocations per workgroup of the list kernels.
+    pub const GROUP: u32 = 64;
+    /// Workgroups per row of a list dispatch.
+    pub const ROW_GROUPS: u32 = 32768;
+    /// The state's length.
+    pub const LEN: usize = NEXT + COLOURS;
+    /// The length of the workgroup counts of a sweep's dispatches (a buffer apart from the
+    /// state): x, y, z for each colour's push, then for the refresh.
+    pub const ARGS_LEN: usize = 3 * (COLOURS + 1);
 }

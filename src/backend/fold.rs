@@ -3,8 +3,8 @@
 
 use super::Core;
 use crate::abi::{
-    BoneLookupParams, CandidateParams, DilateParams, JacobianParams, PushParams, RefreshParams,
-    ThresholdParams,
+    AdvanceParams, BoneLookupParams, CandidateParams, DilateParams, JacobianParams, PushParams,
+    RefreshParams, ThresholdParams,
 };
 use crate::error::Result;
 
@@ -58,21 +58,25 @@ pub trait Fold: Core {
         labels: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
-    /// On the voxels a pass of the fold push lifts (det J at or below `params`' threshold,
-    /// those it spares aside, by the bones `held`: bone numbers, 0 for tissue) 1, or 2 where
-    /// the voxel is a bone contact along one axis (a pass that lifts those); else 0.
+    /// The first list of a pass of the fold push (shaders/fold/push_list.wgsl): the voxels it
+    /// lifts (det J at or below `params`' threshold, those it spares aside, by the bones
+    /// `held`: bone numbers, 0 for tissue), appended to their colours' buckets of `next` and
+    /// counted in `state` (abi::push_state: the next counts, and those not bone contacts).
     fn fold_candidates(
         &self,
         params: &CandidateParams,
-        det: &Self::Buffer<f32>,
-        held: &Self::Buffer<f32>,
-    ) -> Result<Self::Buffer<f32>>;
+        det_and_held: (&Self::Buffer<f32>, &Self::Buffer<f32>),
+        next: &mut Self::Buffer<u32>,
+        state: &mut Self::Buffer<u32>,
+    ) -> Result<()>;
 
     /// One colour's pushes in a sweep of the fold push (shaders/fold/fold_push.wgsl): each of
-    /// `params`' range of `voxels` still folded moves its stencil neighbours to lift it, none
-    /// `rigid` (> 0), none into a bone of the source `labels`. `field` and `blocked` (the sweep
-    /// each voxel was last blocked in) are written in place: buffers made for this
-    /// (Core::duplicate, Core::zeros) and shared with nothing else.
+    /// the colour's voxels in the sweep's list `voxels` (as many as `state` counts) still
+    /// folded moves its stencil neighbours to lift it, none `rigid` (> 0), none into a bone
+    /// of the source `labels`. `field` and `blocked` (the sweep each voxel was last blocked
+    /// in) are written in place: buffers made for this (Core::duplicate, Core::zeros) and
+    /// shared with nothing else. `args` are fold_advance's workgroup counts: a GPU dispatches
+    /// by them, the CPU twin reads the count in `state`.
     fn fold_push(
         &self,
         params: &PushParams,
@@ -80,17 +84,30 @@ pub trait Fold: Core {
         rigid_and_labels: (&Self::Buffer<f32>, &Self::Buffer<f32>),
         field: &mut Self::Buffer<f32>,
         blocked: &mut Self::Buffer<u32>,
+        state_and_args: (&Self::Buffer<u32>, &Self::Buffer<u32>),
     ) -> Result<()>;
 
-    /// After a sweep of the fold push, the `flags` of fold_candidates refreshed within two
-    /// steps of each of `params`' range of the sweep's `voxels`, where the sweep's pushes can
-    /// have changed det J of `field` (`held` as for fold_candidates). `flags` is written in
-    /// place (a buffer made for this and shared with nothing else).
+    /// After a sweep of the fold push, the next sweep's list: the voxels within two steps of
+    /// the sweep's list `voxels` that the pass lifts now (the pushes can have changed det J
+    /// of `field` there and nowhere else; `held` as for fold_candidates), each appended once
+    /// to `next` (stamped in `listed` with the sweep) and counted in `state` (`args` as for
+    /// fold_push).
     fn fold_refresh(
         &self,
         params: &RefreshParams,
-        voxels: &Self::Buffer<u32>,
+        lists: (&Self::Buffer<u32>, &mut Self::Buffer<u32>),
         field_and_held: (&Self::Buffer<f32>, &Self::Buffer<f32>),
-        flags: &mut Self::Buffer<f32>,
+        listed: &mut Self::Buffer<u32>,
+        state_and_args: (&mut Self::Buffer<u32>, &Self::Buffer<u32>),
+    ) -> Result<()>;
+
+    /// Between two sweeps of the fold push (shaders/fold/fold_advance.wgsl): ends the pass
+    /// or makes the next list the sweep's, in `state`, and writes the sweep's workgroup
+    /// counts into `args` (abi::push_state::ARGS_LEN).
+    fn fold_advance(
+        &self,
+        params: &AdvanceParams,
+        state: &mut Self::Buffer<u32>,
+        args: &mut Self::Buffer<u32>,
     ) -> Result<()>;
 }

@@ -2,6 +2,7 @@
 
 mod contacts;
 mod dilate;
+mod fold_advance;
 mod fold_candidates;
 mod fold_push;
 mod fold_refresh;
@@ -9,15 +10,17 @@ mod fold_smooth;
 mod fold_stats;
 mod jacobian;
 mod mark_at_most;
+mod push_list;
 mod stencil;
 mod threshold;
 
 use super::{filled, CpuBackend};
 use crate::abi::{
-    BoneLookupParams, CandidateParams, DilateParams, JacobianParams, PushParams, RefreshParams,
-    ThresholdParams, FOLD_STATS_WIDTH,
+    AdvanceParams, BoneLookupParams, CandidateParams, DilateParams, JacobianParams, PushParams,
+    RefreshParams, ThresholdParams, FOLD_STATS_WIDTH,
 };
 use crate::backend::fold::Fold;
+use crate::cpu::common::dims3;
 use crate::error::Result;
 use std::sync::Arc;
 
@@ -76,12 +79,18 @@ impl Fold for CpuBackend {
     fn fold_candidates(
         &self,
         params: &CandidateParams,
-        det: &Arc<Vec<f32>>,
-        held: &Arc<Vec<f32>>,
-    ) -> Result<Arc<Vec<f32>>> {
-        filled(params.voxels(), |out| {
-            fold_candidates::fold_candidates(params, det, held, out)
-        })
+        (det, held): (&Arc<Vec<f32>>, &Arc<Vec<f32>>),
+        next: &mut Arc<Vec<u32>>,
+        state: &mut Arc<Vec<u32>>,
+    ) -> Result<()> {
+        // Unshared as the trait asks, so nothing is copied.
+        let list = push_list::Appender {
+            dims: dims3(params.dims).map(|n| n as usize),
+            next: Arc::make_mut(next).as_mut_slice(),
+            state: Arc::make_mut(state).as_mut_slice(),
+        };
+        fold_candidates::fold_candidates(params, det, held, list);
+        Ok(())
     }
 
     fn fold_push(
@@ -91,12 +100,13 @@ impl Fold for CpuBackend {
         (rigid, labels): (&Arc<Vec<f32>>, &Arc<Vec<f32>>),
         field: &mut Arc<Vec<f32>>,
         blocked: &mut Arc<Vec<u32>>,
+        (state, _): (&Arc<Vec<u32>>, &Arc<Vec<u32>>),
     ) -> Result<()> {
         let buffers = fold_push::PushBuffers {
             voxels,
+            state,
             rigid,
             labels,
-            // Unshared as the trait asks, so nothing is copied.
             field: Arc::make_mut(field).as_mut_slice(),
             blocked: Arc::make_mut(blocked).as_mut_slice(),
         };
@@ -107,12 +117,29 @@ impl Fold for CpuBackend {
     fn fold_refresh(
         &self,
         params: &RefreshParams,
-        voxels: &Arc<Vec<u32>>,
+        (voxels, next): (&Arc<Vec<u32>>, &mut Arc<Vec<u32>>),
         (field, held): (&Arc<Vec<f32>>, &Arc<Vec<f32>>),
-        flags: &mut Arc<Vec<f32>>,
+        listed: &mut Arc<Vec<u32>>,
+        (state, _): (&mut Arc<Vec<u32>>, &Arc<Vec<u32>>),
     ) -> Result<()> {
-        let flags = Arc::make_mut(flags).as_mut_slice();
-        fold_refresh::fold_refresh(params, voxels, (field, held), flags);
+        let list = push_list::Appender {
+            dims: dims3(params.dims).map(|n| n as usize),
+            next: Arc::make_mut(next).as_mut_slice(),
+            state: Arc::make_mut(state).as_mut_slice(),
+        };
+        let stamps = Arc::make_mut(listed).as_mut_slice();
+        fold_refresh::fold_refresh(params, voxels, (field, held), stamps, list);
+        Ok(())
+    }
+
+    fn fold_advance(
+        &self,
+        params: &AdvanceParams,
+        state: &mut Arc<Vec<u32>>,
+        args: &mut Arc<Vec<u32>>,
+    ) -> Result<()> {
+        let args = Arc::make_mut(args).as_mut_slice();
+        fold_advance::fold_advance(params, Arc::make_mut(state).as_mut_slice(), args);
         Ok(())
     }
 }

@@ -21,7 +21,8 @@ pub fn storage_from<T: Pod>(ctx: &GpuContext, what: &str, data: &[T]) -> Result<
     })
 }
 
-/// A writable storage buffer of `len` elements of `T`, readable back.
+/// A writable storage buffer of `len` elements of `T`, readable back (and readable as a
+/// dispatch's workgroup counts, for the kernels that write their own).
 pub fn storage_output<T: Pod>(ctx: &GpuContext, what: &str, len: usize) -> Result<wgpu::Buffer> {
     let bytes = (len * std::mem::size_of::<T>()) as u64;
     ctx.check_storage(what, bytes)?;
@@ -31,7 +32,8 @@ pub fn storage_output<T: Pod>(ctx: &GpuContext, what: &str, len: usize) -> Resul
             size: bytes,
             usage: wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::INDIRECT,
             mapped_at_creation: false,
         })
     })

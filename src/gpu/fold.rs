@@ -7,8 +7,8 @@ use super::kernel::{cover, groups, Binding, Kernel};
 use super::resident::GpuBuffer;
 use super::{compile, GpuBackend};
 use crate::abi::{
-    BoneLookupParams, CandidateParams, DilateParams, JacobianParams, PushParams, RefreshParams,
-    ThresholdParams, FOLD_STATS_WIDTH,
+    push_state, AdvanceParams, BoneLookupParams, CandidateParams, DilateParams, JacobianParams,
+    PushParams, RefreshParams, ThresholdParams, FOLD_STATS_WIDTH,
 };
 use crate::backend::fold::Fold;
 use crate::error::Result;
@@ -22,12 +22,19 @@ pub const BINDINGS: &[super::KernelBindings] = &[
     ("mark_at_most", &[Uniform, Read, Read, ReadWrite]),
     ("dilate", &[Uniform, Read, Read, ReadWrite]),
     ("fold_smooth", &[Uniform, Read, Read, Read, ReadWrite]),
-    ("fold_candidates", &[Uniform, Read, Read, ReadWrite]),
+    (
+        "fold_candidates",
+        &[Uniform, Read, Read, ReadWrite, ReadWrite],
+    ),
     (
         "fold_push",
-        &[Uniform, Read, Read, Read, ReadWrite, ReadWrite],
+        &[Uniform, Read, Read, Read, ReadWrite, ReadWrite, Read],
     ),
-    ("fold_refresh", &[Uniform, Read, Read, Read, ReadWrite]),
+    (
+        "fold_refresh",
+        &[Uniform, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite],
+    ),
+    ("fold_advance", &[Uniform, ReadWrite, ReadWrite]),
 ];
 
 /// The family's compiled kernels.
@@ -40,6 +47,7 @@ pub struct FoldKernels {
     fold_candidates: Kernel,
     fold_push: Kernel,
     fold_refresh: Kernel,
+    fold_advance: Kernel,
 }
 
 impl FoldKernels {
@@ -54,6 +62,7 @@ impl FoldKernels {
             fold_candidates: compile(ctx, "fold_candidates")?,
             fold_push: compile(ctx, "fold_push")?,
             fold_refresh: compile(ctx, "fold_refresh")?,
+            fold_advance: compile(ctx, "fold_advance")?,
         })
     }
 }
@@ -140,24 +149,26 @@ impl Fold for GpuBackend {
         Ok(out)
     }
 
-    /// The voxels a pass lifts.
+    /// The first list of a pass, over the whole grid.
     fn fold_candidates(
         &self,
         params: &CandidateParams,
-        det: &GpuBuffer<f32>,
-        held: &GpuBuffer<f32>,
-    ) -> Result<GpuBuffer<f32>> {
-        let flags = self.output_buffer("voxels to lift", params.voxels())?;
+        (det, held): (&GpuBuffer<f32>, &GpuBuffer<f32>),
+        next: &mut GpuBuffer<u32>,
+        state: &mut GpuBuffer<u32>,
+    ) -> Result<()> {
+        let bound = [det.raw(), held.raw(), next.raw(), state.raw()];
+        let workgroups = cover(params.dims, 4);
         self.record(
             &self.kernels.fold.fold_candidates,
             params,
-            &[det.raw(), held.raw(), flags.raw()],
-            cover(params.dims, 4),
-        )?;
-        Ok(flags)
+            &bound,
+            workgroups,
+        )
     }
 
-    /// One invocation per voxel of the colour, writing the field in place.
+    /// One invocation per voxel of the colour, as many as the state says, writing the field
+    /// in place.
     fn fold_push(
         &self,
         params: &PushParams,
@@ -165,6 +176,7 @@ impl Fold for GpuBackend {
         (rigid, labels): (&GpuBuffer<f32>, &GpuBuffer<f32>),
         field: &mut GpuBuffer<f32>,
         blocked: &mut GpuBuffer<u32>,
+        (state, args): (&GpuBuffer<u32>, &GpuBuffer<u32>),
     ) -> Result<()> {
         let bound = [
             voxels.raw(),
@@ -172,21 +184,49 @@ impl Fold for GpuBackend {
             labels.raw(),
             field.raw(),
             blocked.raw(),
+            state.raw(),
         ];
-        let workgroups = [groups(params.pushed(), 64), 1, 1];
-        self.record(&self.kernels.fold.fold_push, params, &bound, workgroups)
+        let at = args_offset(params.colour as usize);
+        let kernel = &self.kernels.fold.fold_push;
+        self.record_indirect(kernel, params, &bound, (args.raw(), at))
     }
 
-    /// One invocation per listed voxel, writing the flags in place.
+    /// One invocation per voxel of the sweep's list, as many as the state says.
     fn fold_refresh(
         &self,
         params: &RefreshParams,
-        voxels: &GpuBuffer<u32>,
+        (voxels, next): (&GpuBuffer<u32>, &mut GpuBuffer<u32>),
         (field, held): (&GpuBuffer<f32>, &GpuBuffer<f32>),
-        flags: &mut GpuBuffer<f32>,
+        listed: &mut GpuBuffer<u32>,
+        (state, args): (&mut GpuBuffer<u32>, &GpuBuffer<u32>),
     ) -> Result<()> {
-        let bound = [voxels.raw(), field.raw(), held.raw(), flags.raw()];
-        let workgroups = [groups(params.listed(), 64), 1, 1];
-        self.record(&self.kernels.fold.fold_refresh, params, &bound, workgroups)
+        let bound = [
+            voxels.raw(),
+            field.raw(),
+            held.raw(),
+            next.raw(),
+            listed.raw(),
+            state.raw(),
+        ];
+        let at = args_offset(push_state::COLOURS);
+        let kernel = &self.kernels.fold.fold_refresh;
+        self.record_indirect(kernel, params, &bound, (args.raw(), at))
     }
+
+    /// One invocation.
+    fn fold_advance(
+        &self,
+        params: &AdvanceParams,
+        state: &mut GpuBuffer<u32>,
+        args: &mut GpuBuffer<u32>,
+    ) -> Result<()> {
+        let kernel = &self.kernels.fold.fold_advance;
+        self.record(kernel, params, &[state.raw(), args.raw()], [1, 1, 1])
+    }
+}
+
+/// Where the workgroup counts of dispatch `slot` (a colour's push, or the refresh after the
+/// colours) lie in fold_advance's `args`, in bytes.
+fn args_offset(slot: usize) -> u64 {
+    (3 * slot * std::mem::size_of::<u32>()) as u64
 }

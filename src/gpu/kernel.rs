@@ -91,14 +91,16 @@ impl Kernel {
         ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         buffers: &[&wgpu::Buffer],
-        workgroups: [u32; 3],
+        workgroups: Workgroups,
     ) -> Result<()> {
         let max = ctx.limits.max_compute_workgroups_per_dimension;
-        if workgroups.iter().any(|&w| w > max) {
-            return Err(Error::InvalidInput(format!(
-                "kernel {}: {workgroups:?} workgroups exceed the device's {max} per dimension",
-                self.name
-            )));
+        if let Workgroups::Direct(counts) = workgroups {
+            if counts.iter().any(|&w| w > max) {
+                return Err(Error::InvalidInput(format!(
+                    "kernel {}: {counts:?} workgroups exceed the device's {max} per dimension",
+                    self.name
+                )));
+            }
         }
         ctx.counters.dispatch();
         ctx.scoped(&format!("dispatching kernel {}", self.name), || {
@@ -121,9 +123,25 @@ impl Kernel {
             });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &group, &[]);
-            pass.dispatch_workgroups(workgroups[0], workgroups[1], workgroups[2]);
+            match workgroups {
+                Workgroups::Direct([x, y, z]) => pass.dispatch_workgroups(x, y, z),
+                Workgroups::Indirect(args, offset) => {
+                    pass.dispatch_workgroups_indirect(args, offset)
+                }
+            }
         })
     }
+}
+
+/// How many workgroups a dispatch runs.
+#[derive(Clone, Copy)]
+pub enum Workgroups<'a> {
+    /// These, known when it is recorded.
+    Direct([u32; 3]),
+    /// Three u32 a kernel wrote into this buffer at this byte offset before the dispatch runs
+    /// (a kernel that bounds them by ROW_GROUPS and the list's length keeps them within the
+    /// device's limit).
+    Indirect(&'a wgpu::Buffer, u64),
 }
 
 /// Workgroups needed to cover `n` items with groups of `size`.

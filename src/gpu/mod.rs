@@ -88,6 +88,8 @@ pub struct GpuBackend {
     peak_dispatch_bytes: std::sync::atomic::AtomicU64,
     /// Work recorded and not yet submitted (see resident.rs).
     pending: std::sync::Mutex<Option<wgpu::CommandEncoder>>,
+    /// Uniform buffers made so far, by their bytes (see resident.rs).
+    uniforms: std::sync::Mutex<std::collections::HashMap<Vec<u8>, wgpu::Buffer>>,
 }
 
 impl GpuBackend {
@@ -115,6 +117,7 @@ impl GpuBackend {
             ctx,
             peak_dispatch_bytes: Default::default(),
             pending: Default::default(),
+            uniforms: Default::default(),
         })
     }
 

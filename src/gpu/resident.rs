@@ -6,11 +6,14 @@
 //! work recorded earlier).
 
 use super::buffer::{storage_from, storage_output, uniform_from};
-use super::kernel::Kernel;
+use super::kernel::{Kernel, Workgroups};
 use super::GpuBackend;
 use crate::backend::Element;
 use crate::error::{Error, Result};
 use std::marker::PhantomData;
+
+/// Uniform buffers kept for reuse (GpuBackend::uniform): a few hundred bytes each.
+const UNIFORMS_KEPT: usize = 1024;
 
 /// `len` elements of `T` in a device storage buffer.
 pub struct GpuBuffer<T> {
@@ -82,12 +85,55 @@ impl GpuBackend {
         buffers: &[&wgpu::Buffer],
         workgroups: [u32; 3],
     ) -> Result<()> {
+        self.record_dispatch(kernel, params, buffers, Workgroups::Direct(workgroups))
+    }
+
+    /// Records one dispatch of `kernel` as [`GpuBackend::record`] does, its workgroup counts
+    /// read from `args` at byte `offset` when it runs (written there by a kernel before it).
+    pub fn record_indirect<P: bytemuck::Pod>(
+        &self,
+        kernel: &Kernel,
+        params: &P,
+        buffers: &[&wgpu::Buffer],
+        (args, offset): (&wgpu::Buffer, u64),
+    ) -> Result<()> {
+        self.record_dispatch(kernel, params, buffers, Workgroups::Indirect(args, offset))
+    }
+
+    fn record_dispatch<P: bytemuck::Pod>(
+        &self,
+        kernel: &Kernel,
+        params: &P,
+        buffers: &[&wgpu::Buffer],
+        workgroups: Workgroups,
+    ) -> Result<()> {
         let ctx = self.context();
-        let uniform = uniform_from(ctx, "kernel parameters", params)?;
+        let uniform = self.uniform(params)?;
         let mut bound = vec![&uniform];
         bound.extend_from_slice(buffers);
         self.note_dispatch_bytes(bound.iter().map(|b| b.size()).sum());
         self.recording(|encoder| kernel.dispatch(ctx, encoder, &bound, workgroups))
+    }
+
+    /// A uniform buffer holding `params`: one made earlier for the same bytes when there is
+    /// one (uniform buffers are never written after they are made, so recorded work can share
+    /// them), else a new one. A kernel dispatched again and again with the same parameters
+    /// (each colour of the fold push, every sweep) sends them up once.
+    fn uniform<P: bytemuck::Pod>(&self, params: &P) -> Result<wgpu::Buffer> {
+        let bytes = bytemuck::bytes_of(params).to_vec();
+        let mut made = self
+            .uniforms
+            .lock()
+            .expect("no kernel panicked while recording");
+        if let Some(uniform) = made.get(&bytes) {
+            return Ok(uniform.clone());
+        }
+        if made.len() >= UNIFORMS_KEPT {
+            made.clear();
+        }
+        let uniform = uniform_from(self.context(), "kernel parameters", params)?;
+        made.insert(bytes, uniform.clone());
+        Ok(uniform)
     }
 
     /// Records a copy of `from` into `to` (as long as `from`), after the work recorded so far.

@@ -1,17 +1,17 @@
 //! The push that lifts the folds smoothing leaves (fold_repair.rs) and a registration's last
 //! folds, where the backend computes: each folded voxel moves its movable neighbours along the
 //! gradient of its own Jacobian determinant until it unfolds, bones held at their motions
-//! (shaders/fold/fold_push.wgsl has the push). The host decides only which voxels a sweep
-//! pushes and when to stop: a list of voxel indices comes back each sweep, not the field.
+//! (shaders/fold/fold_push.wgsl has the push). The lists of voxels to push and the decision to
+//! stop are made there too (shaders/fold/push_list.wgsl): the host records sweeps and reads a
+//! few hundred bytes of state every few of them, not the field or the lists.
 
 use crate::abi::{
-    BoneLookupParams, CandidateParams, JacobianParams, PushParams, RefreshParams, Spared,
+    push_state, AdvanceParams, BoneLookupParams, CandidateParams, JacobianParams, PushParams,
+    RefreshParams, Spared,
 };
-use crate::backend::reduce::flagged;
 use crate::backend::{Backend, DeviceImage};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::volume::Grid;
-use std::ops::Range;
 
 /// Jacobian determinant below which a voxel counts as folded (or about to fold) for repair.
 pub const FOLD_THRESHOLD: f32 = 0.05;
@@ -89,9 +89,9 @@ pub fn unfold<B: Backend>(
 
 /// One pass of [`unfold`], sparing the voxels `spared` names: sweeps until no voxel is left to
 /// lift, [`UNFOLD_STEPS`] have run, or [`CONTACTS_ALONE`] have left only bone contacts;
-/// returns the sweeps. After each, the flags of the voxels to lift are refreshed around the
-/// pushed ones (nothing else can have changed) and the next list is made from the span of
-/// voxel indices they lie in.
+/// returns the sweeps. The lists of voxels to lift and the decision to go on stay where the
+/// backend computes (shaders/fold/push_list.wgsl): the host records sweeps and looks at the
+/// push's state (a few hundred bytes) every [`SWEEPS_PER_LOOK`].
 fn push_pass<B: Backend>(
     backend: &B,
     (grid, pushed): (&Grid, &mut B::Buffer<f32>),
@@ -99,74 +99,118 @@ fn push_pass<B: Backend>(
     bones: &Bones<B>,
     spared: Spared,
 ) -> Result<usize> {
+    let mut push = PushLists::new(backend, grid.len())?;
     let det = backend.jacobian(&JacobianParams::new(grid), pushed)?;
     let lifted = CandidateParams::new(grid, FOLD_THRESHOLD, spared);
-    let mut flags = backend.fold_candidates(&lifted, &det, held.bones)?;
-    let mut voxels = flagged(backend, &flags, 0..grid.len())?.0;
-    // The sweep each voxel was last blocked in (from 1; 0 never): a tissue voxel no fraction
-    // of a push could move without entering a bone. The next sweep leaves it too and lifts
-    // the folds beside it by their other neighbours.
-    let mut blocked = backend.zeros("blocked voxels", grid.len())?;
-    let (mut sweep, mut contacts_alone) = (0, 0);
-    while !voxels.is_empty() && sweep < UNFOLD_STEPS && contacts_alone < CONTACTS_ALONE {
-        sweep += 1;
-        let (span, all) = (near(grid, &voxels), 0..voxels.len());
-        let (order, colours) = by_colour(grid, voxels);
-        let order = backend.upload("voxels to lift", order)?;
+    backend.fold_candidates(
+        &lifted,
+        (&det, held.bones),
+        &mut push.lists[0],
+        &mut push.state,
+    )?;
+    let advance = AdvanceParams::new(UNFOLD_STEPS, CONTACTS_ALONE);
+    backend.fold_advance(&advance, &mut push.state, &mut push.args)?;
+    let pass = Pass {
+        grid,
+        held,
+        bones,
+        spared,
+    };
+    let mut recorded = 0;
+    loop {
+        let state = backend.download_one(&push.state)?;
+        if state[push_state::STOPPED] == 1 {
+            return Ok(state[push_state::SWEEP] as usize);
+        }
+        if recorded >= UNFOLD_STEPS {
+            return Err(Error::Gpu(format!(
+                "the device did not end the fold push after {recorded} sweeps"
+            )));
+        }
+        for _ in 0..SWEEPS_PER_LOOK {
+            recorded += 1;
+            pass.record_sweep(backend, recorded, pushed, &mut push)?;
+            backend.fold_advance(&advance, &mut push.state, &mut push.args)?;
+        }
+    }
+}
+
+/// Sweeps recorded between two looks at the push's state: each look waits for the device,
+/// and the sweeps recorded after the pass has ended do nothing (their workgroup counts are 0).
+const SWEEPS_PER_LOOK: usize = 8;
+
+/// The fold push's lists and state where the backend computes (shaders/fold/push_list.wgsl).
+struct PushLists<B: Backend> {
+    /// Two lists as long as the grid: a sweep pushes the voxels of one and lists the next
+    /// sweep's in the other.
+    lists: [B::Buffer<u32>; 2],
+    /// The sweep that last listed each voxel, 0 never.
+    listed: B::Buffer<u32>,
+    /// The sweep each voxel was last blocked in (from 1; 0 never): a tissue voxel no fraction
+    /// of a push could move without entering a bone. The next sweep leaves it too and lifts
+    /// the folds beside it by their other neighbours.
+    blocked: B::Buffer<u32>,
+    /// abi::push_state.
+    state: B::Buffer<u32>,
+    /// The workgroup counts of a sweep's dispatches (abi::push_state::ARGS_LEN).
+    args: B::Buffer<u32>,
+}
+
+impl<B: Backend> PushLists<B> {
+    fn new(backend: &B, voxels: usize) -> Result<Self> {
+        Ok(PushLists {
+            lists: [
+                backend.zeros("voxels to lift", voxels)?,
+                backend.zeros("voxels to lift next", voxels)?,
+            ],
+            listed: backend.zeros("listed voxels", voxels)?,
+            blocked: backend.zeros("blocked voxels", voxels)?,
+            state: backend.zeros("fold push state", push_state::LEN)?,
+            args: backend.zeros("fold push workgroups", push_state::ARGS_LEN)?,
+        })
+    }
+}
+
+/// What a pass of the push works on.
+struct Pass<'a, B: Backend> {
+    grid: &'a Grid,
+    held: &'a Held<'a, B>,
+    bones: &'a Bones<'a, B>,
+    spared: Spared,
+}
+
+impl<B: Backend> Pass<'_, B> {
+    /// Records sweep `sweep` (from 1): each colour's pushes of the sweep's list, then the next
+    /// sweep's list made around them.
+    fn record_sweep(
+        &self,
+        backend: &B,
+        sweep: usize,
+        pushed: &mut B::Buffer<f32>,
+        push: &mut PushLists<B>,
+    ) -> Result<()> {
+        let [first, second] = &mut push.lists;
+        let (voxels, next) = match sweep % 2 {
+            1 => (&*first, second),
+            _ => (&*second, first),
+        };
         // The colours forward on odd sweeps and backward on even ones (symmetric Gauss–Seidel):
         // in one direction only, the lists shrank slower (1 mm 90° knee: 675 and 851 sweeps
         // against 533 and 398).
-        let colours: Vec<&Range<usize>> = match sweep % 2 {
-            1 => colours.iter().collect(),
-            _ => colours.iter().rev().collect(),
+        let colours: Vec<u32> = match sweep % 2 {
+            1 => (0..push_state::COLOURS as u32).collect(),
+            _ => (0..push_state::COLOURS as u32).rev().collect(),
         };
-        for voxels in colours.into_iter().filter(|c| !c.is_empty()) {
-            let limits = (FOLD_THRESHOLD, UNFOLD_TARGET);
-            let params = PushParams::new(bones.lookup, grid, voxels.clone(), sweep as u32, limits);
-            let read = (held.rigid, bones.labels);
-            backend.fold_push(&params, &order, read, pushed, &mut blocked)?;
+        let limits = (FOLD_THRESHOLD, UNFOLD_TARGET);
+        for colour in colours {
+            let params = PushParams::new(self.bones.lookup, self.grid, colour, limits);
+            let read = (self.held.rigid, self.bones.labels);
+            let counts = (&push.state, &push.args);
+            backend.fold_push(&params, voxels, read, pushed, &mut push.blocked, counts)?;
         }
-        let params = RefreshParams::new(grid, all, FOLD_THRESHOLD, spared);
-        backend.fold_refresh(&params, &order, (pushed, held.bones), &mut flags)?;
-        let codes;
-        (voxels, codes) = flagged(backend, &flags, span)?;
-        // lift_code: 2 marks a bone contact along an axis.
-        contacts_alone = match codes.iter().all(|&c| c == 2.0) {
-            true => contacts_alone + 1,
-            false => 0,
-        };
+        let params = RefreshParams::new(self.grid, FOLD_THRESHOLD, self.spared);
+        let read = (&*pushed, self.held.bones);
+        let counts = (&mut push.state, &push.args);
+        backend.fold_refresh(&params, (voxels, next), read, &mut push.listed, counts)
     }
-    Ok(sweep)
-}
-
-/// The span of voxel indices within two steps of `voxels` (in index order): where a sweep
-/// over them can change which voxels are to lift.
-fn near(grid: &Grid, voxels: &[u32]) -> Range<usize> {
-    let reach = 2 * grid.dims[0] * grid.dims[1];
-    let (first, last) = (voxels[0] as usize, voxels[voxels.len() - 1] as usize);
-    first.saturating_sub(reach)..(last + reach + 1).min(grid.len())
-}
-
-/// `voxels` (in index order) sorted by colour, i mod 3 + 3 (j mod 3) + 9 (k mod 3), each
-/// colour's in index order, and where each colour's lie in that order. Two voxels of one colour
-/// lie at least three steps apart, so the neighbourhoods one push reads and writes (the voxel
-/// and its six stencil neighbours, and theirs for the determinant) never overlap another's
-/// writes.
-fn by_colour(grid: &Grid, voxels: Vec<u32>) -> (Vec<u32>, [Range<usize>; 27]) {
-    let [nx, ny, _] = grid.dims.map(|d| d as u32);
-    let colour = |v: u32| (v % nx % 3 + 3 * (v / nx % ny % 3) + 9 * (v / (nx * ny) % 3)) as usize;
-    let mut order = voxels;
-    order.sort_by_key(|&v| colour(v));
-    let mut ranges: [Range<usize>; 27] = Default::default();
-    let mut start = 0;
-    for (c, range) in ranges.iter_mut().enumerate() {
-        let end = start
-            + order[start..]
-                .iter()
-                .take_while(|&&v| colour(v) == c)
-                .count();
-        *range = start..end;
-        start = end;
-    }
-    (order, ranges)
 }

@@ -1,20 +1,28 @@
 //! CPU twin of shaders/fold/fold_candidates.wgsl.
 
 use super::contacts::bone_spans;
+use super::push_list::Appender;
 use crate::abi::CandidateParams;
 use crate::cpu::common::dims3;
 use rayon::prelude::*;
 
-/// Fills `flags` with each voxel's [`LiftRule::lift_code`].
-pub fn fold_candidates(params: &CandidateParams, det: &[f32], held: &[f32], flags: &mut [f32]) {
+/// Appends each voxel with a [`LiftRule::lift_code`] above 0 to `list`, in index order.
+pub fn fold_candidates(params: &CandidateParams, det: &[f32], held: &[f32], list: Appender) {
     let rule = LiftRule {
         dims: dims3(params.dims),
         threshold: params.threshold,
         spared: params.spared,
     };
-    flags.par_iter_mut().enumerate().for_each(|(v, flag)| {
-        *flag = rule.lift_code(held, v, det[v]);
-    });
+    let lifted: Vec<(usize, f32)> = (0..det.len())
+        .into_par_iter()
+        .map(|v| (v, rule.lift_code(held, v, det[v])))
+        .filter(|&(_, code)| code > 0.0)
+        .collect();
+    let mut list = list;
+    let [nx, ny, _] = list.dims;
+    for (v, code) in lifted {
+        list.append(v, [v % nx, v / nx % ny, v / (nx * ny)], code);
+    }
 }
 
 /// Twin of shaders/fold/lift_rule.wgsl: which voxels a pass of the fold push lifts.

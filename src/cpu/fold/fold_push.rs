@@ -3,7 +3,9 @@
 //! colour found it (on every core) and then applied: what the shader's invocations, writing in
 //! place in any order, leave.
 
+use super::push_list::bucket;
 use super::stencil::{displacement, dot3, Stencil};
+use crate::abi::push_state::SWEEP;
 use crate::abi::{BoneLookupParams, PushParams};
 use crate::sample::bone_at;
 use glam::Vec3;
@@ -11,8 +13,10 @@ use rayon::prelude::*;
 
 /// The buffers one colour's pushes read and write.
 pub struct PushBuffers<'a> {
-    /// The sweep's voxels, by colour (this dispatch's are `params.first..params.end`).
+    /// The sweep's list (push_list.rs).
     pub voxels: &'a [u32],
+    /// The push's state (abi::push_state).
+    pub state: &'a [u32],
     /// > 0 where a voxel's displacement is its bone's motion.
     pub rigid: &'a [f32],
     /// The source label map.
@@ -34,27 +38,36 @@ pub fn fold_push(params: &PushParams, buffers: PushBuffers) {
         limit: 0.0,
         pad: [0; 3],
     };
+    let stencil = Stencil::new(params.dims, params.mm_to_index);
+    let colour = bucket(
+        buffers.voxels,
+        buffers.state,
+        params.colour as usize,
+        stencil.dims(),
+    );
+    let sweep = buffers.state[SWEEP];
     let push = Push {
         params,
-        stencil: Stencil::new(params.dims, params.mm_to_index),
+        sweep,
+        stencil,
         lookup: &lookup,
         rigid: buffers.rigid,
         labels: buffers.labels,
         field: buffers.field,
         blocked: buffers.blocked,
     };
-    let colour = &buffers.voxels[params.first as usize..params.end as usize];
     let moves: Vec<Vec<Move>> = colour.par_iter().map(|&n| push.moves(n as usize)).collect();
     for (q, to) in moves.into_iter().flatten() {
         match to {
             Some(u) => buffers.field[3 * q..3 * q + 3].copy_from_slice(&u.to_array()),
-            None => buffers.blocked[q] = params.sweep,
+            None => buffers.blocked[q] = sweep,
         }
     }
 }
 
 struct Push<'a> {
     params: &'a PushParams,
+    sweep: u32,
     stencil: Stencil,
     lookup: &'a BoneLookupParams,
     rigid: &'a [f32],
@@ -107,7 +120,7 @@ impl Push<'_> {
 
     fn may_move(&self, n: usize, q: usize) -> bool {
         let stamp = self.blocked[q];
-        q != n && self.rigid[q] <= 0.0 && (stamp == 0 || stamp + 1 < self.params.sweep)
+        q != n && self.rigid[q] <= 0.0 && (stamp == 0 || stamp + 1 < self.sweep)
     }
 
     /// The moves of voxel n's push, in the shader's order; a neighbour across n that an

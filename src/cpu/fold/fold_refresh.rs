@@ -1,17 +1,21 @@
-//! CPU twin of shaders/fold/fold_refresh.wgsl.
+//! CPU twin of shaders/fold/fold_refresh.wgsl: the codes around each listed voxel worked out
+//! at once (on every core), then appended in the list's order.
 
 use super::fold_candidates::LiftRule;
+use super::push_list::{listed, Appender};
 use super::stencil::Stencil;
+use crate::abi::push_state::SWEEP;
 use crate::abi::RefreshParams;
 use rayon::prelude::*;
 
-/// Refreshes `flags` within two steps (L1) of each of the listed `voxels`
-/// (`params.first..params.end`): each voxel's lift code now.
+/// Appends to `list` the voxels within two steps (L1) of each of the sweep's list `voxels`
+/// that the pass lifts now, each once (stamped in `stamps` with the sweep).
 pub fn fold_refresh(
     params: &RefreshParams,
     voxels: &[u32],
     (field, held): (&[f32], &[f32]),
-    flags: &mut [f32],
+    stamps: &mut [u32],
+    list: Appender,
 ) {
     let stencil = Stencil::new(params.dims, params.mm_to_index);
     let rule = LiftRule {
@@ -20,11 +24,12 @@ pub fn fold_refresh(
         spared: params.spared,
     };
     let d = stencil.dims();
-    let codes: Vec<Vec<(usize, f32)>> = voxels[params.first as usize..params.end as usize]
+    let sweep = list.state[SWEEP];
+    let around: Vec<Vec<(usize, [usize; 3], f32)>> = listed(voxels, list.state, d)
         .par_iter()
         .map(|&n| {
             let c = stencil.voxel_of(n as usize).map(|i| i as i64);
-            let mut codes = Vec::with_capacity(25);
+            let mut codes = Vec::new();
             for dz in -2i64..=2 {
                 for dy in -2i64..=2 {
                     for dx in -2i64..=2 {
@@ -35,14 +40,21 @@ pub fn fold_refresh(
                         }
                         let q = p.map(|i| i as usize);
                         let v = q[0] + d[0] * (q[1] + d[1] * q[2]);
-                        codes.push((v, rule.lift_code(held, v, stencil.det_at(field, q, v))));
+                        let code = rule.lift_code(held, v, stencil.det_at(field, q, v));
+                        if code > 0.0 {
+                            codes.push((v, q, code));
+                        }
                     }
                 }
             }
             codes
         })
         .collect();
-    for (v, code) in codes.into_iter().flatten() {
-        flags[v] = code;
+    let mut list = list;
+    for (v, q, code) in around.into_iter().flatten() {
+        if stamps[v] < sweep {
+            stamps[v] = sweep;
+            list.append(v, q, code);
+        }
     }
 }
