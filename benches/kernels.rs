@@ -17,11 +17,12 @@ use posereg::abi::{
 };
 use posereg::backend::dense::ForceImages;
 use posereg::backend::prelude::*;
-use posereg::backend::{box_sums, BoneImages, CostImages};
+use posereg::backend::{box_sums, BoneImages, CostImages, DeviceImage};
 use posereg::cpu::CpuBackend;
 use posereg::device::Opened;
 use posereg::gpu::GpuBackend;
 use posereg::images::similarity::LnccCost;
+use posereg::images::unfold::{unfold, Bones, Held};
 use posereg::volume::{Affine, Grid, Image};
 
 fn sizes() -> Vec<[usize; 3]> {
@@ -212,6 +213,62 @@ fn label_and_fold_rows(
             b.fold_smooth(&lookup, f, r, l)
         }))
     });
+    // The whole fold push (images::unfold: fold_candidates, then fold_push, fold_refresh and
+    // fold_advance sweep after sweep) on a field folded in a ball at the centre; no bones.
+    let folded = ball_fold(g);
+    group(
+        c,
+        "fold_push_ball",
+        g.len() as u64,
+        label,
+        backends,
+        |b| posereg::on_backend!(b, b => push_ball(b, g, &folded, &lookup)),
+    );
+}
+
+/// A field that folds in a ball of radius 6 voxels at the grid's centre: pulled towards the
+/// centre by 1.6 times its offset there (det J = (1 - 1.6)³ < 0), fading out to the rim.
+fn ball_fold(g: &Grid) -> Vec<f32> {
+    let [nx, ny, _] = g.dims;
+    let centre = g.dims.map(|n| n as f32 / 2.0);
+    let spacing = g.spacing().map(|s| s as f32);
+    let mut u = vec![0.0f32; 3 * g.len()];
+    for (v, u) in u.chunks_exact_mut(3).enumerate() {
+        let p = [v % nx, v / nx % ny, v / (nx * ny)].map(|i| i as f32);
+        let d: [f32; 3] = std::array::from_fn(|a| p[a] - centre[a]);
+        let r2 = d.iter().map(|x| x * x).sum::<f32>() / 36.0;
+        if r2 < 1.0 {
+            let fade = (1.0 - r2) * (1.0 - r2);
+            (0..3).for_each(|a| u[a] = -1.6 * d[a] * spacing[a] * fade);
+        }
+    }
+    u
+}
+
+/// Pushes `field`'s folds on `b` (nothing held, no bone in the labels) and waits for the
+/// pushed field.
+fn push_ball<B: Backend>(
+    b: &B,
+    g: &Grid,
+    field: &[f32],
+    lookup: &BoneLookupParams,
+) -> posereg::Result<usize> {
+    let field = DeviceImage {
+        grid: g.clone(),
+        data: b.upload("bench field", field.to_vec())?,
+    };
+    let none = b.zeros("bench nothing held", g.len())?;
+    let held = Held {
+        bones: &none,
+        rigid: &none,
+    };
+    let bones = Bones {
+        lookup,
+        labels: &none,
+    };
+    let (pushed, sweeps) = unfold(b, &field, &held, &bones)?;
+    b.download_one(&pushed.data)?;
+    Ok(sweeps)
 }
 
 /// The non-rigid rows' spline's affine part (translation, then the linear rows, mm): a warp of
