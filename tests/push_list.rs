@@ -9,7 +9,7 @@ use common::{gpu, smooth_field};
 use posereg::abi::push_state::{
     ARGS_LEN, COLOURS, CONTACTS_ALONE, CURRENT, LEN, LIFTED, NEXT, STOPPED, SWEEP,
 };
-use posereg::abi::{AdvanceParams, CandidateParams, JacobianParams, Spared};
+use posereg::abi::{AdvanceParams, CandidateParams, JacobianParams, RefreshParams, Spared};
 use posereg::backend::prelude::*;
 use posereg::backend::DeviceImage;
 use posereg::cpu::CpuBackend;
@@ -42,6 +42,67 @@ fn first_list<B: Backend>(backend: &B) -> (Vec<u32>, Vec<u32>, Vec<f32>) {
     let list = backend.download_one(&list).unwrap();
     let state = backend.download_one(&state).unwrap();
     (list, state, backend.download_one(&det).unwrap())
+}
+
+/// The first list of a pass, then the list a refresh makes around it with the field unchanged
+/// (no push between), and the voxels the refresh looked at.
+fn refreshed<B: Backend>(backend: &B) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
+    let grid = Grid::new(DIMS, Affine::identity()).unwrap();
+    let field = smooth_field(&grid, 7, 6.0);
+    let field = DeviceImage::upload_field(backend, "field", field).unwrap();
+    let det = backend
+        .jacobian(&JacobianParams::new(&grid), &field.data)
+        .unwrap();
+    let held = backend.zeros("no bones", grid.len()).unwrap();
+    let mut first = backend.zeros("list", grid.len()).unwrap();
+    let mut next = backend.zeros("next list", grid.len()).unwrap();
+    let mut looked = backend.zeros("looked at", grid.len()).unwrap();
+    let mut state = backend.zeros("state", LEN).unwrap();
+    let mut args = backend.zeros("args", ARGS_LEN).unwrap();
+    let spared = Spared::EnclosedByBones;
+    let params = CandidateParams::new(&grid, FOLD_THRESHOLD, spared);
+    backend
+        .fold_candidates(&params, (&det, &held), &mut first, &mut state)
+        .unwrap();
+    backend
+        .fold_advance(&AdvanceParams::new(10, 5), &mut state, &mut args)
+        .unwrap();
+    let params = RefreshParams::new(&grid, FOLD_THRESHOLD, spared);
+    let lists = (&first, &mut next);
+    let counts = (&mut state, &args);
+    backend
+        .fold_refresh(&params, lists, (&field.data, &held), &mut looked, counts)
+        .unwrap();
+    let all = backend.download(&[&next, &state, &looked]).unwrap();
+    (all[0].clone(), all[1].clone(), all[2].clone())
+}
+
+#[test]
+fn a_refresh_with_nothing_pushed_lists_the_same_voxels_and_looks_around_them() {
+    let (list, state, _) = first_list(&CpuBackend);
+    let first = buckets(&list, &state);
+    let (next, after, looked) = refreshed(&CpuBackend);
+    assert_eq!(after[SWEEP], 1);
+    assert_eq!(buckets(&next, &after), first, "the same voxels, each once");
+    let [nx, ny, _] = DIMS;
+    let at = |v: usize| [v % nx, v / nx % ny, v / (nx * ny)].map(|i| i as i64);
+    let listed: Vec<usize> = first.iter().flatten().map(|&v| v as usize).collect();
+    for (v, &stamp) in looked.iter().enumerate() {
+        let near = listed.iter().any(|&n| {
+            let (a, b) = (at(v), at(n));
+            (0..3).map(|k| (a[k] - b[k]).abs()).sum::<i64>() <= 2
+        });
+        assert_eq!(
+            stamp, near as u32,
+            "voxel {v} looked at in sweep 1 iff near a listed one"
+        );
+    }
+    if let Some(gpu) = gpu() {
+        let (gpu_next, gpu_after, gpu_looked) = refreshed(gpu);
+        assert_eq!(buckets(&gpu_next, &gpu_after), first);
+        assert_eq!(gpu_after, after);
+        assert_eq!(gpu_looked, looked);
+    }
 }
 
 /// Each colour's bucket of `list` (as many as `state` counts), sorted.

@@ -3,7 +3,8 @@
 // neighbours of its voxel, which changes det J within two steps of it (L1), so each voxel of
 // this sweep's list looks at the 25 voxels within two steps, itself included; every voxel to
 // lift lies there (it was listed, or a push changed it). A voxel several invocations see is
-// appended once, by the one that stamps it with the sweep first.
+// looked at once, by the one that stamps it with the sweep first (neighbourhoods of a cluster
+// of listed voxels overlap up to 25 times).
 //
 // Bindings (group 0):
 //   0 uniform  RefreshParams
@@ -11,7 +12,7 @@
 //   2 storage  field: array<f32>            3 floats per voxel (u, mm)
 //   3 storage  held: array<f32>             1 float per voxel (bone numbers, 0 for tissue)
 //   4 storage  next: array<u32>             the next sweep's list, appended to
-//   5 storage  listed: array<atomic<u32>>   1 per voxel: the sweep that last listed it, 0 never
+//   5 storage  looked: array<atomic<u32>>   1 per voxel: the sweep that last looked at it, 0 never
 //   6 storage  state: array<atomic<u32>>    the push's state
 // Dispatch: indirect, fold_advance.wgsl's workgroup counts for the refresh (one invocation
 // per listed voxel).
@@ -31,7 +32,7 @@ struct RefreshParams {
 @group(0) @binding(2) var<storage, read> field: array<f32>;
 @group(0) @binding(3) var<storage, read> held: array<f32>;
 @group(0) @binding(4) var<storage, read_write> next: array<u32>;
-@group(0) @binding(5) var<storage, read_write> listed: array<atomic<u32>>;
+@group(0) @binding(5) var<storage, read_write> looked: array<atomic<u32>>;
 @group(0) @binding(6) var<storage, read_write> state: array<atomic<u32>>;
 
 // This sweep's list entry `t` counts through: the buckets one after the other.
@@ -64,9 +65,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 if (near && all(p >= vec3<i32>(0)) && all(p < d)) {
                     let q = vec3<u32>(p);
                     let v = voxel_index(q.x, q.y, q.z, params.dims.xyz);
-                    let code = lift_code(v, det_at(q, v));
-                    if (code > 0.0 && atomicMax(&listed[v], sweep) < sweep) {
-                        append(v, q, code);
+                    if (atomicMax(&looked[v], sweep) < sweep) {
+                        let code = lift_code(v, det_at(q, v));
+                        if (code > 0.0) {
+                            append(v, q, code);
+                        }
                     }
                 }
             }

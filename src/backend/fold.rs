@@ -89,15 +89,15 @@ pub trait Fold: Core {
 
     /// After a sweep of the fold push, the next sweep's list: the voxels within two steps of
     /// the sweep's list `voxels` that the pass lifts now (the pushes can have changed det J
-    /// of `field` there and nowhere else; `held` as for fold_candidates), each appended once
-    /// to `next` (stamped in `listed` with the sweep) and counted in `state` (`args` as for
-    /// fold_push).
+    /// of `field` there and nowhere else; `held` as for fold_candidates), each looked at once
+    /// (stamped in `looked` with the sweep), appended to `next` and counted in `state` (`args`
+    /// as for fold_push).
     fn fold_refresh(
         &self,
         params: &RefreshParams,
         lists: (&Self::Buffer<u32>, &mut Self::Buffer<u32>),
         field_and_held: (&Self::Buffer<f32>, &Self::Buffer<f32>),
-        listed: &mut Self::Buffer<u32>,
+        looked: &mut Self::Buffer<u32>,
         state_and_args: (&mut Self::Buffer<u32>, &Self::Buffer<u32>),
     ) -> Result<()>;
 

@@ -119,7 +119,7 @@ impl Fold for CpuBackend {
         params: &RefreshParams,
         (voxels, next): (&Arc<Vec<u32>>, &mut Arc<Vec<u32>>),
         (field, held): (&Arc<Vec<f32>>, &Arc<Vec<f32>>),
-        listed: &mut Arc<Vec<u32>>,
+        looked: &mut Arc<Vec<u32>>,
         (state, _): (&mut Arc<Vec<u32>>, &Arc<Vec<u32>>),
     ) -> Result<()> {
         let list = push_list::Appender {
@@ -127,7 +127,7 @@ impl Fold for CpuBackend {
             next: Arc::make_mut(next).as_mut_slice(),
             state: Arc::make_mut(state).as_mut_slice(),
         };
-        let stamps = Arc::make_mut(listed).as_mut_slice();
+        let stamps = Arc::make_mut(looked).as_mut_slice();
         fold_refresh::fold_refresh(params, voxels, (field, held), stamps, list);
         Ok(())
     }

@@ -197,7 +197,7 @@ impl Fold for GpuBackend {
         params: &RefreshParams,
         (voxels, next): (&GpuBuffer<u32>, &mut GpuBuffer<u32>),
         (field, held): (&GpuBuffer<f32>, &GpuBuffer<f32>),
-        listed: &mut GpuBuffer<u32>,
+        looked: &mut GpuBuffer<u32>,
         (state, args): (&mut GpuBuffer<u32>, &GpuBuffer<u32>),
     ) -> Result<()> {
         let bound = [
@@ -205,7 +205,7 @@ impl Fold for GpuBackend {
             field.raw(),
             held.raw(),
             next.raw(),
-            listed.raw(),
+            looked.raw(),
             state.raw(),
         ];
         let at = args_offset(push_state::COLOURS);

@@ -144,8 +144,8 @@ struct PushLists<B: Backend> {
     /// Two lists as long as the grid: a sweep pushes the voxels of one and lists the next
     /// sweep's in the other.
     lists: [B::Buffer<u32>; 2],
-    /// The sweep that last listed each voxel, 0 never.
-    listed: B::Buffer<u32>,
+    /// The sweep that last looked at each voxel for the next list, 0 never.
+    looked: B::Buffer<u32>,
     /// The sweep each voxel was last blocked in (from 1; 0 never): a tissue voxel no fraction
     /// of a push could move without entering a bone. The next sweep leaves it too and lifts
     /// the folds beside it by their other neighbours.
@@ -163,7 +163,7 @@ impl<B: Backend> PushLists<B> {
                 backend.zeros("voxels to lift", voxels)?,
                 backend.zeros("voxels to lift next", voxels)?,
             ],
-            listed: backend.zeros("listed voxels", voxels)?,
+            looked: backend.zeros("voxels looked at", voxels)?,
             blocked: backend.zeros("blocked voxels", voxels)?,
             state: backend.zeros("fold push state", push_state::LEN)?,
             args: backend.zeros("fold push workgroups", push_state::ARGS_LEN)?,
@@ -211,6 +211,6 @@ impl<B: Backend> Pass<'_, B> {
         let params = RefreshParams::new(self.grid, FOLD_THRESHOLD, self.spared);
         let read = (&*pushed, self.held.bones);
         let counts = (&mut push.state, &push.args);
-        backend.fold_refresh(&params, (voxels, next), read, &mut push.listed, counts)
+        backend.fold_refresh(&params, (voxels, next), read, &mut push.looked, counts)
     }
 }

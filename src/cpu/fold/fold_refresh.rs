@@ -1,5 +1,6 @@
-//! CPU twin of shaders/fold/fold_refresh.wgsl: the codes around each listed voxel worked out
-//! at once (on every core), then appended in the list's order.
+//! CPU twin of shaders/fold/fold_refresh.wgsl: the voxels within two steps of the listed ones
+//! stamped in the list's order, each first seen once, their codes worked out at once (on every
+//! core), then the ones to lift appended in that order.
 
 use super::fold_candidates::LiftRule;
 use super::push_list::{listed, Appender};
@@ -9,7 +10,7 @@ use crate::abi::RefreshParams;
 use rayon::prelude::*;
 
 /// Appends to `list` the voxels within two steps (L1) of each of the sweep's list `voxels`
-/// that the pass lifts now, each once (stamped in `stamps` with the sweep).
+/// that the pass lifts now, each looked at once (stamped in `stamps` with the sweep).
 pub fn fold_refresh(
     params: &RefreshParams,
     voxels: &[u32],
@@ -25,35 +26,34 @@ pub fn fold_refresh(
     };
     let d = stencil.dims();
     let sweep = list.state[SWEEP];
-    let around: Vec<Vec<(usize, [usize; 3], f32)>> = listed(voxels, list.state, d)
-        .par_iter()
-        .map(|&n| {
-            let c = stencil.voxel_of(n as usize).map(|i| i as i64);
-            let mut codes = Vec::new();
-            for dz in -2i64..=2 {
-                for dy in -2i64..=2 {
-                    for dx in -2i64..=2 {
-                        let p = [c[0] + dx, c[1] + dy, c[2] + dz];
-                        let near = dx.abs() + dy.abs() + dz.abs() <= 2;
-                        if !near || (0..3).any(|a| p[a] < 0 || p[a] >= d[a] as i64) {
-                            continue;
-                        }
-                        let q = p.map(|i| i as usize);
-                        let v = q[0] + d[0] * (q[1] + d[1] * q[2]);
-                        let code = rule.lift_code(held, v, stencil.det_at(field, q, v));
-                        if code > 0.0 {
-                            codes.push((v, q, code));
-                        }
+    let mut near = Vec::new();
+    for n in listed(voxels, list.state, d) {
+        let c = stencil.voxel_of(n as usize).map(|i| i as i64);
+        for dz in -2i64..=2 {
+            for dy in -2i64..=2 {
+                for dx in -2i64..=2 {
+                    let p = [c[0] + dx, c[1] + dy, c[2] + dz];
+                    let close = dx.abs() + dy.abs() + dz.abs() <= 2;
+                    if !close || (0..3).any(|a| p[a] < 0 || p[a] >= d[a] as i64) {
+                        continue;
+                    }
+                    let q = p.map(|i| i as usize);
+                    let v = q[0] + d[0] * (q[1] + d[1] * q[2]);
+                    if stamps[v] < sweep {
+                        stamps[v] = sweep;
+                        near.push((v, q));
                     }
                 }
             }
-            codes
-        })
+        }
+    }
+    let codes: Vec<f32> = near
+        .par_iter()
+        .map(|&(v, q)| rule.lift_code(held, v, stencil.det_at(field, q, v)))
         .collect();
     let mut list = list;
-    for (v, q, code) in around.into_iter().flatten() {
-        if stamps[v] < sweep {
-            stamps[v] = sweep;
+    for (&(v, q), code) in near.iter().zip(codes) {
+        if code > 0.0 {
             list.append(v, q, code);
         }
     }
