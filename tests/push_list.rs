@@ -234,3 +234,25 @@ fn a_step_between_sweeps_hands_the_next_list_over_or_ends_the_pass() {
         assert_eq!(advanced_on_both(&state, &params).0, state);
     }
 }
+
+/// A kernel dispatched again with the same parameters (each colour's push, every sweep) sends
+/// them up once: the GPU backend makes one uniform buffer per distinct parameter struct.
+#[test]
+fn parameters_dispatched_again_go_up_once() {
+    if gpu().is_none() {
+        return;
+    }
+    // A backend of its own: the shared one counts the other tests' traffic too.
+    let gpu = posereg::gpu::GpuBackend::new().unwrap();
+    let mut state = gpu.zeros("state", LEN).unwrap();
+    let mut args = gpu.zeros("args", ARGS_LEN).unwrap();
+    let before = gpu.traffic().bytes_up;
+    let (a, b) = (AdvanceParams::new(3, 5), AdvanceParams::new(4, 5));
+    for params in [&a, &a, &b, &a, &b] {
+        gpu.fold_advance(params, &mut state, &mut args).unwrap();
+    }
+    let state = gpu.download_one(&state).unwrap();
+    assert_eq!(state[STOPPED], 1, "nothing listed: the pass ends");
+    let sent = gpu.traffic().bytes_up - before;
+    assert_eq!(sent, 2 * std::mem::size_of::<AdvanceParams>() as u64);
+}
