@@ -24,51 +24,69 @@ fn colour_of(v: usize) -> usize {
     v % nx % 3 + 3 * (v / nx % ny % 3) + 9 * (v / (nx * ny) % 3)
 }
 
-/// The first list of a pass over a folding field with no bones, and the state after it.
-fn first_list<B: Backend>(backend: &B) -> (Vec<u32>, Vec<u32>, Vec<f32>) {
-    let grid = Grid::new(DIMS, Affine::identity()).unwrap();
-    let field = smooth_field(&grid, 7, 6.0);
-    let field = DeviceImage::upload_field(backend, "field", field).unwrap();
-    let det = backend
-        .jacobian(&JacobianParams::new(&grid), &field.data)
-        .unwrap();
-    let held = backend.zeros("no bones", grid.len()).unwrap();
-    let mut list = backend.zeros("list", grid.len()).unwrap();
-    let mut state = backend.zeros("state", LEN).unwrap();
-    let params = CandidateParams::new(&grid, FOLD_THRESHOLD, Spared::EnclosedByBones);
-    backend
-        .fold_candidates(&params, (&det, &held), &mut list, &mut state)
-        .unwrap();
-    let list = backend.download_one(&list).unwrap();
-    let state = backend.download_one(&state).unwrap();
-    (list, state, backend.download_one(&det).unwrap())
+/// A pass's first list over a folding field with no bones, where `backend` computes.
+struct FirstList<B: Backend> {
+    grid: Grid,
+    field: DeviceImage<B>,
+    det: B::Buffer<f32>,
+    held: B::Buffer<f32>,
+    list: B::Buffer<u32>,
+    state: B::Buffer<u32>,
 }
 
-/// The first list of a pass, then the list a refresh makes around it with the field unchanged
-/// (no push between), and the voxels the refresh looked at.
+impl<B: Backend> FirstList<B> {
+    fn new(backend: &B) -> Self {
+        let grid = Grid::new(DIMS, Affine::identity()).unwrap();
+        let field = smooth_field(&grid, 7, 6.0);
+        let field = DeviceImage::upload_field(backend, "field", field).unwrap();
+        let det = backend
+            .jacobian(&JacobianParams::new(&grid), &field.data)
+            .unwrap();
+        let held = backend.zeros("no bones", grid.len()).unwrap();
+        let mut list = backend.zeros("list", grid.len()).unwrap();
+        let mut state = backend.zeros("state", LEN).unwrap();
+        let params = CandidateParams::new(&grid, FOLD_THRESHOLD, Spared::EnclosedByBones);
+        backend
+            .fold_candidates(&params, (&det, &held), &mut list, &mut state)
+            .unwrap();
+        FirstList {
+            grid,
+            field,
+            det,
+            held,
+            list,
+            state,
+        }
+    }
+}
+
+/// The first list of a pass, the state after it, and the field's determinant.
+fn first_list<B: Backend>(backend: &B) -> (Vec<u32>, Vec<u32>, Vec<f32>) {
+    let first = FirstList::new(backend);
+    let list = backend.download_one(&first.list).unwrap();
+    let state = backend.download_one(&first.state).unwrap();
+    (list, state, backend.download_one(&first.det).unwrap())
+}
+
+/// The list a refresh makes around the first list with the field unchanged (no push
+/// between), the state after it, and the voxels the refresh looked at.
 fn refreshed<B: Backend>(backend: &B) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
-    let grid = Grid::new(DIMS, Affine::identity()).unwrap();
-    let field = smooth_field(&grid, 7, 6.0);
-    let field = DeviceImage::upload_field(backend, "field", field).unwrap();
-    let det = backend
-        .jacobian(&JacobianParams::new(&grid), &field.data)
-        .unwrap();
-    let held = backend.zeros("no bones", grid.len()).unwrap();
-    let mut first = backend.zeros("list", grid.len()).unwrap();
+    let FirstList {
+        grid,
+        field,
+        held,
+        list,
+        mut state,
+        ..
+    } = FirstList::new(backend);
     let mut next = backend.zeros("next list", grid.len()).unwrap();
     let mut looked = backend.zeros("looked at", grid.len()).unwrap();
-    let mut state = backend.zeros("state", LEN).unwrap();
     let mut args = backend.zeros("args", ARGS_LEN).unwrap();
-    let spared = Spared::EnclosedByBones;
-    let params = CandidateParams::new(&grid, FOLD_THRESHOLD, spared);
-    backend
-        .fold_candidates(&params, (&det, &held), &mut first, &mut state)
-        .unwrap();
     backend
         .fold_advance(&AdvanceParams::new(10, 5), &mut state, &mut args)
         .unwrap();
-    let params = RefreshParams::new(&grid, FOLD_THRESHOLD, spared);
-    let lists = (&first, &mut next);
+    let params = RefreshParams::new(&grid, FOLD_THRESHOLD, Spared::EnclosedByBones);
+    let lists = (&list, &mut next);
     let counts = (&mut state, &args);
     backend
         .fold_refresh(&params, lists, (&field.data, &held), &mut looked, counts)
