@@ -136,6 +136,38 @@ fn the_lncc_force_vanishes_where_the_images_correlate_perfectly() {
     assert!(mean > 0.3, "mean cost {mean}");
 }
 
+/// As in ANTs, a flat window has no correlation and a point outside the source none either:
+/// each costs 1, as uncorrelated images do, so that flattening a window (stretching the
+/// background into the body) or carrying a point out of the source never lowers the cost.
+#[test]
+fn a_flat_window_or_a_point_outside_the_source_costs_as_much_as_no_correlation() {
+    let grid = oblique_grid([9, 7, 6]);
+    let moving = smooth_volume(&grid, 3).data;
+    let fixed: Vec<f32> = moving.iter().map(|w| 3.0 * w - 40.0).collect();
+    let covered: Vec<f32> = (0..grid.len()).map(|n| (n % 4 != 0) as u8 as f32).collect();
+    let (_, cost) = force_on(
+        &CpuBackend,
+        &grid,
+        ForceTerm::Lncc,
+        2,
+        [&moving, &fixed, &covered],
+    );
+    for (n, c) in cost.iter().enumerate() {
+        let want = if n % 4 == 0 { 1.0 } else { 0.0 };
+        assert!((c - want).abs() < 1e-3, "voxel {n}: cost {c}");
+    }
+    let flat = vec![7.0f32; grid.len()];
+    let (force, cost) = force_on(
+        &CpuBackend,
+        &grid,
+        ForceTerm::Lncc,
+        2,
+        [&flat, &fixed, &vec![1.0; grid.len()]],
+    );
+    assert!(force.iter().all(|&f| f == 0.0), "no force where W is flat");
+    assert!(cost.iter().all(|&c| c == 1.0), "a flat window costs 1");
+}
+
 #[test]
 fn the_lncc_force_moves_the_image_towards_the_target() {
     // F is W shifted by 0.4 voxel along x: a small step along the force raises the mean ρ².

@@ -5,8 +5,9 @@
 // W(x) times ∇W is its gradient with respect to δ(x) (the demons / greedy force).
 //   SSD:  force = c (F − W) ∇W                    cost = c (W − F)²
 //   LNCC: force = c 2 σ_WF / (σ_W² σ_F²) ((F − μ_F) − σ_WF / σ_W² (W − μ_W)) ∇W
-//         cost = c (1 − ρ²), ρ = σ_WF / (σ_W σ_F) over the voxel's window (ANTs' and greedy's
-//         form: the window centred on the voxel only; 0 where a window is flat)
+//         cost = 1 − c ρ², ρ = σ_WF / (σ_W σ_F) over the voxel's window (ANTs' and greedy's
+//         form: the window centred on the voxel only; ρ = 0 where a window is flat, as in
+//         ANTs, so that flattening a window or leaving the source never lowers the cost)
 // c is 1 where the field's point lies inside the source (coverage ≥ abi::COVERED_AT), else 0.
 // ∇W is in world mm: central differences along the index axes (one-sided at the faces)
 // times d(index)/d(world), as fold/jacobian.wgsl differentiates a field.
@@ -84,11 +85,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                               sums[5u * v + 3u], sums[5u * v + 4u]);
         let win = window_at(s, vec4<u32>(d, params.radius), gid.x, gid.y, gid.z);
         along = 0.0;
-        term = 0.0;
+        term = 1.0;
         if (!win.flat) {
             let spread = win.va * win.vb;
             along = c * (2.0 * win.cab / spread) * ((f - win.mb) - win.cab / win.va * (w - win.ma));
-            term = c * (1.0 - win.cab * win.cab / spread);
+            term = 1.0 - c * (win.cab * win.cab / spread);
         }
     }
     let g = gradient(gid.x, gid.y, gid.z, d);

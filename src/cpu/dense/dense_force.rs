@@ -67,11 +67,11 @@ fn along_and_cost(
     // local_moments summed a = W and b = F.
     let win = window_at(images.sums, v, params.window_dims(), ijk);
     if win.flat {
-        return (0.0, 0.0);
+        return (0.0, 1.0);
     }
     let spread = win.va * win.vb;
     let along = c * (2.0 * win.cab / spread) * ((f - win.mb) - win.cab / win.va * (w - win.ma));
-    (along, c * (1.0 - win.cab * win.cab / spread))
+    (along, 1.0 - c * (win.cab * win.cab / spread))
 }
 
 /// Fills `force` (3 floats per voxel) and `cost` (1 float per voxel).
