@@ -12,8 +12,11 @@ use crate::backend::Element;
 use crate::error::{Error, Result};
 use std::marker::PhantomData;
 
-/// Uniform buffers kept for reuse (GpuBackend::uniform): a few hundred bytes each.
-const UNIFORMS_KEPT: usize = 1024;
+/// Uniform buffers kept for reuse (GpuBackend::uniform), enough for a pass of the fold push
+/// (29 distinct structs). Few, although each is a few hundred bytes: a kept buffer keeps the
+/// device memory block it was carved from, and 1024 of them raised the half phantom's peak
+/// memory on lavapipe from 626 to 747 MiB (BENCHMARKS.md, thirty-first session).
+const UNIFORMS_KEPT: usize = 64;
 
 /// `len` elements of `T` in a device storage buffer.
 pub struct GpuBuffer<T> {
