@@ -16,10 +16,6 @@
 // Keep in sync with abi::ListParams.
 struct ListParams {
     counts: vec4<u32>,  // values, values per chunk, chunks, unused
-    first: u32,         // the values are first..first + counts.x
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: ListParams;
@@ -36,8 +32,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     var at = offsets[c];
-    for (var k = c * n.y; k < min((c + 1u) * n.y, n.x); k = k + 1u) {
-        let v = params.first + k;
+    for (var v = c * n.y; v < min((c + 1u) * n.y, n.x); v = v + 1u) {
         let flag = flags[v];
         if (flag > 0.0) {
             indices[at] = v;

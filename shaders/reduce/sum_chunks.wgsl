@@ -14,8 +14,8 @@ struct SumParams {
     counts: vec4<u32>,  // values, values per chunk, chunks, unused
     shift: f32,
     power: u32,         // 0 (a count), 1 or 2
-    first: u32,         // the values are first..first + counts.x
     pad0: u32,
+    pad1: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: SumParams;
@@ -30,8 +30,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     var sum = 0.0lf;
-    for (var k = c * n.y; k < min((c + 1u) * n.y, n.x); k = k + 1u) {
-        let d = f64(values[params.first + k]) - f64(params.shift);
+    for (var v = c * n.y; v < min((c + 1u) * n.y, n.x); v = v + 1u) {
+        let d = f64(values[v]) - f64(params.shift);
         var term = d;
         if (params.power == 2u) {
             term = d * d;

@@ -15,10 +15,8 @@ pub struct SumParams {
     pub shift: f32,
     /// The power (1 or 2; 0 counts the values above the shift).
     pub power: u32,
-    /// Index of the first value summed: the values are first..first + counts[0].
-    pub first: u32,
     /// Padding to 16 bytes.
-    pub pad: u32,
+    pub pad: [u32; 2],
 }
 
 impl SumParams {
@@ -28,8 +26,7 @@ impl SumParams {
             counts: chunking(values, SUM_CHUNK, 0),
             shift: 0.0,
             power: 1,
-            first: 0,
-            pad: 0,
+            pad: [0; 2],
         }
     }
 
@@ -41,12 +38,11 @@ impl SumParams {
         p
     }
 
-    /// Counts of the values above `shift` among the values `range`, per chunk.
-    pub fn count_above(range: std::ops::Range<usize>, shift: f32) -> Self {
-        let mut p = SumParams::new(range.len());
+    /// Counts of the values above `shift` among `values` values, per chunk.
+    pub fn count_above(values: usize, shift: f32) -> Self {
+        let mut p = SumParams::new(values);
         p.power = 0;
         p.shift = shift;
-        p.first = range.start as u32;
         p
     }
 
@@ -67,19 +63,13 @@ impl SumParams {
 pub struct ListParams {
     /// Values, values per chunk ([`SUM_CHUNK`], as sum_chunks counts them), chunks, unused.
     pub counts: [u32; 4],
-    /// Index of the first value: the values are first..first + counts[0].
-    pub first: u32,
-    /// Padding to 16 bytes.
-    pub pad: [u32; 3],
 }
 
 impl ListParams {
-    /// Lists the flagged values among the values `range`, chunk by chunk.
-    pub fn new(range: std::ops::Range<usize>) -> Self {
+    /// Lists the flagged values among `values` values, chunk by chunk.
+    pub fn new(values: usize) -> Self {
         ListParams {
-            counts: chunking(range.len(), SUM_CHUNK, 0),
-            first: range.start as u32,
-            pad: [0; 3],
+            counts: chunking(values, SUM_CHUNK, 0),
         }
     }
 

@@ -41,15 +41,15 @@ pub fn total<B: Reduce>(backend: &B, params: &SumParams, values: &B::Buffer<f32>
     Ok(backend.download_one(&sums)?.iter().sum())
 }
 
-/// The flagged values (> 0) among the values `range` of `flags` and their indices, in index
+/// The flagged values (> 0) among the `len` values of `flags` and their indices, in index
 /// order: the flags are counted per chunk where the backend computes (one f64 per chunk comes
 /// back), each chunk's offset goes up, and only the list comes back, not the array.
 pub fn flagged<B: Reduce>(
     backend: &B,
     flags: &B::Buffer<f32>,
-    range: std::ops::Range<usize>,
+    len: usize,
 ) -> Result<(Vec<u32>, Vec<f32>)> {
-    let counts = SumParams::count_above(range.clone(), 0.0);
+    let counts = SumParams::count_above(len, 0.0);
     let counts = backend.download_one(&backend.sum_chunks(&counts, flags)?)?;
     let mut offsets = Vec::with_capacity(counts.len());
     let mut listed = 0u32;
@@ -58,7 +58,7 @@ pub fn flagged<B: Reduce>(
         listed += count as u32;
     }
     let offsets = backend.upload("offsets of the flagged values", offsets)?;
-    let params = ListParams::new(range);
+    let params = ListParams::new(len);
     let (indices, values) = backend.list_flagged(&params, flags, &offsets, listed as usize)?;
     let indices = backend.download_one(&indices)?;
     Ok((indices, backend.download_one(&values)?))

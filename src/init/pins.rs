@@ -21,7 +21,7 @@ pub fn bone_pins<B: Backend>(
 ) -> Result<Vec<Vector3<f64>>> {
     let grid = &bone_map.grid;
     let surface = backend.region_surface(&SurfaceParams::new(grid), &bone_map.data)?;
-    let (voxels, bone_of) = flagged(backend, &surface, 0..grid.len())?;
+    let (voxels, bone_of) = flagged(backend, &surface, grid.len())?;
     let mut pins = Vec::new();
     for index in 1..=bones {
         let points: Vec<Vector3<f64>> = voxels

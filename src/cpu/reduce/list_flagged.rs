@@ -14,11 +14,10 @@ pub fn list_flagged(
     values: &mut [f32],
 ) {
     let [len, per_chunk, chunks, _] = params.counts.map(|c| c as usize);
-    let first = params.first as usize;
     let parts = split_at_offsets(indices, &offsets[..chunks])
         .into_iter()
         .zip(split_at_offsets(values, &offsets[..chunks]));
-    let chunked: Vec<_> = flags[first..first + len]
+    let chunked: Vec<_> = flags[..len]
         .chunks(per_chunk)
         .enumerate()
         .zip(parts)
@@ -29,7 +28,7 @@ pub fn list_flagged(
             let mut at = 0;
             for (k, &flag) in chunk.iter().enumerate() {
                 if flag > 0.0 {
-                    indices[at] = (first + c * per_chunk + k) as u32;
+                    indices[at] = (c * per_chunk + k) as u32;
                     values[at] = flag;
                     at += 1;
                 }

@@ -9,7 +9,6 @@ pub fn sum_chunks(params: &SumParams, values: &[f32], sums: &mut [f64]) {
     let chunk = params.counts[1] as usize;
     let power = params.power;
     let shift = params.shift as f64;
-    let values = &values[params.first as usize..][..params.counts[0] as usize];
     sums.par_iter_mut().enumerate().for_each(|(c, sum)| {
         let end = ((c + 1) * chunk).min(values.len());
         *sum = values[c * chunk..end].iter().fold(0.0f64, |s, &v| {
