@@ -266,7 +266,8 @@ fn push_ball<B: Backend>(
         lookup,
         labels: &none,
     };
-    let (pushed, sweeps) = unfold(b, &field, &held, &bones)?;
+    let det = b.jacobian(&JacobianParams::new(g), &field.data)?;
+    let (pushed, sweeps) = unfold(b, (&field, &det), &held, &bones)?;
     b.download_one(&pushed.data)?;
     Ok(sweeps)
 }

@@ -75,7 +75,7 @@ pub fn unfolded<B: Backend>(
     margin_mm: f64,
 ) -> Result<TotalField<B>> {
     let held = bones_at_source(backend, &field, labels, bones)?;
-    let (_, folds) = determinant(backend, &field, &held)?;
+    let (det, folds) = determinant(backend, &field, &held)?;
     // Only a field that folds is unfolded: the others keep their bits.
     let mut whole = TotalField {
         field,
@@ -91,8 +91,14 @@ pub fn unfolded<B: Backend>(
             .map(|_| rigid_bones(backend, &initial.field, &initial.residual, labels, bones))
             .transpose()?;
         let held_rigid = (&whole.held, rigid.as_ref());
-        let repaired =
-            unfold_registration(backend, whole.field, &folds, held_rigid, labels, bones)?;
+        let repaired = unfold_registration(
+            backend,
+            whole.field,
+            (&det, &folds),
+            held_rigid,
+            labels,
+            bones,
+        )?;
         (whole.field, whole.unfolding) = repaired;
     }
     Ok(whole)

@@ -6,7 +6,7 @@
 mod common;
 
 use common::gpu;
-use posereg::abi::BoneLookupParams;
+use posereg::abi::{BoneLookupParams, JacobianParams};
 use posereg::backend::prelude::*;
 use posereg::backend::DeviceImage;
 use posereg::cpu::CpuBackend;
@@ -39,7 +39,10 @@ fn unfolded<B: Backend>(backend: &B, f: &Fixture) -> (Field, usize) {
         lookup: &lookup,
         labels: &labels,
     };
-    let (out, sweeps) = unfold(backend, &field, &held, &in_bones).unwrap();
+    let det = backend
+        .jacobian(&JacobianParams::new(&grid), &field.data)
+        .unwrap();
+    let (out, sweeps) = unfold(backend, (&field, &det), &held, &in_bones).unwrap();
     (out.download_field(backend).unwrap(), sweeps)
 }
 

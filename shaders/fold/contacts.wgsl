@@ -1,7 +1,8 @@
 // contacts.wgsl: whether a voxel's difference stencil spans two bones (fold_stats.wgsl's
 // header says why those voxels are counted apart); prepended (after threshold.wgsl or the
 // push's parameters) to the kernels that bind the held map as `held` and whose `params` have
-// the grid's `dims`. Mirrored in src/images/unfold.rs (Stencil::is_contact, all_in_bones).
+// the grid's `dims`. Mirrored in src/cpu/fold/contacts.rs. A voxel is held where the map is
+// > 0, as threshold.wgsl's is_held says (not every kernel that prepends this has that file).
 
 // The voxel one step from voxel c along `axis` (0..2) in direction `step` (-1 or 1), the
 // voxel itself at the volume's faces.

@@ -5,10 +5,10 @@
 // contacts with det <= 0. The host combines the chunks (min of minima, sums of counts, exact
 // in f32 for a chunk's 1024 voxels).
 //
-// A bone contact (fold/contacts.wgsl) is a voxel whose stencil (the voxels its central differences take; the voxel
-// itself on a face) spans two bones held rigid (held values are bone numbers): either along
-// one axis its two neighbours are held in two different bones, or all six neighbours are held,
-// in two different bones. Where bones slide on each other at a joint the field jumps from one
+// A bone contact (contacts.wgsl) is a voxel whose stencil (the voxels its central
+// differences take; the voxel itself on a face) spans two bones held rigid (held values are
+// bone numbers): either along one axis its two neighbours are held in two different bones, or
+// all six neighbours are held, in two different bones. Where bones slide on each other at a joint the field jumps from one
 // bone's rigid motion to the other's; a difference across that jump measures the slide between
 // the two motions, not the field's derivative, and nothing that keeps bones rigid can change
 // it. The independent generator's own true field at 90 degrees (1 mm knee) has det <= 0 at

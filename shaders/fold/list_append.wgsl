@@ -1,6 +1,6 @@
 // list_append.wgsl: appending a voxel to the next list of the fold push (push_list.wgsl has
 // the layout); prepended after it to the kernels that bind the list as `next` and the state
-// as `state` (atomic). Mirrored in src/cpu/fold/push_list.rs (PushList::append). The order
+// as `state` (atomic). Mirrored in src/cpu/fold/push_list.rs (Appender::append). The order
 // within a bucket depends on which invocation comes first; the pushes of one colour do not
 // depend on their order (fold_push.wgsl), so the result does not either.
 

@@ -160,7 +160,7 @@ pub fn repair_folds<B: Backend>(
     }
     if folds.low > 0 {
         (field, report.folded_after, report.unfold_steps) =
-            unfold_field(backend, field, (&held, None), labels, bones)?;
+            unfold_field(backend, (field, &det), (&held, None), labels, bones)?;
     }
     Ok((field, report))
 }
@@ -204,16 +204,17 @@ pub fn bones_at_source<B: Backend>(
     backend.bone_at_source(&lookup, &field.data, &anywhere, &labels.device.data)
 }
 
-/// Unfolds a registration's total field, whose fold statistics are `folds`: [`unfold`] with the
-/// voxels `held` in a bone ([`bones_at_source`]) placing the bone contacts, the voxels at their
-/// bone's motion (`rigid`, [`rigid_bones`]; None: those held) held, and tissue pushed into a
-/// bone only as its last resort. The adaptive warp is smooth and does not fold (its step
-/// control sees to that), but composed with an initial field that is sharply
-/// compressed behind a bent knee it can carry a few voxels past each other there.
+/// Unfolds a registration's total field, whose Jacobian determinant is `det` with fold
+/// statistics `folds` ([`determinant`]'s): [`unfold`] with the voxels `held` in a bone
+/// ([`bones_at_source`]) placing the bone contacts, the voxels at their bone's motion (`rigid`,
+/// [`rigid_bones`]; None: those held) held, and tissue pushed into a bone only as its last
+/// resort. The adaptive warp is smooth and does not fold (its step control sees to that), but
+/// composed with an initial field that is sharply compressed behind a bent knee it can carry a
+/// few voxels past each other there.
 pub fn unfold_registration<B: Backend>(
     backend: &B,
     field: DeviceImage<B>,
-    folds: &Folds,
+    (det, folds): (&B::Buffer<f32>, &Folds),
     (held, rigid): (&B::Buffer<f32>, Option<&B::Buffer<f32>>),
     labels: &SourceLabels<B>,
     bones: &[u16],
@@ -228,19 +229,19 @@ pub fn unfold_registration<B: Backend>(
         // 46% of the voxels, and unfolding took 150 s): left as it is for the checks to report.
         return Ok((field, report));
     }
-    let (field, left, steps) = unfold_field(backend, field, (held, rigid), labels, bones)?;
+    let (field, left, steps) = unfold_field(backend, (field, det), (held, rigid), labels, bones)?;
     report.folded_after = left;
     report.unfold_steps = steps;
     Ok((field, report))
 }
 
-/// [`unfold`] where the backend computes, the voxels `held` in bones placing the contacts and
-/// those at their bone's motion (`rigid`; None: those held) not moved; then the kernel counts
-/// the voxels still at or below the threshold. Returns the field, that count and the sweeps
-/// taken.
+/// [`unfold`] of `field` (its determinant `det`) where the backend computes, the voxels `held`
+/// in bones placing the contacts and those at their bone's motion (`rigid`; None: those held)
+/// not moved; then the kernel counts the voxels still at or below the threshold. Returns the
+/// field, that count and the sweeps taken.
 fn unfold_field<B: Backend>(
     backend: &B,
-    field: DeviceImage<B>,
+    (field, det): (DeviceImage<B>, &B::Buffer<f32>),
     (held, rigid): (&B::Buffer<f32>, Option<&B::Buffer<f32>>),
     labels: &SourceLabels<B>,
     bones: &[u16],
@@ -254,7 +255,7 @@ fn unfold_field<B: Backend>(
         lookup: &lookup,
         labels: &labels.device.data,
     };
-    let (field, steps) = unfold(backend, &field, &held, &bones)?;
+    let (field, steps) = unfold(backend, (&field, det), &held, &bones)?;
     let (_, folds) = determinant(backend, &field, held.bones)?;
     Ok((field, folds.low, steps))
 }

@@ -70,24 +70,28 @@ pub struct Bones<'a, B: Backend> {
 /// A sweep pushes its voxels colour by colour (i, j, k mod 3): the pushes of one colour read
 /// and write disjoint neighbourhoods, so they run at once, and each colour sees the colours
 /// before it (Gauss–Seidel between colours: simultaneous pushes on a shared neighbour can
-/// cancel and stall). Returns the pushed field (a new buffer) and the sweeps taken; the caller
-/// counts what is left.
+/// cancel and stall). `det` is the field's Jacobian determinant (the jacobian kernel's, which
+/// its callers have just computed for their fold statistics). Returns the pushed field (a new
+/// buffer) and the sweeps taken; the caller counts what is left.
 pub fn unfold<B: Backend>(
     backend: &B,
-    field: &DeviceImage<B>,
+    (field, det): (&DeviceImage<B>, &B::Buffer<f32>),
     held: &Held<B>,
     bones: &Bones<B>,
 ) -> Result<(DeviceImage<B>, usize)> {
+    let grid = &field.grid;
     let mut pushed = backend.duplicate("unfolded field", &field.data)?;
-    let mut sweeps = 0;
-    for spared in [Spared::EnclosedByBones, Spared::Contacts] {
-        sweeps += push_pass(backend, (&field.grid, &mut pushed), held, bones, spared)?;
-    }
-    let grid = field.grid.clone();
+    let first = Spared::EnclosedByBones;
+    let mut sweeps = push_pass(backend, (grid, &mut pushed), det, held, bones, first)?;
+    let det = backend.jacobian(&JacobianParams::new(grid), &pushed)?;
+    let second = Spared::Contacts;
+    sweeps += push_pass(backend, (grid, &mut pushed), &det, held, bones, second)?;
+    let grid = grid.clone();
     Ok((DeviceImage { grid, data: pushed }, sweeps))
 }
 
-/// One pass of [`unfold`], sparing the voxels `spared` names: sweeps until no voxel is left to
+/// One pass of [`unfold`] on `pushed`, whose determinant is `det`, sparing the voxels `spared`
+/// names: sweeps until no voxel is left to
 /// lift, [`UNFOLD_STEPS`] have run, or [`CONTACTS_ALONE`] have left only bone contacts;
 /// returns the sweeps. The lists of voxels to lift and the decision to go on stay where the
 /// backend computes (shaders/fold/push_list.wgsl): the host records sweeps and looks at the
@@ -95,16 +99,16 @@ pub fn unfold<B: Backend>(
 fn push_pass<B: Backend>(
     backend: &B,
     (grid, pushed): (&Grid, &mut B::Buffer<f32>),
+    det: &B::Buffer<f32>,
     held: &Held<B>,
     bones: &Bones<B>,
     spared: Spared,
 ) -> Result<usize> {
     let mut push = PushLists::new(backend, grid.len())?;
-    let det = backend.jacobian(&JacobianParams::new(grid), pushed)?;
     let lifted = CandidateParams::new(grid, FOLD_THRESHOLD, spared);
     backend.fold_candidates(
         &lifted,
-        (&det, held.bones),
+        (det, held.bones),
         &mut push.lists[0],
         &mut push.state,
     )?;
