@@ -9,8 +9,8 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use posereg::abi::dense::{CombineParams, ForceParams, ForceTerm, NormParams};
 use posereg::abi::{
-    pack_candidates, BoneLookupParams, ComposeParams, DilateParams, EdtParams, FadeParams,
-    GainParams, Interpolation, InvertParams, JacobianParams, LabelParams, LnccParams,
+    pack_candidates, BoneLookupParams, ComposeParams, DilateParams, EdtParams, EdtRegions,
+    FadeParams, GainParams, Interpolation, InvertParams, JacobianParams, LabelParams, LnccParams,
     LocalMomentsParams, MomentsParams, PyramidParams, RbfGradParams, ResampleParams, RigidParams,
     ScoreParams, SkinBlendParams, SkinWeightsParams, SsdParams, SumParams, ThresholdParams,
     RIGID_SUMS, SCORE_SUMS,
@@ -183,7 +183,7 @@ fn label_and_fold_rows(
         }))
     });
     let region: Vec<f32> = (0..g.len()).map(|n| (n % 5 == 0) as u8 as f32).collect();
-    if let Ok(passes) = EdtParams::passes(g, 2) {
+    if let Ok(passes) = EdtParams::passes(g, EdtRegions::Each(2)) {
         group(
             c,
             "edt_2_regions_3_passes",
@@ -493,11 +493,11 @@ fn kernels(c: &mut Criterion) {
                 b.compose(&ComposeParams::new(&g, &g), r, u0)
             }))
         });
-        // Four bones' distance maps: the final field's warp held off the bones.
-        let distances: Vec<f32> = (0..4 * g.len()).map(|k| (k % 23) as f32).collect();
+        // The distance to the nearest bone: the final field's warp held off the bones.
+        let distances: Vec<f32> = (0..g.len()).map(|k| (k % 23) as f32).collect();
         group(c, "fade_warp", g.len() as u64, &label, &backends, |b| {
             posereg::on_backend!(b, b => resident(b, &[&uf, &distances], |b, [r, d]| {
-                b.fade_warp(&FadeParams::new(&g, 4, 8.0), r, d)
+                b.fade_warp(&FadeParams::new(&g, 8.0), r, d)
             }))
         });
         // The dense refinement's family: a velocity smoothed (σ 1.8 voxels, three passes),
@@ -541,7 +541,7 @@ fn kernels(c: &mut Criterion) {
             &backends,
             |b| {
                 posereg::on_backend!(b, b => resident(b, &[&uf, &uf, &distances], |b, [v, u, d]| {
-                    b.field_combine(&CombineParams::sum(&g, 1.0, 0.5).faded(4, 4.0), v, u, d)
+                    b.field_combine(&CombineParams::sum(&g, 1.0, 0.5).faded(4.0), v, u, d)
                 }))
             },
         );

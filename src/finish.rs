@@ -43,7 +43,7 @@ pub fn composed<B: Backend>(
     pair: &PairImages<B>,
     initial: &InitialImages<B>,
     adaptive: &Adaptive,
-    (bones, bone_map): (&[u16], Option<&DeviceImage<B>>),
+    bone_map: Option<&DeviceImage<B>>,
     margin_mm: f64,
 ) -> Result<(DeviceImage<B>, f64)> {
     let grid = &pair.target.grid;
@@ -58,7 +58,7 @@ pub fn composed<B: Backend>(
         scale *= 0.5;
     };
     let warp = match bone_map.filter(|_| margin_mm > 0.0) {
-        Some(map) => held_off_bones(backend, map, bones.len(), margin_mm, &warp)?,
+        Some(map) => held_off_bones(backend, map, margin_mm, &warp)?,
         None => warp,
     };
     Ok((compose(backend, &warp, &initial.field)?, scale))
@@ -160,12 +160,11 @@ pub fn outputs<B: Backend>(
 fn held_off_bones<B: Backend>(
     backend: &B,
     bone_map: &DeviceImage<B>,
-    bones: usize,
     margin_mm: f64,
     warp: &DeviceImage<B>,
 ) -> Result<DeviceImage<B>> {
-    let distance = regions::distance_maps(backend, bone_map, bones)?;
-    let params = FadeParams::new(&warp.grid, bones, margin_mm);
+    let distance = regions::distance_to_nearest(backend, bone_map)?;
+    let params = FadeParams::new(&warp.grid, margin_mm);
     Ok(DeviceImage {
         data: backend.fade_warp(&params, &warp.data, &distance)?,
         grid: warp.grid.clone(),

@@ -274,7 +274,7 @@ fn combine_fades_from_zero_on_a_bone_to_the_whole_a_margin_away() {
     let b: Vec<f32> = (0..3 * grid.len()).map(|k| 1.0 - k as f32 * 0.5).collect();
     // One bone, its distance map 0, 2, 4, … mm along the voxels.
     let distance: Vec<f32> = (0..grid.len()).map(|v| (v % 5) as f32 * 2.0).collect();
-    let params = CombineParams::sum(&grid, 2.0, -3.0).faded(1, 4.0);
+    let params = CombineParams::sum(&grid, 2.0, -3.0).faded(4.0);
     let out = combine_on(&CpuBackend, &params, [&a, &b, &distance]);
     for (v, d) in distance.iter().enumerate() {
         let fade = (d / 4.0).min(1.0);
@@ -384,12 +384,12 @@ fn norm_max_and_combine_parity() {
     let want = largest_vectors(&CpuBackend, &grid, &[&on(&CpuBackend, &a)]).unwrap();
     let got = largest_vectors(gpu, &grid, &[&on(gpu, &a)]).unwrap();
     close("norm_max", &got, &want, 0.0, 1e-6);
-    let distance: Vec<f32> = (0..2 * grid.len())
+    let distance: Vec<f32> = (0..grid.len())
         .map(|k| ((k * 37) % 41).saturating_sub(8) as f32 * 0.5)
         .collect();
     for params in [
         CombineParams::sum(&grid, 1.0, 0.37),
-        CombineParams::sum(&grid, 0.25, -2.0).faded(2, 6.0),
+        CombineParams::sum(&grid, 0.25, -2.0).faded(6.0),
     ] {
         let want = combine_on(&CpuBackend, &params, [&a, &b, &distance]);
         let got = combine_on(gpu, &params, [&a, &b, &distance]);

@@ -773,12 +773,11 @@ fn final_field_kernels_parity_at_odd_sizes() {
         // 1 mm per voxel here.
         close("compose", &got, &want, 1e-4, 1e-5);
     }
-    // fade_warp: two bones' distance maps, each zero on its own bone, up to 20 mm off it.
-    let bones = 2;
-    let distance: Vec<f32> = (0..bones * grid.len())
+    // fade_warp: the distance to the nearest bone, zero on the bones, up to 16 mm off them.
+    let distance: Vec<f32> = (0..grid.len())
         .map(|k| ((k * 37) % 41).saturating_sub(8) as f32 * 0.5)
         .collect();
-    let params = FadeParams::new(&grid, bones, 6.0);
+    let params = FadeParams::new(&grid, 6.0);
     let faded = |b: &dyn Fn(&Field, &[f32]) -> Vec<f32>| b(&warp, &distance);
     let want = faded(&|w, d| fade_on(&CpuBackend, &params, w, d));
     let got = faded(&|w, d| fade_on(gpu, &params, w, d));
@@ -1048,17 +1047,18 @@ fn distance_and_moments_kernels_parity() {
     assert!(cpu.1[0] > 0.0 && cpu.0.iter().all(|d| d.is_finite()));
 }
 
-/// The distance maps of `index`'s regions 1 and 2, and the moments of region 1's distances at
-/// or above 3 mm, brought back.
+/// The distance maps of `index`'s regions 1 and 2 followed by the distance to the nearer, and
+/// the moments of region 1's distances at or above 3 mm, brought back.
 fn distances_and_moments<B: Backend>(b: &B, grid: &Grid, index: &[f32]) -> (Vec<f32>, Vec<f64>) {
     let index = posereg::backend::DeviceImage::<B> {
         data: b.upload("index", index.to_vec()).unwrap(),
         grid: grid.clone(),
     };
     let maps = posereg::images::regions::distance_maps(b, &index, 2).unwrap();
+    let nearest = posereg::images::regions::distance_to_nearest(b, &index).unwrap();
     let far = b.moments(&MomentsParams::new(grid, 3.0), &maps).unwrap();
-    let mut out = b.download(&[&maps]).unwrap();
-    (out.pop().unwrap(), b.download_one(&far).unwrap())
+    let out = b.download(&[&maps, &nearest]).unwrap();
+    (out.concat(), b.download_one(&far).unwrap())
 }
 
 /// jacobian, fold_stats, mark_at_most, the three dilate passes and one fold_smooth, brought back.

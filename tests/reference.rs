@@ -481,7 +481,7 @@ fn dual_quaternion_blending_turns_halfway_where_linear_blending_shortens_the_rad
 
 /// The distance maps (three edt passes) against brute force on an anisotropic grid, for two
 /// regions of a label index map at once: each voxel's distance (mm) to the nearest voxel of
-/// its region, 0 inside.
+/// its region, 0 inside; and the distance to the nearer of the two, in one volume.
 #[test]
 fn distance_maps_match_brute_force_with_anisotropic_spacing() {
     let mut a = Affine::identity();
@@ -500,10 +500,16 @@ fn distance_maps_match_brute_force_with_anisotropic_spacing() {
         grid: grid.clone(),
     };
     let maps = posereg::images::regions::distance_maps(&CpuBackend, &index, 2).unwrap();
-    for (r, map) in maps.chunks(grid.len()).enumerate() {
-        let members: Vec<usize> = (0..grid.len())
-            .filter(|&n| region(n) == (r + 1) as f32)
-            .collect();
+    let nearest = posereg::images::regions::distance_to_nearest(&CpuBackend, &index).unwrap();
+    let any_region = |n: usize| region(n) >= 1.0;
+    let each_region = |r: usize| move |n: usize| region(n) == (r + 1) as f32;
+    let wanted: [(&[f32], &dyn Fn(usize) -> bool); 3] = [
+        (&maps[..grid.len()], &each_region(0)),
+        (&maps[grid.len()..], &each_region(1)),
+        (&nearest, &any_region),
+    ];
+    for (r, (map, member)) in wanted.into_iter().enumerate() {
+        let members: Vec<usize> = (0..grid.len()).filter(|&n| member(n)).collect();
         for (n, got) in map.iter().enumerate() {
             let brute = members
                 .iter()
@@ -511,7 +517,7 @@ fn distance_maps_match_brute_force_with_anisotropic_spacing() {
                 .fold(f64::INFINITY, f64::min);
             assert!(
                 (*got as f64 - brute).abs() < 1e-4,
-                "region {r}, voxel {n}: {got} vs {brute}"
+                "map {r}, voxel {n}: {got} vs {brute}"
             );
         }
     }

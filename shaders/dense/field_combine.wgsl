@@ -7,8 +7,8 @@
 //   0 uniform  CombineParams
 //   1 storage  a: array<f32>          3 floats per voxel
 //   2 storage  b: array<f32>          3 floats per voxel
-//   3 storage  distance: array<f32>   mm to each bone, one volume per bone, stacked; with
-//                                     bones = 0 unused (any buffer)
+//   3 storage  distance: array<f32>   mm to the nearest bone; with faded = 0 unused (any
+//                                     buffer)
 //   4 storage  out: array<f32>        3 floats per voxel (read_write)
 // Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(nz/4)).
 
@@ -17,7 +17,7 @@ struct CombineParams {
     nx: u32,
     ny: u32,
     nz: u32,
-    bones: u32,        // volumes of the distance stack; 0: no fade
+    faded: u32,        // 1: faded by the distance to the nearest bone; 0: not
     a_scale: f32,
     b_scale: f32,
     margin_mm: f32,
@@ -37,7 +37,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let v = voxel_index(gid.x, gid.y, gid.z, d);
-    let fade = fade_at(v, d.x * d.y * d.z, params.bones, params.margin_mm);
+    let fade = fade_at(v, params.faded, params.margin_mm);
     for (var c = 0u; c < 3u; c = c + 1u) {
         out[3u * v + c] = fade * (params.a_scale * a[3u * v + c] + params.b_scale * b[3u * v + c]);
     }

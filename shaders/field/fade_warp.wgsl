@@ -6,17 +6,17 @@
 // Bindings (group 0):
 //   0 uniform  FadeParams
 //   1 storage  warp: array<f32>       R, 3 floats per voxel
-//   2 storage  distance: array<f32>   mm to each bone: one volume per bone, stacked
+//   2 storage  distance: array<f32>   mm to the nearest bone
 //   3 storage  out: array<f32>        the faded R, 3 floats per voxel (read_write)
 // Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(nz/4)).
 
 // Keep in sync with abi::FadeParams.
 struct FadeParams {
     dims: vec4<u32>,     // nx, ny, nz, unused
-    bones: u32,          // volumes of the distance stack
     margin: f32,         // mm over which R rises from 0 to its whole
     pad0: u32,
     pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: FadeParams;
@@ -31,7 +31,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let v = voxel_index(gid.x, gid.y, gid.z, d);
-    let scale = fade_at(v, d.x * d.y * d.z, params.bones, params.margin);
+    let scale = fade_at(v, 1u, params.margin);
     for (var c = 0u; c < 3u; c = c + 1u) {
         out[3u * v + c] = scale * warp[3u * v + c];
     }

@@ -4,7 +4,8 @@
 // nearest voxel of a region, exact for grids with orthogonal axes (spacing per axis). The first
 // pass starts volume s of the stack from the voxels whose input rounds (half up) to s + 1 —
 // a label index map's voxels of index s + 1 (label_index), or where a smoothed 0/1 indicator is
-// at least ½ — with distance 0 there and none elsewhere; the last takes square roots.
+// at least ½ — or its one volume from the voxels whose input rounds to 1 or more (the nearest
+// of all the regions), with distance 0 there and none elsewhere; the last takes square roots.
 //
 // Bindings (group 0):
 //   0 uniform  EdtParams
@@ -18,13 +19,18 @@ struct EdtParams {
     spacing: vec4<f32>,  // mm between samples along x, y, z, unused
     axis: u32,           // the axis of this pass (0 x, 1 y, 2 z)
     volumes: u32,        // volumes in the stack
-    first: u32,          // 1: first pass (input is the index map)
+    start: u32,          // FROM_STACK, or a first pass (input is the index map): FROM_EACH_REGION, FROM_ANY_REGION
     last: u32,           // 1: last pass
 }
 
 @group(0) @binding(0) var<uniform> params: EdtParams;
 @group(0) @binding(1) var<storage, read> input: array<f32>;
 @group(0) @binding(2) var<storage, read_write> output: array<f32>;
+
+// Where a pass starts from (abi::EDT_FROM_STACK, EDT_FROM_EACH_REGION; EDT_FROM_ANY_REGION is
+// the other value).
+const FROM_STACK: u32 = 0u;
+const FROM_EACH_REGION: u32 = 1u;
 
 // No sample along the line yet: the host's +infinity, which WGSL cannot write.
 const FAR: f32 = 3.0e38;
@@ -49,11 +55,16 @@ fn voxel_of(q: u32, gid: vec3<u32>) -> u32 {
 // The squared distance so far at line position q (FAR where none).
 fn sample(q: u32, gid: vec3<u32>) -> f32 {
     let v = voxel_of(q, gid);
-    if (params.first == 1u) {
-        return select(FAR, 0.0, floor(input[v] + 0.5) == f32(gid.z + 1u));
-    }
     let d = params.dims.xyz;
-    return input[gid.z * d.x * d.y * d.z + v];
+    if (params.start == FROM_STACK) {
+        return input[gid.z * d.x * d.y * d.z + v];
+    }
+    let region = floor(input[v] + 0.5);
+    var starts = region >= 1.0;  // FROM_ANY_REGION
+    if (params.start == FROM_EACH_REGION) {
+        starts = region == f32(gid.z + 1u);
+    }
+    return select(FAR, 0.0, starts);
 }
 
 @compute @workgroup_size(8, 8, 1)

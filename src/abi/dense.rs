@@ -171,8 +171,8 @@ pub struct CombineParams {
     pub ny: u32,
     /// Voxels along z.
     pub nz: u32,
-    /// Bones (volumes of the distance stack); 0: no fade.
-    pub bones: u32,
+    /// 1: faded by the distance to the nearest bone; 0: not.
+    pub faded: u32,
     /// Factor of the first field.
     pub a_scale: f32,
     /// Factor of the second field.
@@ -190,7 +190,7 @@ impl CombineParams {
             nx: grid.dims[0] as u32,
             ny: grid.dims[1] as u32,
             nz: grid.dims[2] as u32,
-            bones: 0,
+            faded: 0,
             a_scale: a_scale as f32,
             b_scale: b_scale as f32,
             margin_mm: 0.0,
@@ -198,10 +198,11 @@ impl CombineParams {
         }
     }
 
-    /// The same, faded to zero on `bones` bones over `margin_mm` (> 0).
-    pub fn faded(self, bones: usize, margin_mm: f64) -> Self {
+    /// The same, faded to zero on the bones over `margin_mm` (> 0) by the distance to the
+    /// nearest (images::regions::distance_to_nearest).
+    pub fn faded(self, margin_mm: f64) -> Self {
         CombineParams {
-            bones: bones as u32,
+            faded: 1,
             margin_mm: margin_mm as f32,
             ..self
         }

@@ -8,22 +8,19 @@ use super::*;
 pub struct FadeParams {
     /// nx, ny, nz of the warp's grid, unused.
     pub dims: [u32; 4],
-    /// Bones (volumes of the distance stack).
-    pub bones: u32,
     /// mm over which the warp rises from zero on a bone to its whole.
     pub margin: f32,
     /// Padding to 16 bytes.
-    pub pad: [u32; 2],
+    pub pad: [u32; 3],
 }
 
 impl FadeParams {
-    /// For a warp on `grid` faded over `margin_mm` (> 0) from `bones` bones.
-    pub fn new(grid: &Grid, bones: usize, margin_mm: f64) -> Self {
+    /// For a warp on `grid` faded over `margin_mm` (> 0) from the nearest bone.
+    pub fn new(grid: &Grid, margin_mm: f64) -> Self {
         FadeParams {
             dims: dims4(grid, 0),
-            bones: bones as u32,
             margin: margin_mm as f32,
-            pad: [0; 2],
+            pad: [0; 3],
         }
     }
 

@@ -17,30 +17,55 @@ pub struct EdtParams {
     pub axis: u32,
     /// Volumes in the stack.
     pub volumes: u32,
-    /// 1 on the first pass: its input is one volume whose values round to the stack index + 1
-    /// on each region.
-    pub first: u32,
+    /// Where this pass starts from: [`EDT_FROM_STACK`] (the stack an earlier pass made),
+    /// [`EDT_FROM_EACH_REGION`] or [`EDT_FROM_ANY_REGION`] (the first pass, from a label map).
+    pub start: u32,
     /// 1 on the last pass (square roots).
     pub last: u32,
 }
 
+/// A later edt pass: its input is the stack the pass before made.
+pub const EDT_FROM_STACK: u32 = 0;
+/// A first edt pass, one volume per region: volume s starts from the voxels whose value rounds
+/// to s + 1 (a label index map's region s + 1, or where a 0/1 indicator is at least ½).
+pub const EDT_FROM_EACH_REGION: u32 = 1;
+/// A first edt pass into one volume, started from every voxel whose value rounds to 1 or more:
+/// the distance to the nearest of a label index map's regions.
+pub const EDT_FROM_ANY_REGION: u32 = 2;
+
+/// The regions an edt stack measures the distance to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum EdtRegions {
+    /// One volume per region 1 ..= n of a label index map (for one region, a 0/1 indicator).
+    Each(usize),
+    /// One volume: the distance to the nearest region, whichever it is.
+    Any,
+}
+
 impl EdtParams {
-    /// The x, y and z passes of the distance maps (mm) on `grid` to the regions 1 ..= `volumes`
-    /// of a label index map (or, for one volume, of a 0/1 indicator); refuses grids with a
-    /// line longer than [`MAX_EDT_LINE`].
-    pub fn passes(grid: &Grid, volumes: usize) -> Result<[EdtParams; 3]> {
+    /// The x, y and z passes of the distance maps (mm) on `grid` to the `regions` of a label
+    /// index map; refuses grids with a line longer than [`MAX_EDT_LINE`].
+    pub fn passes(grid: &Grid, regions: EdtRegions) -> Result<[EdtParams; 3]> {
         if let Some(&longest) = grid.dims.iter().max().filter(|&&n| n > MAX_EDT_LINE) {
             return Err(Error::InvalidInput(format!(
                 "distance maps take grids of at most {MAX_EDT_LINE} voxels along an axis, got {longest}"
             )));
         }
         let h = grid.spacing();
+        let volumes = match regions {
+            EdtRegions::Each(n) => n,
+            EdtRegions::Any => 1,
+        };
         Ok(std::array::from_fn(|axis| EdtParams {
             dims: dims4(grid, 0),
             spacing: [h[0] as f32, h[1] as f32, h[2] as f32, 0.0],
             axis: axis as u32,
             volumes: volumes as u32,
-            first: (axis == 0) as u32,
+            start: match (axis, regions) {
+                (0, EdtRegions::Each(_)) => EDT_FROM_EACH_REGION,
+                (0, EdtRegions::Any) => EDT_FROM_ANY_REGION,
+                _ => EDT_FROM_STACK,
+            },
             last: (axis == 2) as u32,
         }))
     }

@@ -120,9 +120,9 @@ pub struct DenseInputs<'a, B: Backend> {
     pub field: &'a DeviceImage<B>,
     /// The target's voxels that count (1) and those that do not (0).
     pub mask: &'a DeviceImage<B>,
-    /// Where the bones are in the target (1 + the bone's position, 0 elsewhere) and how many
-    /// bones; None: nothing held.
-    pub bones: Option<(&'a DeviceImage<B>, usize)>,
+    /// Where the bones are in the target (1 + the bone's position, 0 elsewhere); None: nothing
+    /// held.
+    pub bones: Option<&'a DeviceImage<B>>,
 }
 
 /// What the stage did at one level.
@@ -243,9 +243,9 @@ struct Level<B: Backend> {
     field: B::Buffer<f32>,
     /// The target mask at this level.
     mask: B::Buffer<f32>,
-    /// The bones' distance maps (mm) at this level and the bones, with the margin; None:
-    /// nothing held.
-    held: Option<(B::Buffer<f32>, usize, f64)>,
+    /// The distance to the nearest bone (mm) at this level, with the margin; None: nothing
+    /// held.
+    held: Option<(B::Buffer<f32>, f64)>,
 }
 
 impl<B: Backend> Level<B> {
@@ -261,16 +261,12 @@ impl<B: Backend> Level<B> {
         let field = sampled_field(backend, inputs.field, grid)?;
         let mask = nearest_onto(backend, inputs.mask, grid)?;
         let held = match inputs.bones.filter(|_| margin_mm > 0.0) {
-            Some((map, bones)) => {
+            Some(map) => {
                 let map = DeviceImage {
                     data: nearest_onto(backend, map, grid)?,
                     grid: grid.clone(),
                 };
-                Some((
-                    regions::distance_maps(backend, &map, bones)?,
-                    bones,
-                    margin_mm,
-                ))
+                Some((regions::distance_to_nearest(backend, &map)?, margin_mm))
             }
             None => None,
         };
@@ -296,8 +292,8 @@ impl<B: Backend> Level<B> {
     ) -> Result<B::Buffer<f32>> {
         let params = CombineParams::sum(self.grid(), a_scale, b_scale);
         match &self.held {
-            Some((distance, bones, margin)) => {
-                backend.field_combine(&params.faded(*bones, *margin), a, b, distance)
+            Some((distance, margin)) => {
+                backend.field_combine(&params.faded(*margin), a, b, distance)
             }
             None => backend.field_combine(&params, a, b, a),
         }

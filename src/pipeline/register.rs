@@ -195,13 +195,13 @@ pub fn register_observed<B: Backend>(
     };
     let held = (bones, start.bone_map.as_ref());
     let margin = options.bone_margin_mm;
-    let (field, scale) = composed(backend, &pair, images, &adaptive, held, margin)?;
+    let bone_map = start.bone_map.as_ref();
+    let (field, scale) = composed(backend, &pair, images, &adaptive, bone_map, margin)?;
     progress.step(&format!("warp scale {scale}"));
     progress.end();
     laps.lap(); // the composition
-    let bones_held = start.bone_map.as_ref().map(|map| (map, bones.len()));
     let refinement = (field, &mask);
-    let (field, dense) = refined(backend, &pair, refinement, bones_held, options, progress)?;
+    let (field, dense) = refined(backend, &pair, refinement, bone_map, options, progress)?;
     laps.lap(); // the dense stage
     let whole = unfolded(backend, (field, scale), &labels, images, held, margin)?;
     laps.lap(); // the unfolding
@@ -345,12 +345,12 @@ fn initialised<B: Backend>(
 }
 
 /// `field` refined by the dense stage when `options` ask for it (`mask`: the target's voxels
-/// that count; `bones`: where the bones are in the target and how many), and what it did.
+/// that count; `bones`: where the bones are in the target), and what it did.
 fn refined<B: Backend>(
     backend: &B,
     pair: &PairImages<B>,
     (field, mask): (DeviceImage<B>, &DeviceImage<B>),
-    bones: Option<(&DeviceImage<B>, usize)>,
+    bones: Option<&DeviceImage<B>>,
     options: &RegisterOptions,
     progress: &dyn Progress,
 ) -> Result<(DeviceImage<B>, Option<DenseReport>)> {

@@ -12,10 +12,8 @@ pub fn field_combine(
     distance: &[f32],
     out: &mut [f32],
 ) {
-    let voxels = params.voxels();
-    let bones = params.bones as usize;
     out.par_chunks_mut(3).enumerate().for_each(|(v, r)| {
-        let fade = fade_at(distance, v, voxels, bones, params.margin_mm);
+        let fade = fade_at(distance, v, params.faded, params.margin_mm);
         for c in 0..3 {
             r[c] = fade * (params.a_scale * a[3 * v + c] + params.b_scale * b[3 * v + c]);
         }

@@ -5,13 +5,11 @@ use crate::cpu::fade::fade_at;
 use rayon::prelude::*;
 
 /// Fills `out` (3 floats per voxel) with `warp` scaled by each voxel's distance to the
-/// nearest bone (`distance`: one volume per bone, mm) over the margin, clamped to 1; zero on
+/// nearest bone (`distance`, mm) over the margin, clamped to 1; zero on
 /// the bones.
 pub fn fade_warp(params: &FadeParams, warp: &[f32], distance: &[f32], out: &mut [f32]) {
-    let voxels = params.voxels();
-    let bones = params.bones as usize;
     out.par_chunks_mut(3).enumerate().for_each(|(v, r)| {
-        let scale = fade_at(distance, v, voxels, bones, params.margin);
+        let scale = fade_at(distance, v, 1, params.margin);
         for c in 0..3 {
             r[c] = scale * warp[3 * v + c];
         }

@@ -1,7 +1,7 @@
 //! CPU twin of shaders/regions/edt.wgsl: the lines in parallel, each read once into a buffer (the
 //! shader reads a sample each time its envelope needs it; the values are the same).
 
-use crate::abi::EdtParams;
+use crate::abi::{EdtParams, EDT_FROM_EACH_REGION, EDT_FROM_STACK};
 use crate::cpu::common::{dims3, voxel_index};
 use crate::sample::floor;
 use rayon::prelude::*;
@@ -31,14 +31,20 @@ impl Lines<'_> {
     /// The squared distance so far at line position q of line (a, b) of volume s.
     fn sample(&self, q: u32, (a, b, s): (u32, u32, u32)) -> f32 {
         let v = self.voxel_of(q, a, b);
-        if self.params.first == 1 {
-            return if floor(self.input[v] + 0.5) == (s + 1) as f32 {
-                0.0
-            } else {
-                FAR
-            };
+        if self.params.start == EDT_FROM_STACK {
+            return self.input[s as usize * self.voxels + v];
         }
-        self.input[s as usize * self.voxels + v]
+        let region = floor(self.input[v] + 0.5);
+        let starts = if self.params.start == EDT_FROM_EACH_REGION {
+            region == (s + 1) as f32
+        } else {
+            region >= 1.0 // EDT_FROM_ANY_REGION
+        };
+        if starts {
+            0.0
+        } else {
+            FAR
+        }
     }
 
     /// One line's pass into `out` (its n positions): the line's samples gathered into `f`, the
