@@ -1010,3 +1010,36 @@ fn rbf_lattice_is_the_host_evaluation_rounded_once() {
         }
     }
 }
+
+/// The three dilate passes against a brute-force box dilation: 1 where any marked voxel lies
+/// within the margin along every axis (a box), held voxels cleared; and a margin wider than
+/// the grid, which marks the whole of every line with a marked voxel.
+#[test]
+fn dilate_passes_make_a_box_dilation_with_held_voxels_cleared() {
+    let grid = Grid::new([11, 6, 9], Affine::identity()).unwrap();
+    let [nx, ny, _] = grid.dims;
+    let marked = |v: usize| v % 97 == 5 || v == 3 || v == grid.len() - 1;
+    let mask: Vec<f32> = (0..grid.len()).map(|v| marked(v) as u8 as f32).collect();
+    let held: Vec<f32> = (0..grid.len())
+        .map(|v| (v % 13 == 0) as u8 as f32)
+        .collect();
+    let xyz = |v: usize| [v % nx, (v / nx) % ny, v / (nx * ny)];
+    let held_up = CpuBackend.upload("held", held.clone()).unwrap();
+    for margin in [2, 12] {
+        let mut region = CpuBackend.upload("mask", mask.clone()).unwrap();
+        for pass in &posereg::abi::DilateParams::passes(&grid, margin) {
+            region = CpuBackend.dilate(pass, &region, &held_up).unwrap();
+        }
+        let region = CpuBackend.download_one(&region).unwrap();
+        let unmarked = region.iter().filter(|&&x| x == 0.0).count();
+        assert!(margin > 2 || unmarked > held.iter().filter(|&&h| h > 0.0).count());
+        for (v, &got) in region.iter().enumerate() {
+            let c = xyz(v);
+            let near = (0..grid.len())
+                .filter(|&n| marked(n))
+                .any(|n| (0..3).all(|a| xyz(n)[a].abs_diff(c[a]) <= margin));
+            let want = near && held[v] == 0.0;
+            assert_eq!(got, want as u8 as f32, "margin {margin}, voxel {v} {c:?}");
+        }
+    }
+}
