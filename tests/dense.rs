@@ -9,7 +9,7 @@ mod common;
 
 use common::*;
 use posereg::abi::dense::{CombineParams, ForceParams, ForceTerm, GaussParams, NormParams};
-use posereg::abi::LocalMomentsParams;
+use posereg::abi::{ComposeParams, JacobianParams, LocalMomentsParams};
 use posereg::backend::box_sums;
 use posereg::backend::dense::{largest_vectors, smooth, ForceImages};
 use posereg::backend::prelude::*;
@@ -104,6 +104,67 @@ fn the_ssd_force_is_the_residual_times_the_world_gradient() {
         }
         assert!((cost[n] - c * r * r).abs() < 1e-3 * (1.0 + r * r));
     }
+}
+
+#[test]
+fn the_volume_force_is_the_gradient_of_the_squared_log_determinant() {
+    // det J linear in world space within 0.6-2: ∇det = a exactly, and above the floor the
+    // force is c 2 (1 − ln det) a / det, the cost c ln² det.
+    let grid = oblique_grid([7, 6, 5]);
+    let a = [0.01f32, -0.02, 0.015];
+    let det: Vec<f32> = (0..grid.len())
+        .map(|n| {
+            let p = grid.world_of(n);
+            1.2 + a[0] * p.x as f32 + a[1] * p.y as f32 + a[2] * p.z as f32
+        })
+        .collect();
+    assert!(det.iter().all(|&d| (0.6..2.0).contains(&d)), "{det:?}");
+    let covered: Vec<f32> = (0..grid.len()).map(|n| (n % 7 != 0) as u8 as f32).collect();
+    let term = ForceTerm::Volume;
+    let (force, cost) = force_on(&CpuBackend, &grid, term, 0, [&det, &det, &covered]);
+    for n in 0..grid.len() {
+        let (c, l) = (covered[n], det[n].ln());
+        for k in 0..3 {
+            let want = c * 2.0 * (1.0 - l) / det[n] * a[k];
+            assert!((force[3 * n + k] - want).abs() < 1e-4, "voxel {n}");
+        }
+        assert!((cost[n] - c * l * l).abs() < 1e-5, "voxel {n}");
+    }
+}
+
+/// A small step of the map along the volume force lowers Σ ln² det J: a field squeezing the
+/// middle of the grid along x (det down to about 0.47) composed with the step, as the dense stage
+/// updates the whole map.
+#[test]
+fn a_step_along_the_volume_force_brings_the_map_closer_to_keeping_volume() {
+    let b = &CpuBackend;
+    let grid = Grid::new([24, 10, 10], posereg::Affine::identity()).unwrap();
+    let field: Vec<f32> = (0..grid.len())
+        .flat_map(|n| {
+            let x = (n % 24) as f32 - 11.5;
+            [-1.6 * (-x * x / 18.0).exp() * x / 3.0, 0.0, 0.0]
+        })
+        .collect();
+    let everywhere = vec![1.0f32; grid.len()];
+    let volume_cost = |u: &[f32]| -> (f32, Vec<f32>) {
+        let det = b.jacobian(&JacobianParams::new(&grid), &on(b, u)).unwrap();
+        let det = b.download_one(&det).unwrap();
+        let term = ForceTerm::Volume;
+        let (force, cost) = force_on(b, &grid, term, 0, [&det, &det, &everywhere]);
+        (cost.iter().sum(), force)
+    };
+    let (before, force) = volume_cost(&field);
+    assert!(before > 1.0, "the field squeezes: {before}");
+    let step: Vec<f32> = force.iter().map(|f| 0.05 * f).collect();
+    let composed = b
+        .compose(
+            &ComposeParams::new(&grid, &grid),
+            &on(b, &step),
+            &on(b, &field),
+        )
+        .unwrap();
+    let (after, _) = volume_cost(&b.download_one(&composed).unwrap());
+    assert!(after < 0.95 * before, "{before} -> {after}");
 }
 
 #[test]
@@ -232,7 +293,7 @@ fn force_on<B: Backend>(
 ) -> (Vec<f32>, Vec<f32>) {
     let (w, f, c) = (on(b, moving), on(b, fixed), on(b, covered));
     let sums = match term {
-        ForceTerm::Ssd => w.clone(),
+        ForceTerm::Ssd | ForceTerm::Volume => w.clone(),
         ForceTerm::Lncc => box_sums(b, &LocalMomentsParams::passes(grid, radius), &w, &f).unwrap(),
     };
     let images = ForceImages {
@@ -347,7 +408,7 @@ fn gauss_axis_parity_at_odd_sizes() {
 }
 
 #[test]
-fn dense_force_parity_ssd_and_lncc() {
+fn dense_force_parity_ssd_lncc_and_volume() {
     let Some(gpu) = gpu() else { return };
     let grid = oblique_grid([15, 12, 9]);
     let moving = smooth_volume(&grid, 3).data;
@@ -359,7 +420,15 @@ fn dense_force_parity_ssd_and_lncc() {
         (ForceTerm::Ssd, 1),
         (ForceTerm::Lncc, 2),
         (ForceTerm::Lncc, 1),
+        (ForceTerm::Volume, 0),
     ] {
+        // The volume term reads a determinant: the same smooth volume brought to 0.2-2.7.
+        let det: Vec<f32> = moving.iter().map(|w| (w * 0.01).exp() * 0.2).collect();
+        let moving = if term == ForceTerm::Volume {
+            &det
+        } else {
+            &moving
+        };
         let images = [&moving[..], &fixed[..], &covered[..]];
         let (want_force, want_cost) = force_on(&CpuBackend, &grid, term, radius, images);
         let (force, cost) = force_on(gpu, &grid, term, radius, images);

@@ -8,6 +8,11 @@
 //         cost = 1 − c ρ², ρ = σ_WF / (σ_W σ_F) over the voxel's window (ANTs' and greedy's
 //         form: the window centred on the voxel only; ρ = 0 where a window is flat, as in
 //         ANTs, so that flattening a window or leaving the source never lowers the cost)
+//   Volume: W = det J of the whole map ψ (F unused), ℓ = log max(W, VOLUME_DET_FLOOR):
+//         force = c 2 (1 − ℓ) ∇W / max(W, VOLUME_DET_FLOOR)   cost = c ℓ²
+//         (updating ψ to ψ(x + δ) makes ℓ ℓ(x + δ) + div δ to first order; the force is the
+//         negative gradient of Σ ℓ² with respect to δ, the divergence's adjoint −∇: real soft
+//         tissue keeps its volume, which the image term alone does not ask)
 // c is 1 where the field's point lies inside the source (coverage ≥ abi::COVERED_AT), else 0.
 // ∇W is in world mm: central differences along the index axes (one-sided at the faces)
 // times d(index)/d(world), as fold/jacobian.wgsl differentiates a field.
@@ -29,7 +34,7 @@ struct ForceParams {
     ny: u32,
     nz: u32,
     radius: u32,     // LNCC's window radius (voxels)
-    term: u32,       // 0 SSD, 1 LNCC
+    term: u32,       // 0 SSD, 1 LNCC, 2 volume
     pad0: u32,
     pad1: u32,
     pad2: u32,
@@ -37,6 +42,9 @@ struct ForceParams {
 }
 
 @group(0) @binding(0) var<uniform> params: ForceParams;
+// Keep in sync with abi::dense::VOLUME_DET_FLOOR.
+const VOLUME_DET_FLOOR: f32 = 0.5;
+
 @group(0) @binding(1) var<storage, read> moving: array<f32>;
 @group(0) @binding(2) var<storage, read> fixed: array<f32>;
 @group(0) @binding(3) var<storage, read> covered: array<f32>;
@@ -91,6 +99,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             along = c * (2.0 * win.cab / spread) * ((f - win.mb) - win.cab / win.va * (w - win.ma));
             term = 1.0 - c * (win.cab * win.cab / spread);
         }
+    }
+    if (params.term == 2u) {
+        let det = max(w, VOLUME_DET_FLOOR);
+        let l = log(det);
+        along = c * 2.0 * (1.0 - l) / det;
+        term = c * l * l;
     }
     let g = gradient(gid.x, gid.y, gid.z, d);
     force[3u * v] = along * g.x;

@@ -88,7 +88,13 @@ pub enum ForceTerm {
     Ssd = 0,
     /// Local (windowed) correlation, squared.
     Lncc = 1,
+    /// The volume term: (log det J)² of the whole map, W its determinant (F unused).
+    Volume = 2,
 }
+
+/// Determinant below which the volume term takes this value instead (its log and the
+/// force's 1 / det stay finite where the map folds).
+pub const VOLUME_DET_FLOOR: f32 = 0.5;
 
 /// Keep in sync with `ForceParams` in shaders/dense/dense_force.wgsl.
 #[repr(C)]

@@ -12,7 +12,9 @@
 //! update's largest vectors per chunk come back.
 
 use crate::abi::dense::{CombineParams, ForceParams, ForceTerm, MAX_GAUSS_SIGMA};
-use crate::abi::{ComposeParams, Interpolation, LocalMomentsParams, ResampleParams, SumParams};
+use crate::abi::{
+    ComposeParams, Interpolation, JacobianParams, LocalMomentsParams, ResampleParams, SumParams,
+};
 use crate::backend::dense::{largest_vectors, smooth, ForceImages};
 use crate::backend::{box_sums, resample_onto, Backend, DeviceImage};
 use crate::check::{check_ranges, Range};
@@ -53,6 +55,15 @@ pub struct DenseOptions {
     /// The velocity is zero on the bones and rises to its whole this far (mm) from the
     /// nearest bone; 0 leaves it on the bones too.
     pub bone_margin_mm: f64,
+    /// Weight of the volume term, (log det J)² of the whole map per voxel, beside the image
+    /// term: real soft tissue keeps its volume, and the image alone does not say where tissue
+    /// squeezed by the blend behind a bent knee went. 0.3 against none, soft-tissue error on
+    /// the 2 mm knee pairs bent 20° / 45° / 90° by make_pair.py: volume-keeping truths 1.44 /
+    /// 3.19 / 6.74 → 1.24 / 2.43 / 5.16 mm, polyrigid truths (which squeeze the tissue behind
+    /// the knee) 0.40 / 0.77 / 1.66 → 0.38 / 0.93 / 2.02 mm, the half phantom at 30° 0.61 →
+    /// 0.58 mm; 0.5 and 1 gain more on the first and lose more on the others (BENCHMARKS.md,
+    /// thirty-second session). 0 leaves it out.
+    pub volume_weight: f64,
 }
 
 impl Default for DenseOptions {
@@ -67,6 +78,7 @@ impl Default for DenseOptions {
             elastic_sigma: PerLevel::all(0.75),
             step_voxels: 1.0,
             bone_margin_mm: 4.0,
+            volume_weight: 0.3,
         }
     }
 }
@@ -79,6 +91,8 @@ const MAX_ITERATIONS: usize = 1000;
 const MAX_LNCC_RADIUS: usize = 8;
 /// Widest margin (mm) over which the velocity may rise from the bones.
 const MAX_BONE_MARGIN_MM: f64 = 50.0;
+/// Largest weight of the volume term.
+const MAX_VOLUME_WEIGHT: f64 = 100.0;
 /// Iterations without a lower cost after which a level stops.
 const PATIENCE: usize = 5;
 /// Largest vector of v / 2ⁿ (voxels) before it is squared: small against a voxel, so that
@@ -100,6 +114,7 @@ impl DenseOptions {
             r("elastic_sigma", self.elastic_sigma.values().to_vec(), (0.0, MAX_GAUSS_SIGMA), voxels),
             r("step_voxels", one(self.step_voxels), (0.01, 4.0), voxels),
             r("bone_margin_mm", one(self.bone_margin_mm), (0.0, MAX_BONE_MARGIN_MM), " (mm)"),
+            r("volume_weight", one(self.volume_weight), (0.0, MAX_VOLUME_WEIGHT), ""),
         ];
         check_ranges("dense", &table)?;
         self.iterations.check("dense.iterations", self.levels)?;
@@ -217,6 +232,7 @@ struct LevelSettings {
     fluid_sigma: f64,
     elastic_sigma: f64,
     step_voxels: f64,
+    volume_weight: f64,
 }
 
 impl LevelSettings {
@@ -229,6 +245,7 @@ impl LevelSettings {
             fluid_sigma: options.fluid_sigma.at_level(index),
             elastic_sigma: options.elastic_sigma.at_level(index),
             step_voxels: options.step_voxels,
+            volume_weight: options.volume_weight,
         }
     }
 }
@@ -412,10 +429,45 @@ impl<B: Backend> Level<B> {
         };
         let params = ForceParams::new(grid, term, settings.radius);
         let (force, cost) = backend.dense_force(&params, &images)?;
-        let chunks = backend.sum_chunks(&SumParams::new(grid.len()), &cost)?;
-        let total = backend.download_one(&backend.sum_partials(&chunks, 1)?)?;
-        Ok((force, total[0] / grid.len() as f64))
+        let cost = mean(backend, grid, &cost)?;
+        match settings.volume_weight {
+            0.0 => Ok((force, cost)),
+            weight => {
+                let (volume, volume_cost) = self.volume_term(backend, &whole, &covered)?;
+                let sum = CombineParams::sum(grid, 1.0, weight);
+                Ok((
+                    backend.field_combine(&sum, &force, &volume, &force)?,
+                    cost + weight * mean(backend, grid, &volume_cost)?,
+                ))
+            }
+        }
     }
+
+    /// The volume term's force and cost per voxel for the whole map `whole` (ForceTerm::Volume)
+    /// where `covered`.
+    fn volume_term(
+        &self,
+        backend: &B,
+        whole: &B::Buffer<f32>,
+        covered: &B::Buffer<f32>,
+    ) -> Result<(B::Buffer<f32>, B::Buffer<f32>)> {
+        let grid = self.grid();
+        let det = backend.jacobian(&JacobianParams::new(grid), whole)?;
+        let images = ForceImages {
+            moving: &det,
+            fixed: &det,
+            covered,
+            sums: &det,
+        };
+        backend.dense_force(&ForceParams::new(grid, ForceTerm::Volume, 0), &images)
+    }
+}
+
+/// The mean of `values` (one per voxel of `grid`), reduced where the backend computes.
+fn mean<B: Backend>(backend: &B, grid: &Grid, values: &B::Buffer<f32>) -> Result<f64> {
+    let chunks = backend.sum_chunks(&SumParams::new(grid.len()), values)?;
+    let total = backend.download_one(&backend.sum_partials(&chunks, 1)?)?;
+    Ok(total[0] / grid.len() as f64)
 }
 
 /// Squarings that bring a velocity whose vectors are at most `bound` mm long below

@@ -1,6 +1,6 @@
 //! CPU twin of shaders/dense/dense_force.wgsl (with shaders/window.wgsl).
 
-use crate::abi::dense::ForceParams;
+use crate::abi::dense::{ForceParams, ForceTerm, VOLUME_DET_FLOOR};
 use crate::backend::dense::ForceImages;
 use crate::cpu::common::{is_covered, voxel_index};
 use crate::cpu::window::window_at;
@@ -61,7 +61,12 @@ fn along_and_cost(
         0.0
     };
     let (w, f) = (images.moving[v], images.fixed[v]);
-    if params.term != 1 {
+    if params.term == ForceTerm::Volume as u32 {
+        let det = w.max(VOLUME_DET_FLOOR);
+        let l = det.ln();
+        return (c * 2.0 * (1.0 - l) / det, c * l * l);
+    }
+    if params.term != ForceTerm::Lncc as u32 {
         return (c * (f - w), c * (w - f) * (w - f));
     }
     // local_moments summed a = W and b = F.
