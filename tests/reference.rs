@@ -503,7 +503,8 @@ fn distance_maps_match_brute_force_with_anisotropic_spacing() {
     let nearest = posereg::images::regions::distance_to_nearest(&CpuBackend, &index).unwrap();
     let any_region = |n: usize| region(n) >= 1.0;
     let each_region = |r: usize| move |n: usize| region(n) == (r + 1) as f32;
-    let wanted: [(&[f32], &dyn Fn(usize) -> bool); 3] = [
+    type Member<'a> = &'a dyn Fn(usize) -> bool;
+    let wanted: [(&[f32], Member); 3] = [
         (&maps[..grid.len()], &each_region(0)),
         (&maps[grid.len()..], &each_region(1)),
         (&nearest, &any_region),
