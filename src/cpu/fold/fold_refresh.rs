@@ -27,23 +27,19 @@ pub fn fold_refresh(
     let d = stencil.dims();
     let sweep = list.state[SWEEP];
     let mut near = Vec::new();
+    let steps = within_two_steps();
     for n in listed(voxels, list.state, d) {
         let c = stencil.voxel_of(n as usize).map(|i| i as i64);
-        for dz in -2i64..=2 {
-            for dy in -2i64..=2 {
-                for dx in -2i64..=2 {
-                    let p = [c[0] + dx, c[1] + dy, c[2] + dz];
-                    let close = dx.abs() + dy.abs() + dz.abs() <= 2;
-                    if !close || (0..3).any(|a| p[a] < 0 || p[a] >= d[a] as i64) {
-                        continue;
-                    }
-                    let q = p.map(|i| i as usize);
-                    let v = q[0] + d[0] * (q[1] + d[1] * q[2]);
-                    if stamps[v] < sweep {
-                        stamps[v] = sweep;
-                        near.push((v, q));
-                    }
-                }
+        for step in &steps {
+            let p: [i64; 3] = std::array::from_fn(|a| c[a] + step[a]);
+            if (0..3).any(|a| p[a] < 0 || p[a] >= d[a] as i64) {
+                continue;
+            }
+            let q = p.map(|i| i as usize);
+            let v = q[0] + d[0] * (q[1] + d[1] * q[2]);
+            if stamps[v] < sweep {
+                stamps[v] = sweep;
+                near.push((v, q));
             }
         }
     }
@@ -57,4 +53,14 @@ pub fn fold_refresh(
             list.append(v, q, code);
         }
     }
+}
+
+/// The 25 offsets within two steps (L1) of a voxel, z slowest and x fastest, as the shader
+/// visits them.
+fn within_two_steps() -> Vec<[i64; 3]> {
+    let range = || -2i64..=2;
+    range()
+        .flat_map(|dz| range().flat_map(move |dy| range().map(move |dx| [dx, dy, dz])))
+        .filter(|s| s.iter().map(|x| x.abs()).sum::<i64>() <= 2)
+        .collect()
 }
