@@ -68,17 +68,22 @@ fn smoothing_keeps_a_constant_and_spreads_an_impulse_as_its_taps() {
     assert!((sum - 1.0).abs() < 1e-6 && x.radius == 3);
 }
 
+/// offset + a · p at each voxel's world point p.
+fn linear_in_world(grid: &Grid, offset: f32, a: [f32; 3]) -> Vec<f32> {
+    (0..grid.len())
+        .map(|n| {
+            let p = grid.world_of(n);
+            offset + a[0] * p.x as f32 + a[1] * p.y as f32 + a[2] * p.z as f32
+        })
+        .collect()
+}
+
 #[test]
 fn the_ssd_force_is_the_residual_times_the_world_gradient() {
     // W linear in world space: central and one-sided differences are exact, so ∇W = a.
     let grid = oblique_grid([7, 6, 5]);
     let a = [0.7f32, -1.3, 2.1];
-    let moving: Vec<f32> = (0..grid.len())
-        .map(|n| {
-            let p = grid.world_of(n);
-            100.0 + a[0] * p.x as f32 + a[1] * p.y as f32 + a[2] * p.z as f32
-        })
-        .collect();
+    let moving = linear_in_world(&grid, 100.0, a);
     let fixed: Vec<f32> = moving
         .iter()
         .enumerate()
@@ -112,12 +117,7 @@ fn the_volume_force_is_the_gradient_of_the_squared_log_determinant() {
     // force is c 2 (1 − ln det) a / det, the cost c ln² det.
     let grid = oblique_grid([7, 6, 5]);
     let a = [0.01f32, -0.02, 0.015];
-    let det: Vec<f32> = (0..grid.len())
-        .map(|n| {
-            let p = grid.world_of(n);
-            1.2 + a[0] * p.x as f32 + a[1] * p.y as f32 + a[2] * p.z as f32
-        })
-        .collect();
+    let det = linear_in_world(&grid, 1.2, a);
     assert!(det.iter().all(|&d| (0.6..2.0).contains(&d)), "{det:?}");
     let covered: Vec<f32> = (0..grid.len()).map(|n| (n % 7 != 0) as u8 as f32).collect();
     let term = ForceTerm::Volume;
