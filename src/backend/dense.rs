@@ -42,8 +42,8 @@ pub trait Dense: Core {
         -> Result<Self::Buffer<f32>>;
 
     /// fade · (a_scale · a + b_scale · b), fields of 3 floats per voxel, faded to zero on the
-    /// bones over the margin when `params` names bones (`distance`: mm to each bone, one volume
-    /// per bone; unused without bones).
+    /// bones over the margin when `params` asks (`distance`: mm to the nearest bone; unused
+    /// otherwise).
     fn field_combine(
         &self,
         params: &CombineParams,

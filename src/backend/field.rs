@@ -24,8 +24,8 @@ pub trait Fields: Core {
     ) -> Result<Self::Buffer<f32>>;
 
     /// `warp` (3 floats per voxel of the grid in `params`) scaled by each voxel's distance to
-    /// the nearest bone (`distance`: one volume per bone, mm, stacked) over the margin, clamped
-    /// to 1: zero on the bones.
+    /// the nearest bone (`distance`, mm: images::regions::distance_to_nearest) over the margin,
+    /// clamped to 1: zero on the bones.
     fn fade_warp(
         &self,
         params: &FadeParams,
