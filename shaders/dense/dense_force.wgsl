@@ -41,10 +41,10 @@ struct ForceParams {
     mm_to_index: array<vec4<f32>, 3>,
 }
 
-@group(0) @binding(0) var<uniform> params: ForceParams;
 // Keep in sync with abi::dense::VOLUME_DET_FLOOR.
 const VOLUME_DET_FLOOR: f32 = 0.5;
 
+@group(0) @binding(0) var<uniform> params: ForceParams;
 @group(0) @binding(1) var<storage, read> moving: array<f32>;
 @group(0) @binding(2) var<storage, read> fixed: array<f32>;
 @group(0) @binding(3) var<storage, read> covered: array<f32>;

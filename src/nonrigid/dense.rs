@@ -429,15 +429,17 @@ impl<B: Backend> Level<B> {
         };
         let params = ForceParams::new(grid, term, settings.radius);
         let (force, cost) = backend.dense_force(&params, &images)?;
-        let cost = mean(backend, grid, &cost)?;
         match settings.volume_weight {
-            0.0 => Ok((force, cost)),
+            0.0 => Ok((force, means(backend, grid, &[&cost])?[0])),
             weight => {
                 let (volume, volume_cost) = self.volume_term(backend, &whole, &covered)?;
                 let sum = CombineParams::sum(grid, 1.0, weight);
+                let [cost, volume_cost] = means(backend, grid, &[&cost, &volume_cost])?[..] else {
+                    unreachable!("two costs reduced")
+                };
                 Ok((
                     backend.field_combine(&sum, &force, &volume, &force)?,
-                    cost + weight * mean(backend, grid, &volume_cost)?,
+                    cost + weight * volume_cost,
                 ))
             }
         }
@@ -463,11 +465,20 @@ impl<B: Backend> Level<B> {
     }
 }
 
-/// The mean of `values` (one per voxel of `grid`), reduced where the backend computes.
-fn mean<B: Backend>(backend: &B, grid: &Grid, values: &B::Buffer<f32>) -> Result<f64> {
-    let chunks = backend.sum_chunks(&SumParams::new(grid.len()), values)?;
-    let total = backend.download_one(&backend.sum_partials(&chunks, 1)?)?;
-    Ok(total[0] / grid.len() as f64)
+/// The mean of each of `values` (one per voxel of `grid`), reduced where the backend
+/// computes; the sums come back together, with one wait.
+fn means<B: Backend>(backend: &B, grid: &Grid, values: &[&B::Buffer<f32>]) -> Result<Vec<f64>> {
+    let params = SumParams::new(grid.len());
+    let totals = values
+        .iter()
+        .map(|v| backend.sum_partials(&backend.sum_chunks(&params, v)?, 1))
+        .collect::<Result<Vec<_>>>()?;
+    let totals: Vec<&B::Buffer<f64>> = totals.iter().collect();
+    Ok(backend
+        .download(&totals)?
+        .iter()
+        .map(|total| total[0] / grid.len() as f64)
+        .collect())
 }
 
 /// Squarings that bring a velocity whose vectors are at most `bound` mm long below

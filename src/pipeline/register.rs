@@ -193,9 +193,9 @@ pub fn register_observed<B: Backend>(
         host: inputs.labels,
         device: &pair.labels,
     };
-    let held = (bones, start.bone_map.as_ref());
-    let margin = options.bone_margin_mm;
     let bone_map = start.bone_map.as_ref();
+    let held = (bones, bone_map);
+    let margin = options.bone_margin_mm;
     let (field, scale) = composed(backend, &pair, images, &adaptive, bone_map, margin)?;
     progress.step(&format!("warp scale {scale}"));
     progress.end();
