@@ -536,6 +536,42 @@ fn the_refinement_leaves_the_bones_as_they_were_and_stays_invertible() {
     );
 }
 
+/// A level keeps an iteration's velocity only when it lowers the cost by `min_gain`: asked
+/// for half the cost, no iteration on the quarter phantom gives it, so every level keeps its
+/// start (zero), stops after five iterations and the field comes back as it went in.
+#[test]
+fn a_level_keeps_no_iteration_that_gains_less_than_asked() {
+    use posereg::backend::DeviceImage;
+    use posereg::nonrigid::dense::{refine, DenseInputs};
+    let (source, target) = quarter_pair_at_30();
+    let inputs = Inputs::new(&source.image, &source.labels, &target.image);
+    let start = register(&CpuBackend, inputs, &RegisterOptions::default(), &Silent)
+        .unwrap()
+        .field;
+    let b = &CpuBackend;
+    let up = |what, v: &Volume| DeviceImage::upload(b, what, v.clone()).unwrap();
+    let everywhere = posereg::Image::filled(target.image.grid.clone(), 1.0f32);
+    let (image, target_image) = (up("source", &source.image), up("target", &target.image));
+    let mask = up("mask", &everywhere);
+    let field = DeviceImage::upload_field(b, "start", start.clone()).unwrap();
+    let inputs = DenseInputs {
+        source: &image,
+        target: &target_image,
+        field: &field,
+        mask: &mask,
+        bones: None,
+    };
+    let mut options = with_dense().dense;
+    options.min_gain = 0.5;
+    let (out, report) = refine(b, &inputs, &options, &Silent).unwrap();
+    for level in &report.levels {
+        assert_eq!(level.kept_iteration, 0, "{level:?}");
+        assert_eq!(level.iterations, 5, "{level:?}");
+        assert_eq!(level.cost_end, level.cost_start, "{level:?}");
+    }
+    assert_eq!(out.download_field(b).unwrap().data, start.data);
+}
+
 /// The quarter phantom straight and bent 30°.
 fn quarter_pair_at_30() -> (Phantom, Phantom) {
     let pair = DemoPair {
