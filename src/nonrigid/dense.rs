@@ -115,7 +115,7 @@ const MAX_VOLUME_WEIGHT: f64 = 100.0;
 const MAX_MOMENTUM: f64 = 0.95;
 /// Largest gain a level may ask of an iteration.
 const MAX_MIN_GAIN: f64 = 0.5;
-/// Iterations without a lower cost after which a level stops.
+/// Iterations without progress (see `min_gain`) after which a level stops.
 const PATIENCE: usize = 5;
 /// Largest vector of v / 2ⁿ (voxels) before it is squared: small against a voxel, so that
 /// the first map is invertible.
@@ -596,6 +596,12 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("dense.fluid_sigma"));
+        let bad = DenseOptions {
+            momentum: PerLevel::all(1.0),
+            ..Default::default()
+        };
+        let err = bad.check().unwrap_err().to_string();
+        assert!(err.contains("dense.momentum"), "{err}");
         let bad = DenseOptions {
             levels: 2,
             ..Default::default()
