@@ -2,7 +2,7 @@
 //! velocity field v on the target's finest one or two pyramid levels refines the whole field
 //! T to T ∘ exp(v). Each iteration compares the source seen through T ∘ exp(v) with the target
 //! (SSD or LNCC, shaders/dense/dense_force.wgsl), smooths the force (fluid) and the velocity
-//! (elastic), adds the step, scaled so that no voxel moves further than `step_voxels`, and holds
+//! (elastic), adds the step, scaled so that no voxel moves further than `step_mm`, and holds
 //! v at zero on the bones, fading it in over `bone_margin_mm`. exp(v) is taken by scaling and
 //! squaring: v / 2ⁿ, small enough to be invertible, composed with itself n times, so the map
 //! stays invertible by construction, and where v is zero exp(v) is exactly the identity: every
@@ -50,8 +50,12 @@ pub struct DenseOptions {
     /// σ (voxels) of the Gaussian smoothing the velocity gets every iteration (elastic), per
     /// level.
     pub elastic_sigma: PerLevel<f64>,
-    /// The largest distance (voxels of the level) one update moves a voxel.
-    pub step_voxels: f64,
+    /// The largest distance (mm) one update moves a voxel at the finest level; each coarser
+    /// level's step is as much larger as its voxels. In mm, not voxels, because the knee pairs
+    /// at 1 and 2 mm both want about 2 mm: a voxel's step at 1 mm left the volume-keeping
+    /// pairs far behind (45° 2.26 against 1.44 mm, 90° 5.14 against 4.49), two voxels at 2 mm
+    /// overshot (45° 1.98 against 2.51; BENCHMARKS.md, thirty-third session).
+    pub step_mm: f64,
     /// The velocity is zero on the bones and rises to its whole this far (mm) from the
     /// nearest bone; 0 leaves it on the bones too.
     pub bone_margin_mm: f64,
@@ -66,7 +70,7 @@ pub struct DenseOptions {
     pub volume_weight: f64,
     /// Each update is this share of the previous update plus the rest of this iteration's
     /// smoothed force (an exponential average; 0 takes the force alone), per level. With the
-    /// step normalised to `step_voxels`, the force alone flips at the voxels it moves
+    /// step normalised to `step_mm`, the force alone flips at the voxels it moves
     /// furthest, so that the cost goes up and down every other iteration and a level stalls;
     /// averaging cancels the flip and keeps the steady part. `0.5x0.5x0.25` against none
     /// (both with `min_gain` 0.003), soft-tissue error on the 2 mm knee pairs bent 20° / 45° /
@@ -92,7 +96,7 @@ impl Default for DenseOptions {
             lncc_radius: PerLevel::all(2),
             fluid_sigma: PerLevel::coarse_to_fine(vec![3.0, 3.0, 2.0]).expect("three values"),
             elastic_sigma: PerLevel::all(0.75),
-            step_voxels: 1.0,
+            step_mm: 2.0,
             bone_margin_mm: 4.0,
             volume_weight: 0.3,
             momentum: PerLevel::coarse_to_fine(vec![0.5, 0.5, 0.25]).expect("three values"),
@@ -109,6 +113,8 @@ const MAX_ITERATIONS: usize = 1000;
 const MAX_LNCC_RADIUS: usize = 8;
 /// Widest margin (mm) over which the velocity may rise from the bones.
 const MAX_BONE_MARGIN_MM: f64 = 50.0;
+/// Largest step (mm) of one update at the finest level.
+const MAX_STEP_MM: f64 = 20.0;
 /// Largest weight of the volume term.
 const MAX_VOLUME_WEIGHT: f64 = 100.0;
 /// Largest share of the previous update an update keeps (below 1: the force still counts).
@@ -134,7 +140,7 @@ impl DenseOptions {
             r("lncc_radius", counts(&self.lncc_radius), (1.0, MAX_LNCC_RADIUS as f64), voxels),
             r("fluid_sigma", self.fluid_sigma.values().to_vec(), (0.0, MAX_GAUSS_SIGMA), voxels),
             r("elastic_sigma", self.elastic_sigma.values().to_vec(), (0.0, MAX_GAUSS_SIGMA), voxels),
-            r("step_voxels", one(self.step_voxels), (0.01, 4.0), voxels),
+            r("step_mm", one(self.step_mm), (0.01, MAX_STEP_MM), " (mm)"),
             r("bone_margin_mm", one(self.bone_margin_mm), (0.0, MAX_BONE_MARGIN_MM), " (mm)"),
             r("volume_weight", one(self.volume_weight), (0.0, MAX_VOLUME_WEIGHT), ""),
             r("momentum", self.momentum.values().to_vec(), (0.0, MAX_MOMENTUM), ""),
@@ -215,8 +221,9 @@ pub fn refine<B: Backend>(
             &format!("dense refinement, level {}", targets.len() - index),
             options.iterations.at_level(index),
         );
-        let (kept, done) =
-            level.run(backend, start, &LevelSettings::of(options, index), progress)?;
+        let coarser = target.grid.finest_spacing() / targets[0].grid.finest_spacing();
+        let settings = LevelSettings::of(options, index, coarser);
+        let (kept, done) = level.run(backend, start, &settings, progress)?;
         progress.end();
         levels.push(done);
         velocity = Some(kept);
@@ -257,22 +264,23 @@ struct LevelSettings {
     radius: usize,
     fluid_sigma: f64,
     elastic_sigma: f64,
-    step_voxels: f64,
+    step_mm: f64,
     volume_weight: f64,
     momentum: f64,
     min_gain: f64,
 }
 
 impl LevelSettings {
-    /// The settings at pyramid level `index` (0 the finest).
-    fn of(options: &DenseOptions, index: usize) -> Self {
+    /// The settings at pyramid level `index` (0 the finest), whose voxels are `coarser` times
+    /// the finest level's.
+    fn of(options: &DenseOptions, index: usize, coarser: f64) -> Self {
         LevelSettings {
             iterations: options.iterations.at_level(index),
             similarity: options.similarity.at_level(index),
             radius: options.lncc_radius.at_level(index),
             fluid_sigma: options.fluid_sigma.at_level(index),
             elastic_sigma: options.elastic_sigma.at_level(index),
-            step_voxels: options.step_voxels,
+            step_mm: options.step_mm * coarser,
             volume_weight: options.volume_weight,
             momentum: options.momentum.at_level(index),
             min_gain: options.min_gain,
@@ -375,7 +383,7 @@ impl<B: Backend> Level<B> {
         progress: &dyn Progress,
     ) -> Result<((DeviceImage<B>, f64), DenseLevel)> {
         let grid = self.grid();
-        let step_mm = settings.step_voxels * grid.finest_spacing();
+        let step_mm = settings.step_mm;
         let update_sigma = settings.fluid_sigma.hypot(settings.elastic_sigma);
         let (mut v, mut bound) = (start, start_bound);
         let mut kept = (v.clone(), bound, f64::INFINITY, 0);
@@ -582,11 +590,11 @@ mod tests {
     fn the_defaults_pass_their_own_checks_and_bad_values_are_named() {
         assert!(DenseOptions::default().check().is_ok());
         let bad = DenseOptions {
-            step_voxels: 0.0,
+            step_mm: 0.0,
             ..Default::default()
         };
         let err = bad.check().unwrap_err().to_string();
-        assert!(err.contains("dense.step_voxels"), "{err}");
+        assert!(err.contains("dense.step_mm"), "{err}");
         let bad = DenseOptions {
             fluid_sigma: PerLevel::all(50.0),
             ..Default::default()

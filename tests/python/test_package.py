@@ -195,7 +195,7 @@ def bad_input_cases(paths, tmp):
         ("unknown key", arrays(adaptive={"nonsense": 1}), ValueError, ["settings keyword arguments", "nonsense"]),
         ("threshold below 1", arrays(adaptive={"threshold": "0.5"}), ValueError, ["adaptive.threshold"]),
         ("iterations text", arrays(adaptive={"iterations": "many"}), ValueError, ["iterations"]),
-        ("dense step 0", arrays(dense={"step_voxels": 0.0}), ValueError, ["dense.step_voxels"]),
+        ("dense step 0", arrays(dense={"step_mm": 0.0}), ValueError, ["dense.step_mm"]),
         ("levels 9", arrays(adaptive={"levels": 9}), ValueError, ["adaptive.levels"]),
         ("bones naming soft tissue", arrays(init={"bones": [1]}), ValueError, ["init.bones"]),
         ("bone absent", arrays(init={"bones": [77]}), ValueError, ["source_labels", "77"]),
