@@ -541,35 +541,16 @@ fn the_refinement_leaves_the_bones_as_they_were_and_stays_invertible() {
 /// start (zero), stops after five iterations and the field comes back as it went in.
 #[test]
 fn a_level_keeps_no_iteration_that_gains_less_than_asked() {
-    use posereg::backend::DeviceImage;
-    use posereg::nonrigid::dense::{refine, DenseInputs};
-    let (source, target) = quarter_pair_at_30();
-    let inputs = Inputs::new(&source.image, &source.labels, &target.image);
-    let start = register(&CpuBackend, inputs, &RegisterOptions::default(), &Silent)
-        .unwrap()
-        .field;
-    let b = &CpuBackend;
-    let up = |what, v: &Volume| DeviceImage::upload(b, what, v.clone()).unwrap();
-    let everywhere = posereg::Image::filled(target.image.grid.clone(), 1.0f32);
-    let (image, target_image) = (up("source", &source.image), up("target", &target.image));
-    let mask = up("mask", &everywhere);
-    let field = DeviceImage::upload_field(b, "start", start.clone()).unwrap();
-    let inputs = DenseInputs {
-        source: &image,
-        target: &target_image,
-        field: &field,
-        mask: &mask,
-        bones: None,
-    };
+    let (source, target, start) = quarter_registered_at_30();
     let mut options = with_dense().dense;
     options.min_gain = 0.5;
-    let (out, report) = refine(b, &inputs, &options, &Silent).unwrap();
+    let (field, report) = refined_on(&CpuBackend, (&source, &target, &start), &options);
     for level in &report.levels {
         assert_eq!(level.kept_iteration, 0, "{level:?}");
         assert_eq!(level.iterations, 5, "{level:?}");
         assert_eq!(level.cost_end, level.cost_start, "{level:?}");
     }
-    assert_eq!(out.download_field(b).unwrap().data, start.data);
+    assert_eq!(field, start.data);
 }
 
 /// The quarter phantom straight and bent 30°.
@@ -601,36 +582,12 @@ fn with_dense() -> RegisterOptions {
 /// agreement with it on is not held to a bar; issue 50 keeps that open.
 #[test]
 fn the_refinement_of_one_field_agrees_on_both_backends() {
-    use posereg::backend::DeviceImage;
-    use posereg::nonrigid::dense::{refine, DenseInputs, DenseReport};
     let Some(gpu) = gpu() else { return };
-    let (source, target) = quarter_pair_at_30();
-    let inputs = Inputs::new(&source.image, &source.labels, &target.image);
-    let plain = RegisterOptions::default();
-    let start = register(&CpuBackend, inputs, &plain, &Silent)
-        .unwrap()
-        .field;
-    let everywhere = posereg::Image::filled(target.image.grid.clone(), 1.0f32);
-    fn refined_on<B: Backend>(
-        b: &B,
-        (source, target, start, mask): (&Volume, &Volume, &Field, &Volume),
-    ) -> (Vec<[f32; 3]>, DenseReport) {
-        let up = |what, v: &Volume| DeviceImage::upload(b, what, v.clone()).unwrap();
-        let (source, target, mask) = (up("source", source), up("target", target), up("mask", mask));
-        let field = DeviceImage::upload_field(b, "start", start.clone()).unwrap();
-        let inputs = DenseInputs {
-            source: &source,
-            target: &target,
-            field: &field,
-            mask: &mask,
-            bones: None,
-        };
-        let (out, report) = refine(b, &inputs, &with_dense().dense, &Silent).unwrap();
-        (out.download_field(b).unwrap().data, report)
-    }
-    let images = (&source.image, &target.image, &start, &everywhere);
-    let (a, on_cpu) = refined_on(&CpuBackend, images);
-    let (b, on_gpu) = refined_on(gpu, images);
+    let (source, target, start) = quarter_registered_at_30();
+    let images = (&source, &target, &start);
+    let options = with_dense().dense;
+    let (a, on_cpu) = refined_on(&CpuBackend, images, &options);
+    let (b, on_gpu) = refined_on(gpu, images, &options);
     let apart = |n: usize| {
         let d = (0..3).map(|c| (a[n][c] - b[n][c]) as f64);
         d.map(|d| d * d).sum::<f64>().sqrt()
@@ -645,4 +602,44 @@ fn the_refinement_of_one_field_agrees_on_both_backends() {
         let gap = (c.cost_end - g.cost_end).abs() / c.cost_end.abs().max(1e-12);
         assert!(gap <= 1e-3, "costs {} / {}", c.cost_end, g.cost_end);
     }
+}
+
+/// The quarter phantom's images bent 30° (source, target) and the field the CPU registers
+/// between them without the refinement.
+fn quarter_registered_at_30() -> (Volume, Volume, Field) {
+    let (source, target) = quarter_pair_at_30();
+    let inputs = Inputs::new(&source.image, &source.labels, &target.image);
+    let plain = RegisterOptions::default();
+    let start = register(&CpuBackend, inputs, &plain, &Silent)
+        .unwrap()
+        .field;
+    (source.image, target.image, start)
+}
+
+/// The refinement of `start` from `source` to `target` (every voxel counted, no bone held)
+/// where `b` computes, brought back with its report.
+fn refined_on<B: Backend>(
+    b: &B,
+    (source, target, start): (&Volume, &Volume, &Field),
+    options: &posereg::nonrigid::dense::DenseOptions,
+) -> (Vec<[f32; 3]>, posereg::nonrigid::dense::DenseReport) {
+    use posereg::backend::DeviceImage;
+    use posereg::nonrigid::dense::{refine, DenseInputs};
+    let everywhere = posereg::Image::filled(target.grid.clone(), 1.0f32);
+    let up = |what, v: &Volume| DeviceImage::upload(b, what, v.clone()).unwrap();
+    let (source, target, mask) = (
+        up("source", source),
+        up("target", target),
+        up("mask", &everywhere),
+    );
+    let field = DeviceImage::upload_field(b, "start", start.clone()).unwrap();
+    let inputs = DenseInputs {
+        source: &source,
+        target: &target,
+        field: &field,
+        mask: &mask,
+        bones: None,
+    };
+    let (out, report) = refine(b, &inputs, options, &Silent).unwrap();
+    (out.download_field(b).unwrap().data, report)
 }

@@ -1,12 +1,13 @@
 //! The dense refinement (beyond the paper): after the adaptive RBF stage, a stationary
-//! velocity field v on the target's finest one or two pyramid levels refines the whole field
-//! T to T ∘ exp(v). Each iteration compares the source seen through T ∘ exp(v) with the target
-//! (SSD or LNCC, shaders/dense/dense_force.wgsl), smooths the force (fluid) and the velocity
-//! (elastic), adds the step, scaled so that no voxel moves further than `step_mm`, and holds
-//! v at zero on the bones, fading it in over `bone_margin_mm`. exp(v) is taken by scaling and
-//! squaring: v / 2ⁿ, small enough to be invertible, composed with itself n times, so the map
-//! stays invertible by construction, and where v is zero exp(v) is exactly the identity: every
-//! bone keeps exactly its rigid motion. A sparse set of RBF points cannot follow the dense,
+//! velocity field v on the target's finest pyramid levels (three by default) refines the
+//! whole field T to T ∘ exp(v). Each iteration compares the source seen through T ∘ exp(v)
+//! with the target (SSD or LNCC, shaders/dense/dense_force.wgsl), smooths the force (fluid)
+//! and the velocity (elastic), adds the step (averaged with the previous one: `momentum`),
+//! scaled so that no voxel moves further than `step_mm`, and holds v at zero on the bones,
+//! fading it in over `bone_margin_mm`. exp(v) is taken by scaling and squaring: v / 2ⁿ, small
+//! enough to be invertible, composed with itself n times, so the map stays invertible by
+//! construction, and where v is zero exp(v) is exactly the identity: every bone keeps exactly
+//! its rigid motion. A sparse set of RBF points cannot follow the dense,
 //! local deformation of real muscle and fat; this can (greedy's and demons' scheme, with the
 //! bones held). Volumes stay where the backend computes; per iteration one cost and the
 //! update's largest vectors per chunk come back.
@@ -30,8 +31,10 @@ use crate::volume::Grid;
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DenseOptions {
-    /// Run the stage (`--dense`; off by default until its cost in time and in backend
-    /// agreement is measured on every test pair: BENCHMARKS.md, twenty-sixth session).
+    /// Run the stage (`--dense`). Off by default: it brings every knee pair of make_pair.py
+    /// below greedy, elastix and demons, but on the project's phantom, whose smooth soft
+    /// tissue gives the local correlation only noise to follow, it lowers the image cost and
+    /// makes the field worse (BENCHMARKS.md, thirty-third session).
     pub enabled: bool,
     /// Pyramid levels of the target it runs on, counted from the finest: 1 the target's own
     /// grid only, 2 a level at half the resolution first, and so on. Three levels, wider fluid
