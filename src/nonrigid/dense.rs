@@ -3,14 +3,14 @@
 //! whole field T to T ∘ exp(v). Each iteration compares the source seen through T ∘ exp(v)
 //! with the target (SSD or LNCC, shaders/dense/dense_force.wgsl), smooths the force (fluid)
 //! and the velocity (elastic), adds the step (averaged with the previous one: `momentum`),
-//! scaled so that no voxel moves further than `step_mm`, and holds v at zero on the bones,
-//! fading it in over `bone_margin_mm`. exp(v) is taken by scaling and squaring: v / 2ⁿ, small
-//! enough to be invertible, composed with itself n times, so the map stays invertible by
-//! construction, and where v is zero exp(v) is exactly the identity: every bone keeps exactly
-//! its rigid motion. A sparse set of RBF points cannot follow the dense,
-//! local deformation of real muscle and fat; this can (greedy's and demons' scheme, with the
-//! bones held). Volumes stay where the backend computes; per iteration one cost and the
-//! update's largest vectors per chunk come back.
+//! scaled so that no voxel moves further than `step_mm` (at the finest level; more at the
+//! coarser ones), holds v at zero on the bones, fading it in over `bone_margin_mm`. exp(v) is
+//! taken by scaling and squaring: v / 2ⁿ, small enough to be invertible, composed with itself
+//! n times, so the map stays invertible by construction, and where v is zero exp(v) is exactly
+//! the identity: every bone keeps exactly its rigid motion. A sparse set of RBF points cannot
+//! follow the dense, local deformation of real muscle and fat; this can (greedy's and demons'
+//! scheme, with the bones held). Volumes stay where the backend computes; per iteration one
+//! cost and the update's largest vectors per chunk come back.
 
 use crate::abi::dense::{CombineParams, ForceParams, ForceTerm, MAX_GAUSS_SIGMA};
 use crate::abi::{
@@ -38,7 +38,7 @@ pub struct DenseOptions {
     pub enabled: bool,
     /// Pyramid levels of the target it runs on, counted from the finest: 1 the target's own
     /// grid only, 2 a level at half the resolution first, and so on. Three levels, wider fluid
-    /// smoothing (3x3x2), less elastic (0.75) and a step of a whole voxel (from two levels,
+    /// smoothing (3x3x2), less elastic (0.75) and a step of a whole 2 mm voxel (from two levels,
     /// 1.5, 1 and half a voxel) lowered soft-tissue error on five of the six 2 mm pairs by
     /// 0.0-1.9 mm and raised it on one by 0.03 mm (BENCHMARKS.md, twenty-seventh session).
     pub levels: usize,
@@ -72,17 +72,18 @@ pub struct DenseOptions {
     /// thirty-second session). 0 leaves it out.
     pub volume_weight: f64,
     /// Each update is this share of the previous update plus the rest of this iteration's
-    /// smoothed force (an exponential average; 0 takes the force alone), per level. With the
-    /// step normalised to `step_mm`, the force alone flips at the voxels it moves
-    /// furthest, so that the cost goes up and down every other iteration and a level stalls;
-    /// averaging cancels the flip and keeps the steady part. `0.5x0.5x0.25` against none
-    /// (both with `min_gain` 0.003), soft-tissue error on the 2 mm knee pairs bent 20° / 45° /
-    /// 90°: volume-keeping 1.24 / 2.43 / 5.16 → 1.32 / 1.98 / 4.46 mm, polyrigid 0.38 / 0.93 /
-    /// 2.02 → 0.40 / 0.88 / 1.95; 0.5 on the finest level too gains more on the first
-    /// (4.47 mm at 90°, 1.82 at 45°) and fits the 20° polyrigid pair's noise (0.50 mm, worse
-    /// than no refinement; BENCHMARKS.md, thirty-third session).
+    /// smoothed force (an exponential average of the updates before their scaling to the step;
+    /// 0 takes the force alone), per level. With the step normalised to `step_mm`, the force
+    /// alone flips at the voxels it moves furthest, so that the cost goes up and down every
+    /// other iteration and a level stalls; averaging cancels the flip and keeps the steady
+    /// part. `0.5x0.5x0.25` against none (both with `min_gain` 0.003), soft-tissue error on
+    /// the 2 mm knee pairs bent 20° / 45° / 90°: volume-keeping 1.24 / 2.43 / 5.16 → 1.32 /
+    /// 1.98 / 4.46 mm, polyrigid 0.38 / 0.93 / 2.02 → 0.40 / 0.88 / 1.95; 0.5 on the finest
+    /// level too gains more on the first (4.47 mm at 90°, 1.82 at 45°) and fits the 20°
+    /// polyrigid pair's noise (0.50 mm, worse than no refinement; BENCHMARKS.md,
+    /// thirty-third session).
     pub momentum: PerLevel<f64>,
-    /// A level keeps an iteration's velocity only when its cost is at least this fraction
+    /// A level keeps an iteration's velocity only when its cost is more than this fraction
     /// below the best so far, and stops after five iterations without one: smaller gains
     /// fit the scan's noise more than its anatomy, and stopping on them is where two
     /// backends' last-bit differences part ways.
@@ -182,13 +183,13 @@ pub struct DenseLevel {
     pub dims: [usize; 3],
     /// The image term.
     pub similarity: Similarity,
-    /// Iterations run (fewer than asked when the cost stopped falling).
+    /// Iterations run (fewer than asked when the cost stopped falling by `min_gain`).
     pub iterations: usize,
     /// The image term's mean per voxel through the field the level started from.
     pub cost_start: f64,
-    /// The same through the velocity kept (the lowest cost met).
+    /// The same through the velocity kept (the last that lowered the cost by `min_gain`).
     pub cost_end: f64,
-    /// The iteration whose velocity was kept (0: none improved on the start).
+    /// The iteration whose velocity was kept (0: none improved on the start by `min_gain`).
     pub kept_iteration: usize,
 }
 
@@ -613,6 +614,12 @@ mod tests {
         };
         let err = bad.check().unwrap_err().to_string();
         assert!(err.contains("dense.momentum"), "{err}");
+        let bad = DenseOptions {
+            min_gain: 0.6,
+            ..Default::default()
+        };
+        let err = bad.check().unwrap_err().to_string();
+        assert!(err.contains("dense.min_gain"), "{err}");
         let bad = DenseOptions {
             levels: 2,
             ..Default::default()
