@@ -19,7 +19,7 @@ pub mod skinning;
 
 pub use correlation::box_sums;
 pub use nonrigid::CostImages;
-pub use reduce::total;
+pub use reduce::{total, totals};
 pub use rigid::BoneImages;
 pub use sampling::{resample_onto, resample_volume};
 

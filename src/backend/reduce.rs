@@ -41,6 +41,22 @@ pub fn total<B: Reduce>(backend: &B, params: &SumParams, values: &B::Buffer<f32>
     Ok(backend.download_one(&sums)?.iter().sum())
 }
 
+/// Σ (v − shift)^power over all of each of `values` (`params`), the chunks' sums added where
+/// the backend computes too: only the totals come back, together, with one wait (where
+/// [`total`] brings back every chunk's sum).
+pub fn totals<B: Reduce>(
+    backend: &B,
+    params: &SumParams,
+    values: &[&B::Buffer<f32>],
+) -> Result<Vec<f64>> {
+    let totals = values
+        .iter()
+        .map(|v| backend.sum_partials(&backend.sum_chunks(params, v)?, 1))
+        .collect::<Result<Vec<_>>>()?;
+    let totals: Vec<&B::Buffer<f64>> = totals.iter().collect();
+    Ok(backend.download(&totals)?.iter().map(|t| t[0]).collect())
+}
+
 /// The flagged values (> 0) among the `len` values of `flags` and their indices, in index
 /// order: the flags are counted per chunk where the backend computes (one f64 per chunk comes
 /// back), each chunk's offset goes up, and only the list comes back, not the array.

@@ -17,7 +17,7 @@ use crate::abi::{
     ComposeParams, Interpolation, JacobianParams, LocalMomentsParams, ResampleParams, SumParams,
 };
 use crate::backend::dense::{largest_vectors, smooth, ForceImages};
-use crate::backend::{box_sums, resample_onto, Backend, DeviceImage};
+use crate::backend::{box_sums, resample_onto, totals, Backend, DeviceImage};
 use crate::check::{check_ranges, Range};
 use crate::error::Result;
 use crate::images::fold_repair::determinant;
@@ -268,6 +268,7 @@ struct LevelSettings {
     radius: usize,
     fluid_sigma: f64,
     elastic_sigma: f64,
+    /// This level's step (mm): `step_mm` times its voxels' size against the finest level's.
     step_mm: f64,
     volume_weight: f64,
     momentum: f64,
@@ -387,7 +388,6 @@ impl<B: Backend> Level<B> {
         progress: &dyn Progress,
     ) -> Result<((DeviceImage<B>, f64), DenseLevel)> {
         let grid = self.grid();
-        let step_mm = settings.step_mm;
         let update_sigma = settings.fluid_sigma.hypot(settings.elastic_sigma);
         let (mut v, mut bound) = (start, start_bound);
         let mut kept = (v.clone(), bound, f64::INFINITY, 0);
@@ -425,12 +425,12 @@ impl<B: Backend> Level<B> {
             v = self.combine(
                 backend,
                 (1.0, &smoothed),
-                (step_mm / largest as f64, &update),
+                (settings.step_mm / largest as f64, &update),
             )?;
             previous = Some(update);
             ran = iteration + 1;
             // Fading never lengthens a vector; the step adds at most its size.
-            bound = length as f64 + step_mm;
+            bound = length as f64 + settings.step_mm;
         }
         let (v, bound, cost_end, kept_iteration) = kept;
         let done = DenseLevel {
@@ -519,17 +519,8 @@ impl<B: Backend> Level<B> {
 /// The mean of each of `values` (one per voxel of `grid`), reduced where the backend
 /// computes; the sums come back together, with one wait.
 fn means<B: Backend>(backend: &B, grid: &Grid, values: &[&B::Buffer<f32>]) -> Result<Vec<f64>> {
-    let params = SumParams::new(grid.len());
-    let totals = values
-        .iter()
-        .map(|v| backend.sum_partials(&backend.sum_chunks(&params, v)?, 1))
-        .collect::<Result<Vec<_>>>()?;
-    let totals: Vec<&B::Buffer<f64>> = totals.iter().collect();
-    Ok(backend
-        .download(&totals)?
-        .iter()
-        .map(|total| total[0] / grid.len() as f64)
-        .collect())
+    let totals = totals(backend, &SumParams::new(grid.len()), values)?;
+    Ok(totals.iter().map(|t| t / grid.len() as f64).collect())
 }
 
 /// Squarings that bring a velocity whose vectors are at most `bound` mm long below
