@@ -83,7 +83,7 @@ fn add_shifted(out: &mut [f32], row: &[f32], t: isize) {
     if lo >= hi {
         return;
     }
-    let (lo, hi, from) = (lo as usize, hi as usize, (lo as isize + t) as usize);
+    let (lo, hi, from) = (lo as usize, hi as usize, (lo + t) as usize);
     let out = &mut out[LOCAL_MOMENTS * lo..LOCAL_MOMENTS * hi];
     for (o, &m) in out.iter_mut().zip(&row[LOCAL_MOMENTS * from..]) {
         *o += m;
