@@ -21,6 +21,7 @@ pub(crate) struct Window {
 
 /// The window of voxel v (index i, j, k) on a grid `d` (nx, ny, nz, radius) from its box
 /// sums (window_at in shaders/window.wgsl).
+#[inline(always)]
 pub(crate) fn window_at(sums: &[f32], v: usize, d: [u32; 4], [i, j, k]: [u32; 3]) -> Window {
     let n = (window_length(i, d[0], d[3])
         * window_length(j, d[1], d[3])

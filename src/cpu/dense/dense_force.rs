@@ -8,6 +8,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 /// Central difference of W along one axis at coordinate c of n (one-sided at the ends).
+#[inline(always)]
 fn slope(lo: f32, hi: f32, c: u32, n: u32) -> f32 {
     if n == 1 {
         return 0.0;
@@ -18,37 +19,8 @@ fn slope(lo: f32, hi: f32, c: u32, n: u32) -> f32 {
     (hi - lo) * 0.5
 }
 
-/// A row of d(index)/d(world) as a vector.
-fn row(r: [f32; 4]) -> Vec3 {
-    Vec3::new(r[0], r[1], r[2])
-}
-
-/// ∇W at voxel (i, j, k), world mm.
-fn gradient(params: &ForceParams, moving: &[f32], [i, j, k]: [u32; 3], d: [u32; 3]) -> Vec3 {
-    let w = |i, j, k| moving[voxel_index(i, j, k, d) as usize];
-    let gx = slope(
-        w(i.max(1) - 1, j, k),
-        w((i + 1).min(d[0] - 1), j, k),
-        i,
-        d[0],
-    );
-    let gy = slope(
-        w(i, j.max(1) - 1, k),
-        w(i, (j + 1).min(d[1] - 1), k),
-        j,
-        d[1],
-    );
-    let gz = slope(
-        w(i, j, k.max(1) - 1),
-        w(i, j, (k + 1).min(d[2] - 1)),
-        k,
-        d[2],
-    );
-    let m = &params.mm_to_index;
-    gx * row(m[0]) + gy * row(m[1]) + gz * row(m[2])
-}
-
 /// The force's factor along ∇W and the cost at voxel v (index `ijk`).
+#[inline(always)]
 fn along_and_cost(
     params: &ForceParams,
     images: &ForceImages<[f32]>,
@@ -86,27 +58,83 @@ pub fn dense_force(
     force: &mut [f32],
     cost: &mut [f32],
 ) {
-    let d = [params.nx, params.ny, params.nz];
-    let slice = (d[0] * d[1]) as usize;
+    let [nx, ny] = [params.nx as usize, params.ny as usize];
     force
-        .par_chunks_mut(3 * slice)
-        .zip(cost.par_chunks_mut(slice))
+        .par_chunks_mut(3 * nx * ny)
+        .zip(cost.par_chunks_mut(nx * ny))
         .enumerate()
-        .for_each(|(k, (force, cost))| {
-            for j in 0..d[1] {
-                for i in 0..d[0] {
-                    let ijk = [i, j, k as u32];
-                    let at = (i + d[0] * j) as usize;
-                    let v = at + k * slice;
-                    let (along, term) = along_and_cost(params, images, v, ijk);
-                    let g = gradient(params, images.moving, ijk, d);
-                    force[3 * at..3 * at + 3].copy_from_slice(&[
-                        along * g.x,
-                        along * g.y,
-                        along * g.z,
-                    ]);
-                    cost[at] = term;
-                }
+        .for_each_init(RowLanes::default, |lanes, (k, (force, cost))| {
+            let rows = force
+                .chunks_exact_mut(3 * nx)
+                .zip(cost.chunks_exact_mut(nx));
+            for (j, (force, cost)) in rows.enumerate() {
+                force_row(lanes, params, images, [j as u32, k as u32], (force, cost));
             }
         });
+}
+
+/// Per voxel of one row: the force's factor along ∇W, then ∇W's index-space components.
+#[derive(Default)]
+struct RowLanes {
+    along: Vec<f32>,
+    slopes: [Vec<f32>; 3],
+}
+
+/// Row (j, k) of the shader, in passes over the row's voxels (the factor and the cost, the
+/// slopes along each axis, the force) so that the passes vectorise where they can; each voxel's
+/// operations are the shader's, in its order, so the values are the same bits. Also compiled
+/// for AVX2 (crate::cpu's notes).
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn force_row(
+    lanes: &mut RowLanes,
+    params: &ForceParams,
+    images: &ForceImages<[f32]>,
+    [j, k]: [u32; 2],
+    (force, cost): (&mut [f32], &mut [f32]),
+) {
+    let d = [params.nx, params.ny, params.nz];
+    let nx = d[0] as usize;
+    lanes.along.resize(nx, 0.0);
+    let start = voxel_index(0, j, k, d) as usize;
+    for (i, (along, cost)) in lanes.along.iter_mut().zip(cost.iter_mut()).enumerate() {
+        (*along, *cost) = along_and_cost(params, images, start + i, [i as u32, j, k]);
+    }
+    let row_at = |j: u32, k: u32| &images.moving[voxel_index(0, j, k, d) as usize..][..nx];
+    for lane in &mut lanes.slopes {
+        lane.resize(nx, 0.0);
+    }
+    let [sx, sy, sz] = &mut lanes.slopes;
+    slopes_along_row(row_at(j, k), sx);
+    let neighbours = |c: u32, n: u32| (c.max(1) - 1, (c + 1).min(n - 1));
+    let (below, above) = neighbours(j, d[1]);
+    slopes_across(row_at(below, k), row_at(above, k), [j, d[1]], sy);
+    let (below, above) = neighbours(k, d[2]);
+    slopes_across(row_at(j, below), row_at(j, above), [k, d[2]], sz);
+    let m = params.mm_to_index.map(|r| Vec3::new(r[0], r[1], r[2]));
+    for (i, force) in force.chunks_exact_mut(3).enumerate() {
+        let g = sx[i] * m[0] + sy[i] * m[1] + sz[i] * m[2];
+        let along = lanes.along[i];
+        force.copy_from_slice(&[along * g.x, along * g.y, along * g.z]);
+    }
+}
+
+/// ∂W/∂i along a row `w` (the shader's slope at each voxel: central inside, one-sided at the
+/// ends).
+#[inline(always)]
+fn slopes_along_row(w: &[f32], out: &mut [f32]) {
+    let n = w.len();
+    for i in 1..n.saturating_sub(1) {
+        out[i] = (w[i + 1] - w[i - 1]) * 0.5;
+    }
+    out[0] = slope(w[0], w[1.min(n - 1)], 0, n as u32);
+    out[n - 1] = slope(w[n.saturating_sub(2)], w[n - 1], n as u32 - 1, n as u32);
+}
+
+/// ∂W/∂j (or ∂k) along a row at coordinate c of n on that axis, from the rows `below` and
+/// `above` it (the shader's slope: the same case for the whole row).
+#[inline(always)]
+fn slopes_across(below: &[f32], above: &[f32], [c, n]: [u32; 2], out: &mut [f32]) {
+    for ((o, &lo), &hi) in out.iter_mut().zip(below).zip(above) {
+        *o = slope(lo, hi, c, n);
+    }
 }
