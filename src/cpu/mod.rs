@@ -23,6 +23,7 @@ pub mod nonrigid;
 pub mod reduce;
 pub mod regions;
 pub mod rigid;
+pub mod row_cells;
 pub mod sampling;
 pub mod skinning;
 mod window;

@@ -1,37 +1,93 @@
-//! CPU twin of shaders/sampling/resample.wgsl: one target slice per rayon task.
+//! CPU twin of shaders/sampling/resample.wgsl: one target slice per rayon task, a row of
+//! voxels at a time.
 
 use crate::abi::ResampleParams;
-use crate::cpu::common::{source_index, voxel_index};
-use crate::sample::{nearest, trilinear};
+use crate::cpu::common::{affine_row, linear_row};
+use crate::cpu::row_cells::RowCells;
+use crate::sample::{array_from, blend_corners, inside_source, nearest};
 use rayon::prelude::*;
 
 /// Fills `warped` (one value per target voxel) from `source` and the packed field (3 floats
 /// per target voxel).
 pub fn resample(params: &ResampleParams, source: &[f32], field: &[f32], warped: &mut [f32]) {
-    let [nx, ny, nz, _] = params.target_dims;
-    let source_dims = [
+    let [nx, ny, _, _] = params.target_dims.map(|n| n as usize);
+    warped
+        .par_chunks_mut(nx * ny)
+        .zip(field.par_chunks(3 * nx * ny))
+        .enumerate()
+        .for_each_init(RowSamples::default, |samples, (k, (out, field))| {
+            let rows = out.chunks_exact_mut(nx).zip(field.chunks_exact(3 * nx));
+            for (j, (out, field)) in rows.enumerate() {
+                resample_row(samples, params, source, [j as u32, k as u32], (field, out));
+            }
+        });
+}
+
+/// One row's cells in the source, whether each point lies inside it, and the source at the
+/// cells' corners, each per voxel of the row.
+#[derive(Default)]
+struct RowSamples {
+    cells: RowCells,
+    inside: Vec<bool>,
+    corners: [Vec<f32>; 8],
+}
+
+/// Row (j, k) of the shader: the points, then (nearest) their voxels, or (linear) their cells,
+/// the corners' values and the blends, in passes over the row's voxels so that every pass but
+/// the gather vectorises. Each voxel's operations are the shader's, in its order, so the values
+/// are the same bits. Also compiled for AVX2 (crate::cpu's notes).
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn resample_row(
+    samples: &mut RowSamples,
+    params: &ResampleParams,
+    source: &[f32],
+    [j, k]: [u32; 2],
+    (field, out): (&[f32], &mut [f32]),
+) {
+    let nx = out.len();
+    let d = [
         params.source_dims[0],
         params.source_dims[1],
         params.source_dims[2],
     ];
-    let slice = (nx * ny) as usize;
-    warped
-        .par_chunks_mut(slice)
-        .enumerate()
-        .for_each(|(zl, out)| {
-            let zl = zl as u32;
-            for y in 0..ny {
-                for x in 0..nx {
-                    let local = voxel_index(x, y, zl, [nx, ny, nz]) as usize;
-                    let p = [x as f32, y as f32, zl as f32];
-                    let u = [field[3 * local], field[3 * local + 1], field[3 * local + 2]];
-                    let q = source_index(params, p, u);
-                    out[local - zl as usize * slice] = if params.nearest == 1 {
-                        nearest(source, q, source_dims, params.background)
-                    } else {
-                        trilinear(source, q, source_dims, params.background)
-                    };
-                }
-            }
-        });
+    let cells = &mut samples.cells;
+    cells.resize(nx);
+    for (a, position) in cells.position.iter_mut().enumerate() {
+        let (to_source, mm_to_source) = (params.index_to_source[a], params.mm_to_source[a]);
+        for (i, (q, u)) in position.iter_mut().zip(field.chunks_exact(3)).enumerate() {
+            let p = [i as f32, j as f32, k as f32];
+            *q = affine_row(to_source, p) + linear_row(mm_to_source, [u[0], u[1], u[2]]);
+        }
+    }
+    let point = |i: usize| array_from(|a| cells.position[a][i]);
+    if params.nearest == 1 {
+        for (i, out) in out.iter_mut().enumerate() {
+            *out = nearest(source, point(i), d, params.background);
+        }
+        return;
+    }
+    samples.inside.resize(nx, false);
+    for (i, inside) in samples.inside.iter_mut().enumerate() {
+        *inside = inside_source(point(i), d);
+    }
+    cells.locate(nx, d);
+    for (at, corners) in cells.at.iter().zip(&mut samples.corners) {
+        corners.resize(nx, 0.0);
+        for (&at, value) in at[..nx].iter().zip(&mut corners[..nx]) {
+            *value = source[at as usize];
+        }
+    }
+    let fraction = cells.fractions(nx);
+    let corners: [&[f32]; 8] = std::array::from_fn(|c| &samples.corners[c][..nx]);
+    for (i, out) in out.iter_mut().enumerate() {
+        let value = blend_corners(
+            array_from(|c| corners[c][i]),
+            array_from(|a| fraction[a][i]),
+        );
+        *out = if samples.inside[i] {
+            value[0]
+        } else {
+            params.background
+        };
+    }
 }

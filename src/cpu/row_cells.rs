@@ -1,0 +1,60 @@
+//! The cells a row of points falls in, for the kernels that sample a volume trilinearly a row
+//! of voxels at a time (compose, resample): per voxel of the row its point, the voxels it
+//! lies between on each axis, its fraction past the first and the cell's 8 corners' indices,
+//! each pass over the whole row so that it vectorises (crate::cpu's notes).
+
+use crate::sample::{array_from, axis_corners, corner_index};
+
+/// One row's points and their cells, each per voxel of the row.
+#[derive(Default)]
+pub struct RowCells {
+    /// The points' continuous indices per axis (filled by the kernel).
+    pub position: [Vec<f32>; 3],
+    /// Each point's fraction past its cell's first corner per axis.
+    fraction: [Vec<f32>; 3],
+    /// [`axis_corners`]' voxels per axis.
+    ends: [[Vec<u32>; 2]; 3],
+    /// The flat indices of each point's 8 corners ([`crate::sample::corners`]' order).
+    pub at: [Vec<u32>; 8],
+}
+
+impl RowCells {
+    /// Every lane `nx` long.
+    pub fn resize(&mut self, nx: usize) {
+        for lane in self.position.iter_mut().chain(&mut self.fraction) {
+            lane.resize(nx, 0.0);
+        }
+        for lane in self.ends.iter_mut().flatten().chain(&mut self.at) {
+            lane.resize(nx, 0);
+        }
+    }
+
+    /// The cells of the first `nx` points in a volume of `dims` (clamped to it, as
+    /// [`crate::sample::corner_indices`]).
+    #[inline(always)]
+    pub fn locate(&mut self, nx: usize, dims: [u32; 3]) {
+        for (a, &n) in dims.iter().enumerate() {
+            let ([lower, upper], fraction) = (&mut self.ends[a], &mut self.fraction[a][..nx]);
+            let (lower, upper) = (&mut lower[..nx], &mut upper[..nx]);
+            for (i, &q) in self.position[a][..nx].iter().enumerate() {
+                ([lower[i], upper[i]], fraction[i]) = axis_corners(q, n);
+            }
+        }
+        let ends = self
+            .ends
+            .each_ref()
+            .map(|[lower, upper]| [&lower[..nx], &upper[..nx]]);
+        let mut at = self.at.each_mut().map(|lane| &mut lane[..nx]);
+        for i in 0..nx {
+            let ends: [[u32; 2]; 3] = array_from(|a| [ends[a][0][i], ends[a][1][i]]);
+            for (c, lane) in at.iter_mut().enumerate() {
+                lane[i] = corner_index(c, ends, dims);
+            }
+        }
+    }
+
+    /// The first `nx` points' fractions per axis.
+    pub fn fractions(&self, nx: usize) -> [&[f32]; 3] {
+        std::array::from_fn(|a| &self.fraction[a][..nx])
+    }
+}
