@@ -3,8 +3,9 @@
 //! warp_field and lncc_gradient.
 
 use super::common::{linear_row, voxel_index};
+use super::row_cells::RowCells;
 use crate::abi::RbfGradParams;
-use crate::sample::{array_from, axis_corners, blend_corners, corner_index, inside_axis};
+use crate::sample::{array_from, blend_corners};
 use glam::Vec3;
 
 /// Where each voxel coordinate falls between lattice nodes, per axis: the shader's (i0, i1, t)
@@ -120,13 +121,10 @@ pub struct RowSamples {
     pub inside: Vec<bool>,
     /// W, then ∂W/∂x, ∂W/∂y, ∂W/∂z (world mm), each per voxel of the row.
     pub sample: [Vec<f32>; 4],
-    /// The row's lattice columns, then per voxel: the warped point, [`axis_corners`] per
-    /// axis, the corners' values.
+    /// The row's lattice columns, then per voxel: the warped point and its cell, the
+    /// corners' values.
     row: RowTaps,
-    position: [Vec<f32>; 3],
-    fraction: [Vec<f32>; 3],
-    ends: [[Vec<u32>; 2]; 3],
-    at: [Vec<u32>; 8],
+    cells: RowCells,
     corners: [Vec<f32>; 8],
 }
 
@@ -145,13 +143,9 @@ impl RowSamples {
 
     /// Every per-voxel buffer `nx` long.
     fn resize(&mut self, nx: usize) {
-        self.inside.resize(nx, false);
-        let floats = self.sample.iter_mut().chain(&mut self.position);
-        for lane in floats.chain(&mut self.fraction).chain(&mut self.corners) {
+        self.cells.resize(nx);
+        for lane in &mut self.sample {
             lane.resize(nx, 0.0);
-        }
-        for lane in self.ends.iter_mut().flatten().chain(&mut self.at) {
-            lane.resize(nx, 0);
         }
     }
 }
@@ -175,38 +169,15 @@ fn sample_row(
     for i in 0..nx {
         let q = warped_position(params, &samples.row, taps, [i as u32, j, k]);
         for (a, q) in q.into_iter().enumerate() {
-            samples.position[a][i] = q;
+            samples.cells.position[a][i] = q;
         }
     }
-    samples.inside[..nx].fill(true);
-    for (a, &n) in d.iter().enumerate() {
-        let ([lower, upper], fraction) = (&mut samples.ends[a], &mut samples.fraction[a][..nx]);
-        let (lower, upper) = (&mut lower[..nx], &mut upper[..nx]);
-        let inside = &mut samples.inside[..nx];
-        for (i, &q) in samples.position[a][..nx].iter().enumerate() {
-            inside[i] &= inside_axis(q, n);
-            ([lower[i], upper[i]], fraction[i]) = axis_corners(q, n);
-        }
-    }
-    let ends = samples
-        .ends
-        .each_ref()
-        .map(|[lower, upper]| [&lower[..nx], &upper[..nx]]);
-    let mut at = samples.at.each_mut().map(|lane| &mut lane[..nx]);
-    for i in 0..nx {
-        let ends: [[u32; 2]; 3] = array_from(|a| [ends[a][0][i], ends[a][1][i]]);
-        for (c, lane) in at.iter_mut().enumerate() {
-            lane[i] = corner_index(c, ends, d);
-        }
-    }
-    for (at, values) in samples.at.iter().zip(&mut samples.corners) {
-        for (&at, value) in at[..nx].iter().zip(&mut values[..nx]) {
-            *value = moving[at as usize];
-        }
-    }
+    samples.cells.inside(nx, d, &mut samples.inside);
+    samples.cells.locate(nx, d);
+    samples.cells.gather(nx, moving, &mut samples.corners);
     // Every lane cut to the row's length, so that the loop below has no bounds checks.
     let corners: [&[f32]; 8] = std::array::from_fn(|c| &samples.corners[c][..nx]);
-    let fraction: [&[f32]; 3] = std::array::from_fn(|a| &samples.fraction[a][..nx]);
+    let fraction = samples.cells.fractions(nx);
     let inside = &samples.inside[..nx];
     let [s0, s1, s2, s3] = samples.sample.each_mut().map(|lane| &mut lane[..nx]);
     let to_world = params.gradient_to_world;

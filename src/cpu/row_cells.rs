@@ -3,7 +3,7 @@
 //! lies between on each axis, its fraction past the first and the cell's 8 corners' indices,
 //! each pass over the whole row so that it vectorises (crate::cpu's notes).
 
-use crate::sample::{array_from, axis_corners, corner_index};
+use crate::sample::{array_from, axis_corners, corner_index, inside_axis};
 
 /// One row's points and their cells, each per voxel of the row.
 #[derive(Default)]
@@ -56,5 +56,30 @@ impl RowCells {
     /// The first `nx` points' fractions per axis.
     pub fn fractions(&self, nx: usize) -> [&[f32]; 3] {
         std::array::from_fn(|a| &self.fraction[a][..nx])
+    }
+
+    /// Whether each of the first `nx` points lies inside a volume of `dims`
+    /// ([`crate::sample::inside_source`]), into `inside`.
+    #[inline(always)]
+    pub fn inside(&self, nx: usize, dims: [u32; 3], inside: &mut Vec<bool>) {
+        inside.clear();
+        inside.resize(nx, true);
+        for (a, &n) in dims.iter().enumerate() {
+            for (inside, &q) in inside.iter_mut().zip(&self.position[a][..nx]) {
+                *inside &= inside_axis(q, n);
+            }
+        }
+    }
+
+    /// `volume` at the 8 corners of each of the first `nx` points' cells (after
+    /// [`RowCells::locate`]), into `corners`: the one pass that cannot vectorise.
+    #[inline(always)]
+    pub fn gather(&self, nx: usize, volume: &[f32], corners: &mut [Vec<f32>; 8]) {
+        for (at, values) in self.at.iter().zip(corners) {
+            values.resize(nx, 0.0);
+            for (&at, value) in at[..nx].iter().zip(&mut values[..nx]) {
+                *value = volume[at as usize];
+            }
+        }
     }
 }

@@ -4,7 +4,7 @@
 use crate::abi::ResampleParams;
 use crate::cpu::common::{affine_row, linear_row};
 use crate::cpu::row_cells::RowCells;
-use crate::sample::{array_from, blend_corners, inside_source, nearest};
+use crate::sample::{array_from, blend_corners, nearest};
 use rayon::prelude::*;
 
 /// Fills `warped` (one value per target voxel) from `source` and the packed field (3 floats
@@ -66,17 +66,9 @@ fn resample_row(
         }
         return;
     }
-    samples.inside.resize(nx, false);
-    for (i, inside) in samples.inside.iter_mut().enumerate() {
-        *inside = inside_source(point(i), d);
-    }
+    cells.inside(nx, d, &mut samples.inside);
     cells.locate(nx, d);
-    for (at, corners) in cells.at.iter().zip(&mut samples.corners) {
-        corners.resize(nx, 0.0);
-        for (&at, value) in at[..nx].iter().zip(&mut corners[..nx]) {
-            *value = source[at as usize];
-        }
-    }
+    cells.gather(nx, source, &mut samples.corners);
     let fraction = cells.fractions(nx);
     let corners: [&[f32]; 8] = std::array::from_fn(|c| &samples.corners[c][..nx]);
     for (i, out) in out.iter_mut().enumerate() {
