@@ -5,6 +5,7 @@ mod common;
 use common::*;
 use posereg::abi::Interpolation;
 use posereg::abi::{Blending, BoneBlend, SumParams};
+use posereg::backend::box_sums;
 use posereg::backend::prelude::*;
 use posereg::backend::DeviceImage;
 use posereg::cpu::CpuBackend;
@@ -1041,6 +1042,128 @@ fn dilate_passes_make_a_box_dilation_with_held_voxels_cleared() {
                 .any(|n| (0..3).all(|a| xyz(n)[a].abs_diff(c[a]) <= margin));
             let want = near && held[v] == 0.0;
             assert_eq!(got, want as u8 as f32, "margin {margin}, voxel {v} {c:?}");
+        }
+    }
+}
+
+/// Values in [lo, hi) from a fixed linear congruential sequence.
+fn scattered(n: usize, seed: u64, (lo, hi): (f32, f32)) -> Arc<Vec<f32>> {
+    let mut state = seed;
+    let values = (0..n).map(|_| {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        lo + (hi - lo) * (state >> 40) as f32 / (1u64 << 24) as f32
+    });
+    Arc::new(values.collect())
+}
+
+/// The grids the row-at-a-time kernels are checked on: one and two voxels thin along each axis.
+fn thin_grids() -> Vec<Grid> {
+    [[1, 3, 2], [2, 5, 3], [4, 1, 5], [5, 3, 1]]
+        .into_iter()
+        .map(|dims| Grid::new(dims, Affine::identity()).unwrap())
+        .collect()
+}
+
+/// Calls `check` with each voxel's index (x fastest) and its position in a grid of `dims`.
+fn each_voxel(dims: [usize; 3], mut check: impl FnMut(usize, [f32; 3])) {
+    let mut v = 0;
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                check(v, [i as f32, j as f32, k as f32]);
+                v += 1;
+            }
+        }
+    }
+}
+
+#[test]
+fn row_kernels_match_the_per_voxel_sampling_on_thin_grids() {
+    use posereg::abi::{ComposeParams, ResampleParams};
+    use posereg::sample::{affine_row, blend_corners, corner_indices, linear_row, trilinear};
+    for grid in thin_grids() {
+        let n = grid.len();
+        let d = grid.dims.map(|n| n as u32);
+        let (source, field) = (
+            scattered(n, 1, (0.0, 1.0)),
+            scattered(3 * n, 2, (-2.5, 2.5)),
+        );
+        let params = ResampleParams::new(&grid, &grid, -1.0, Interpolation::Linear);
+        let warped = CpuBackend.resample(&params, &source, &field).unwrap();
+        let compose = ComposeParams::new(&grid, &grid);
+        // The initial field is the warp itself, as in the scaling and squaring.
+        let composed = CpuBackend.compose(&compose, &field, &field).unwrap();
+        each_voxel(grid.dims, |v, p| {
+            let u = [field[3 * v], field[3 * v + 1], field[3 * v + 2]];
+            let q = posereg::sample::source_index(&params, p, u);
+            assert_eq!(
+                warped[v],
+                trilinear(&source, q, d, -1.0),
+                "resample at {p:?}"
+            );
+            let qc: [f32; 3] = std::array::from_fn(|a| {
+                let q = affine_row(compose.index_to_initial[a], p)
+                    + linear_row(compose.mm_to_initial[a], u);
+                q.clamp(0.0, d[a] as f32 - 1.0)
+            });
+            let (corners, t) = corner_indices(qc, d);
+            for c in 0..3 {
+                let values = corners.map(|at| field[3 * at as usize + c]);
+                let expected = u[c] + blend_corners(values, t)[0];
+                assert_eq!(composed[3 * v + c], expected, "compose at {p:?}");
+            }
+        });
+    }
+}
+
+#[test]
+fn box_sums_and_the_dense_force_match_closed_forms_on_thin_grids() {
+    use posereg::abi::dense::{ForceParams, ForceTerm};
+    use posereg::abi::LocalMomentsParams;
+    use posereg::backend::dense::ForceImages;
+    for grid in thin_grids() {
+        let (n, dims) = (grid.len(), grid.dims);
+        let (a, b) = (scattered(n, 3, (0.0, 1.0)), scattered(n, 4, (0.0, 1.0)));
+        // A radius of 3 is wider than every thin axis: the windows are cut at the faces.
+        let sums = box_sums(&CpuBackend, &LocalMomentsParams::passes(&grid, 3), &a, &b).unwrap();
+        each_voxel(dims, |v, p| {
+            let mut expected = [0.0f64; 5];
+            each_voxel(dims, |w, q| {
+                if (0..3).all(|x| (p[x] - q[x]).abs() <= 3.0) {
+                    let (a, b) = (a[w] as f64, b[w] as f64);
+                    for (e, m) in expected.iter_mut().zip([a, b, a * a, b * b, a * b]) {
+                        *e += m;
+                    }
+                }
+            });
+            for (m, e) in expected.iter().enumerate() {
+                let got = sums[5 * v + m] as f64;
+                assert!(
+                    (got - e).abs() <= 1e-4 * e.max(1.0),
+                    "moment {m} at {p:?}: {got} vs {e}"
+                );
+            }
+        });
+        // SSD with F = W + 1 on a linear ramp W: the force is W's exact gradient (0 along an
+        // axis one voxel long).
+        let ramp = ramp(&grid);
+        let moving = Arc::new(ramp.data.clone());
+        let fixed = Arc::new(ramp.data.iter().map(|w| w + 1.0).collect::<Vec<_>>());
+        let covered = Arc::new(vec![1.0f32; n]);
+        let images = ForceImages {
+            moving: &moving,
+            fixed: &fixed,
+            covered: &covered,
+            sums: &moving,
+        };
+        let params = ForceParams::new(&grid, ForceTerm::Ssd, 0);
+        let (force, _) = CpuBackend.dense_force(&params, &images).unwrap();
+        let slope = |a: usize, s: f32| if dims[a] > 1 { s } else { 0.0 };
+        let gradient = [slope(0, 0.5), slope(1, 0.25), slope(2, 2.0)];
+        for v in 0..n {
+            assert_eq!(force[3 * v..3 * v + 3], gradient, "force at voxel {v}");
         }
     }
 }

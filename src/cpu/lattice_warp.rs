@@ -141,7 +141,8 @@ impl RowSamples {
         sample_row(self, params, taps, lattice, moving, jk);
     }
 
-    /// Every per-voxel buffer `nx` long.
+    /// The points', cells' and samples' lanes `nx` long (`inside` and the corners' values
+    /// are sized where RowCells fills them).
     fn resize(&mut self, nx: usize) {
         self.cells.resize(nx);
         for lane in &mut self.sample {

@@ -1,8 +1,8 @@
 //! The cells a row of points falls in, for the kernels that sample a volume trilinearly a row
-//! of voxels at a time (compose, resample): per voxel of the row its point, the voxels it
-//! lies between on each axis, its fraction past the first and the cell's 8 corners' indices,
-//! each pass over the whole row so that it vectorises (crate::cpu's notes).
-
+//! of voxels at a time (compose, resample, the lattice warp's sampling): per voxel of the row
+//! its point, the voxels it lies between on each axis, its fraction past the first and the
+//! cell's 8 corners' indices, each pass over the whole row so that it vectorises (crate::cpu's
+//! notes).
 use crate::sample::{array_from, axis_corners, corner_index, inside_axis};
 
 /// One row's points and their cells, each per voxel of the row.

@@ -36,7 +36,6 @@ fn sum_row(
     let d = dims3(params.dims).map(|n| n as usize);
     let (axis, r) = (params.axis as usize, params.radius as usize);
     out.fill(0.0);
-    let c = [0, j, k][axis];
     if axis == 0 {
         let row = moments_row(params, images, [j, k], moments);
         for t in 0..=2 * r {
@@ -44,6 +43,7 @@ fn sum_row(
         }
         return;
     }
+    let c = [0, j, k][axis];
     for a in c.max(r) - r..(c + r + 1).min(d[axis]) {
         let at = if axis == 1 { [a, k] } else { [j, a] };
         let row = moments_row(params, images, at, moments);

@@ -123,6 +123,7 @@ fn force_row(
 #[inline(always)]
 fn slopes_along_row(w: &[f32], out: &mut [f32]) {
     let n = w.len();
+    // Inside the row slope is always the central case, written out so that the loop vectorises.
     for i in 1..n.saturating_sub(1) {
         out[i] = (w[i + 1] - w[i - 1]) * 0.5;
     }

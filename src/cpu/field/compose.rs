@@ -9,6 +9,12 @@ use rayon::prelude::*;
 /// Fills `out` (3 floats per voxel) with u = R + u0 ∘ (id + R), `warp` holding R and
 /// `initial` u0 (3 floats per voxel each, u0 on its own grid).
 pub fn compose(params: &ComposeParams, warp: &[f32], initial: &[f32], out: &mut [f32]) {
+    // Rows of `out` and `warp` are paired below; a short warp must not leave rows unwritten.
+    assert_eq!(
+        warp.len(),
+        out.len(),
+        "compose: warp and output differ in length"
+    );
     let [nx, ny, _, _] = params.dims;
     let row = 3 * nx as usize;
     out.par_chunks_mut(row * ny as usize)
@@ -44,7 +50,9 @@ impl RowSamples {
 /// Row (j, k) of the shader's u = R + u0 ∘ (id + R), in passes over the row's voxels (the
 /// clamped points, their cells per axis, the corners' indices, u0 at the corners, the blends)
 /// so that every pass but the gather vectorises. Each voxel's operations are the shader's, in
-/// its order, so the values are the same bits. Also compiled for AVX2 (crate::cpu's notes).
+/// its order, so the values are the same bits; the shader samples each component through
+/// sampled_value, and the three share one cell, found once here. Also compiled for AVX2
+/// (crate::cpu's notes).
 #[multiversion::multiversion(targets("x86_64+avx2"))]
 fn compose_row(
     samples: &mut RowSamples,

@@ -10,6 +10,12 @@ use rayon::prelude::*;
 /// Fills `warped` (one value per target voxel) from `source` and the packed field (3 floats
 /// per target voxel).
 pub fn resample(params: &ResampleParams, source: &[f32], field: &[f32], warped: &mut [f32]) {
+    // Rows of `warped` and `field` are paired below; a short field must not leave rows unwritten.
+    assert_eq!(
+        field.len(),
+        3 * warped.len(),
+        "resample: field and output differ in length"
+    );
     let [nx, ny, _, _] = params.target_dims.map(|n| n as usize);
     warped
         .par_chunks_mut(nx * ny)
@@ -35,7 +41,8 @@ struct RowSamples {
 /// Row (j, k) of the shader: the points, then (nearest) their voxels, or (linear) their cells,
 /// the corners' values and the blends, in passes over the row's voxels so that every pass but
 /// the gather vectorises. Each voxel's operations are the shader's, in its order, so the values
-/// are the same bits. Also compiled for AVX2 (crate::cpu's notes).
+/// are the same bits (a point outside is looked up in its clamped cell too, and its value then
+/// dropped for the background). Also compiled for AVX2 (crate::cpu's notes).
 #[multiversion::multiversion(targets("x86_64+avx2"))]
 fn resample_row(
     samples: &mut RowSamples,
