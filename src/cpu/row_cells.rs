@@ -3,6 +3,7 @@
 //! its point, the voxels it lies between on each axis, its fraction past the first and the
 //! cell's 8 corners' indices, each pass over the whole row so that it vectorises (crate::cpu's
 //! notes).
+
 use crate::sample::{array_from, axis_corners, corner_index, inside_axis};
 
 /// One row's points and their cells, each per voxel of the row.
