@@ -4,7 +4,7 @@
 //! cell's 8 corners' indices, each pass over the whole row so that it vectorises (crate::cpu's
 //! notes).
 
-use crate::sample::{array_from, axis_corners, corner_index, inside_axis};
+use crate::sample::{array_from, axis_corners, blend_corners, corner_index, inside_axis};
 
 /// One row's points and their cells, each per voxel of the row.
 #[derive(Default)]
@@ -81,6 +81,18 @@ impl RowCells {
             for (&at, value) in at[..nx].iter().zip(&mut values[..nx]) {
                 *value = volume[at as usize];
             }
+        }
+    }
+
+    /// The trilinear value at each of the first `nx` points from its cell's `corners` (as
+    /// [`RowCells::gather`] leaves them), into `values`.
+    #[inline(always)]
+    pub fn blend(&self, nx: usize, corners: &[Vec<f32>; 8], values: &mut [f32]) {
+        let corners: [&[f32]; 8] = std::array::from_fn(|c| &corners[c][..nx]);
+        let fraction = self.fractions(nx);
+        for (i, value) in values[..nx].iter_mut().enumerate() {
+            let t = array_from(|a| fraction[a][i]);
+            *value = blend_corners(array_from(|c| corners[c][i]), t)[0];
         }
     }
 }

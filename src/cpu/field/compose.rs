@@ -3,7 +3,7 @@
 use crate::abi::ComposeParams;
 use crate::cpu::common::linear_row;
 use crate::cpu::row_cells::RowCells;
-use crate::sample::{affine_row, array_from, blend_corners};
+use crate::sample::affine_row;
 use rayon::prelude::*;
 
 /// Fills `out` (3 floats per voxel) with u = R + u0 ∘ (id + R), `warp` holding R and
@@ -86,14 +86,8 @@ fn compose_row(
             (x[i], y[i], z[i]) = (v[0], v[1], v[2]);
         }
     }
-    let fraction = cells.fractions(nx);
-    for (m, corners) in samples.corners.iter().enumerate() {
-        let corners: [&[f32]; 8] = std::array::from_fn(|c| &corners[c][..nx]);
-        let blended = &mut samples.blended[m][..nx];
-        for (i, value) in blended.iter_mut().enumerate() {
-            let t = array_from(|a| fraction[a][i]);
-            *value = blend_corners(array_from(|c| corners[c][i]), t)[0];
-        }
+    for (corners, blended) in samples.corners.iter().zip(&mut samples.blended) {
+        cells.blend(nx, corners, blended);
     }
     for (i, (out, warp)) in out
         .chunks_exact_mut(3)

@@ -4,7 +4,7 @@
 use crate::abi::ResampleParams;
 use crate::cpu::common::{affine_row, linear_row};
 use crate::cpu::row_cells::RowCells;
-use crate::sample::{array_from, blend_corners, nearest};
+use crate::sample::{array_from, nearest};
 use rayon::prelude::*;
 
 /// Fills `warped` (one value per target voxel) from `source` and the packed field (3 floats
@@ -76,17 +76,10 @@ fn resample_row(
     cells.inside(nx, d, &mut samples.inside);
     cells.locate(nx, d);
     cells.gather(nx, source, &mut samples.corners);
-    let fraction = cells.fractions(nx);
-    let corners: [&[f32]; 8] = std::array::from_fn(|c| &samples.corners[c][..nx]);
-    for (i, out) in out.iter_mut().enumerate() {
-        let value = blend_corners(
-            array_from(|c| corners[c][i]),
-            array_from(|a| fraction[a][i]),
-        );
-        *out = if samples.inside[i] {
-            value[0]
-        } else {
-            params.background
-        };
+    cells.blend(nx, &samples.corners, out);
+    for (out, &inside) in out.iter_mut().zip(&samples.inside) {
+        if !inside {
+            *out = params.background;
+        }
     }
 }
