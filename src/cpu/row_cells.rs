@@ -4,7 +4,9 @@
 //! cell's 8 corners' indices, each pass over the whole row so that it vectorises (crate::cpu's
 //! notes).
 
-use crate::sample::{array_from, axis_corners, blend_corners, corner_index, inside_axis};
+use crate::sample::{
+    affine_row, array_from, axis_corners, blend_corners, corner_index, inside_axis, linear_row,
+};
 
 /// One row's points and their cells, each per voxel of the row.
 #[derive(Default)]
@@ -27,6 +29,26 @@ impl RowCells {
         }
         for lane in self.ends.iter_mut().flatten().chain(&mut self.at) {
             lane.resize(nx, 0);
+        }
+    }
+
+    /// The points of row (j, k) of a grid, each voxel displaced by its vector of
+    /// `displacement` (3 floats per voxel, mm), in another volume's indices: per axis a,
+    /// `affine_row(to_index[a], voxel) + linear_row(mm_to_index[a], u)` (geometry.wgsl's
+    /// source_index).
+    #[inline(always)]
+    pub fn place(
+        &mut self,
+        [j, k]: [u32; 2],
+        (to_index, mm_to_index): ([[f32; 4]; 3], [[f32; 4]; 3]),
+        displacement: &[f32],
+    ) {
+        for (a, position) in self.position.iter_mut().enumerate() {
+            let u = displacement.chunks_exact(3);
+            for (i, (q, u)) in position.iter_mut().zip(u).enumerate() {
+                let p = [i as f32, j as f32, k as f32];
+                *q = affine_row(to_index[a], p) + linear_row(mm_to_index[a], [u[0], u[1], u[2]]);
+            }
         }
     }
 

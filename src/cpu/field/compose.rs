@@ -1,9 +1,7 @@
 //! CPU twin of shaders/field/compose.wgsl.
 
 use crate::abi::ComposeParams;
-use crate::cpu::common::linear_row;
 use crate::cpu::row_cells::RowCells;
-use crate::sample::affine_row;
 use rayon::prelude::*;
 
 /// Fills `out` (3 floats per voxel) with u = R + u0 ∘ (id + R), `warp` holding R and
@@ -69,16 +67,20 @@ fn compose_row(
     ];
     samples.resize(nx);
     let cells = &mut samples.cells;
-    for (a, &n) in e.iter().enumerate() {
-        let (to_initial, mm_to_initial) = (params.index_to_initial[a], params.mm_to_initial[a]);
-        let top = n as f32 - 1.0;
-        for (i, q) in cells.position[a][..nx].iter_mut().enumerate() {
-            let r = [warp[3 * i], warp[3 * i + 1], warp[3 * i + 2]];
-            let x = [i as f32, j as f32, k as f32];
-            *q = (affine_row(to_initial, x) + linear_row(mm_to_initial, r)).clamp(0.0, top);
+    cells.place(
+        [j, k],
+        (params.index_to_initial, params.mm_to_initial),
+        warp,
+    );
+    // u0's edge values continue beyond its grid.
+    for (position, &n) in cells.position.iter_mut().zip(&e) {
+        for q in &mut position[..nx] {
+            *q = q.clamp(0.0, n as f32 - 1.0);
         }
     }
     cells.locate(nx, e);
+    // u0's three components lie together: each corner's are read at once (RowCells::gather
+    // reads one value per corner).
     for (c, at) in cells.at.iter().enumerate() {
         let [x, y, z] = samples.corners.each_mut().map(|lanes| &mut lanes[c][..nx]);
         for (i, &at) in at[..nx].iter().enumerate() {

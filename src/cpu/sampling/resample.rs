@@ -2,7 +2,6 @@
 //! voxels at a time.
 
 use crate::abi::ResampleParams;
-use crate::cpu::common::{affine_row, linear_row};
 use crate::cpu::row_cells::RowCells;
 use crate::sample::{array_from, nearest};
 use rayon::prelude::*;
@@ -59,13 +58,7 @@ fn resample_row(
     ];
     let cells = &mut samples.cells;
     cells.resize(nx);
-    for (a, position) in cells.position.iter_mut().enumerate() {
-        let (to_source, mm_to_source) = (params.index_to_source[a], params.mm_to_source[a]);
-        for (i, (q, u)) in position.iter_mut().zip(field.chunks_exact(3)).enumerate() {
-            let p = [i as f32, j as f32, k as f32];
-            *q = affine_row(to_source, p) + linear_row(mm_to_source, [u[0], u[1], u[2]]);
-        }
-    }
+    cells.place([j, k], (params.index_to_source, params.mm_to_source), field);
     let point = |i: usize| array_from(|a| cells.position[a][i]);
     if params.nearest == 1 {
         for (i, out) in out.iter_mut().enumerate() {
