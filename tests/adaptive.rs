@@ -396,8 +396,9 @@ fn paper_experiment_one_on_the_gpu() {
 /// bits on both (the parity tests), but lavapipe's f64 square root is not correctly rounded
 /// (the RBF kernels), and a few f32 kernels whose arithmetic is only multiplies and adds
 /// still differ in the last bit (jacobian, compose, rigid_gn, the dual-quaternion blend: most
-/// likely multiply-adds fused by the driver). Measured here on lavapipe: fields 0.023 and
-/// 0.036 mm apart; 376 / 376 and 408 / 409 points; errors 0.553 / 0.556 and 0.945 / 0.946 mm.
+/// likely multiply-adds fused by the driver). Measured here on lavapipe with the defaults (the
+/// dense refinement on the finest level included; 2026-12-07): fields 0.022 and 0.029 mm
+/// apart; 359 / 359 and 398 / 397 points; errors 0.541 / 0.542 and 0.869 / 0.866 mm.
 /// Both backends give the same bits run to run on one driver, so a run that passes on
 /// lavapipe passes there again; another driver may round differently.
 ///

@@ -1,5 +1,5 @@
 //! The dense refinement (beyond the paper): after the adaptive RBF stage, a stationary
-//! velocity field v on the target's finest pyramid levels (three by default) refines the
+//! velocity field v on the target's finest pyramid levels (the finest alone by default) refines the
 //! whole field T to T ∘ exp(v). Each iteration compares the source seen through T ∘ exp(v)
 //! with the target (SSD or LNCC, shaders/dense/dense_force.wgsl), smooths the force (fluid)
 //! and the velocity (elastic), adds the step (averaged with the previous one: `momentum`),
@@ -31,16 +31,16 @@ use crate::volume::Grid;
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DenseOptions {
-    /// Run the stage (`--dense`). Off by default: it brings every knee pair of make_pair.py
-    /// below greedy, elastix and demons, but on the project's phantom, whose smooth soft
-    /// tissue gives the local correlation only noise to follow, it lowers the image cost and
-    /// makes the field worse (BENCHMARKS.md, thirty-third session).
+    /// Run the stage (`--no-dense` skips it). On by default, on the target's own grid only:
+    /// there it lowered soft-tissue error on all twelve knee pairs of make_pair.py and on the
+    /// demo's phantom (BENCHMARKS.md, thirty-fifth session).
     pub enabled: bool,
     /// Pyramid levels of the target it runs on, counted from the finest: 1 the target's own
-    /// grid only, 2 a level at half the resolution first, and so on. Three levels, wider fluid
-    /// smoothing (3x3x2), less elastic (0.75) and a step of a whole 2 mm voxel (from two levels,
-    /// 1.5, 1 and half a voxel) lowered soft-tissue error on five of the six 2 mm pairs by
-    /// 0.0-1.9 mm and raised it on one by 0.03 mm (BENCHMARKS.md, twenty-seventh session).
+    /// grid only (the default), 2 a level at half the resolution first, and so on. The
+    /// coarser levels carry the tissue further (`--dense`, real-scans.toml: three levels, see
+    /// `on_three_levels`), which the large bends whose truth keeps tissue volume need, but on
+    /// the phantom's smooth soft tissue their 4 and 8 mm steps follow noise (half size, 60°:
+    /// 0.81 mm without the stage, 0.76 with the finest level, 1.72 with three).
     pub levels: usize,
     /// Iterations per level, coarse to fine.
     pub iterations: PerLevel<usize>,
@@ -93,18 +93,38 @@ pub struct DenseOptions {
 impl Default for DenseOptions {
     fn default() -> Self {
         DenseOptions {
-            enabled: false,
-            levels: 3,
-            iterations: PerLevel::coarse_to_fine(vec![100, 60, 30]).expect("three values"),
+            enabled: true,
+            levels: 1,
+            iterations: PerLevel::all(30),
             similarity: PerLevel::all(Similarity::Lncc),
             lncc_radius: PerLevel::all(2),
-            fluid_sigma: PerLevel::coarse_to_fine(vec![3.0, 3.0, 2.0]).expect("three values"),
+            fluid_sigma: PerLevel::all(2.0),
             elastic_sigma: PerLevel::all(0.75),
             step_mm: 2.0,
             bone_margin_mm: 4.0,
             volume_weight: 0.3,
-            momentum: PerLevel::coarse_to_fine(vec![0.5, 0.5, 0.25]).expect("three values"),
+            momentum: PerLevel::all(0.25),
             min_gain: 0.003,
+        }
+    }
+}
+
+impl DenseOptions {
+    /// The stage on the three finest levels (`--dense`, real-scans.toml), its finest level
+    /// set as the default's: more iterations, wider fluid smoothing and more momentum at the
+    /// coarse levels, where the tissue has furthest to go. Three levels, 3x3x2 fluid
+    /// smoothing and a whole 2 mm voxel's step lowered soft-tissue error on five of the six
+    /// 2 mm pairs by 0.0-1.9 mm and raised it on one by 0.03 mm (BENCHMARKS.md,
+    /// twenty-seventh session).
+    pub fn on_three_levels(self) -> Self {
+        let coarse_to_fine = |v: Vec<f64>| PerLevel::coarse_to_fine(v).expect("three values");
+        DenseOptions {
+            enabled: true,
+            levels: 3,
+            iterations: PerLevel::coarse_to_fine(vec![100, 60, 30]).expect("three values"),
+            fluid_sigma: coarse_to_fine(vec![3.0, 3.0, 2.0]),
+            momentum: coarse_to_fine(vec![0.5, 0.5, 0.25]),
+            ..self
         }
     }
 }
