@@ -604,6 +604,8 @@ mod tests {
     #[test]
     fn the_defaults_pass_their_own_checks_and_bad_values_are_named() {
         assert!(DenseOptions::default().check().is_ok());
+        let three = DenseOptions::default().on_three_levels();
+        assert!(three.check().is_ok());
         let bad = DenseOptions {
             step_mm: 0.0,
             ..Default::default()
@@ -631,10 +633,8 @@ mod tests {
         };
         let err = bad.check().unwrap_err().to_string();
         assert!(err.contains("dense.min_gain"), "{err}");
-        let bad = DenseOptions {
-            levels: 2,
-            ..Default::default()
-        };
+        // Three values per level where two levels run.
+        let bad = DenseOptions { levels: 2, ..three };
         let err = bad.check().unwrap_err().to_string();
         assert!(
             err.contains("dense.iterations") && err.contains("2 pyramid levels"),
