@@ -4,9 +4,10 @@
 //! knee bent), after Rhee et al., "Adaptive non-rigid registration of 3D knee MRI in different
 //! pose spaces": per-bone rigid registration, volume skeletal deformation (linear blend
 //! skinning of the whole volume) as initialisation, then adaptive non-rigid registration with
-//! sparse cubic radial-basis control points. The paper calls φ(r) = r³ a "thin plate spline";
-//! in 3-D it is the cubic (triharmonic) radial basis, which elastix calls VolumeSpline; the code
-//! says `rbf`/cubic.
+//! sparse cubic radial-basis control points; beyond the paper, a dense refinement (a
+//! stationary velocity field held off the bones) follows what sparse points cannot. The paper
+//! calls φ(r) = r³ a "thin plate spline"; in 3-D it is the cubic (triharmonic) radial basis,
+//! which elastix calls VolumeSpline; the code says `rbf`/cubic.
 //!
 //! ## Shape
 //! Per-voxel work is done by kernels, each written twice: a WGSL compute shader

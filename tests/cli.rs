@@ -480,6 +480,43 @@ fn register_refuses_each_bad_input_naming_the_file() {
     }
 }
 
+/// `--dense` sets three levels over a settings file whose dense settings are for two: refused
+/// before any input is read, naming the flag.
+#[test]
+fn dense_refuses_a_file_set_for_another_number_of_levels() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name);
+    let two_levels = path("two_levels.toml");
+    let settings = "[dense]\nlevels = 2\nelastic_sigma = \"1x0.75\"\n";
+    std::fs::write(&two_levels, settings).unwrap();
+    let (scan, labels, out) = (path("scan.nii.gz"), path("labels.nii.gz"), path("out"));
+    let args = [
+        "register",
+        "--source",
+        s(&scan),
+        "--source-labels",
+        s(&labels),
+        "--target",
+        s(&scan),
+        "--config",
+        s(&two_levels),
+        "--dense",
+        "-o",
+        s(&out),
+    ];
+    assert_fails_naming(&posereg(&args), "--dense");
+    assert!(!out.exists(), "no output folder after refusing --dense");
+    // The same file without --dense is a valid two-level refinement (no error about it).
+    let without = posereg(
+        &args
+            .iter()
+            .filter(|&&a| a != "--dense")
+            .copied()
+            .collect::<Vec<_>>(),
+    );
+    assert_fails_naming(&without, "scan.nii.gz");
+}
+
 #[test]
 fn apply_apply_points_and_eval_use_a_registration_folder() {
     // A "registration" whose field is a phantom's exact truth, so every answer is known.

@@ -474,7 +474,7 @@ fn norm_max_and_combine_parity() {
 /// real knee (tests/independent_pairs.rs); on this phantom, whose smooth, noisy soft tissue
 /// gives the local correlation little to hold, the three levels once made it worse (soft
 /// tissue 0.66 -> 2.56 mm; BENCHMARKS.md, twenty-seventh session) and now barely move it
-/// (measured 2026-12-07: 0.662 -> 0.647 mm, correlation 0.8358 -> 0.8363), so the figures are
+/// (measured 2026-12-07: 0.662 -> 0.651 mm, correlation 0.8358 -> 0.8362), so the figures are
 /// printed, not held to a bar.
 #[test]
 fn the_refinement_leaves_the_bones_as_they_were_and_stays_invertible() {

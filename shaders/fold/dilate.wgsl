@@ -1,11 +1,11 @@
-// dilate.wgsl: one axis of a box dilation of a 0/1 mask: 1 where any voxel within `margin`
-// along the axis is 1. Three passes (x, y, z) dilate by the box, 27 reads a voxel for a
+// dilate.wgsl: one axis of a box dilation of a mask: 1 where any voxel within `margin`
+// along the axis is marked (> 0), else 0. Three passes (x, y, z) dilate by the box, 27 reads a voxel for a
 // margin of 2 where one pass over the box would take 125. The last pass can clear the held
 // voxels (the fold repair's region never includes them).
 //
 // Bindings (group 0):
 //   0 uniform  DilateParams
-//   1 storage  mask: array<f32>   1 float per voxel (0 or 1)
+//   1 storage  mask: array<f32>   1 float per voxel (> 0: marked)
 //   2 storage  held: array<f32>   1 float per voxel (> 0: held)
 //   3 storage  out: array<f32>    1 float per voxel (read_write)
 // Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(nz/4)).

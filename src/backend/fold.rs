@@ -38,8 +38,8 @@ pub trait Fold: Core {
         held: &Self::Buffer<f32>,
     ) -> Result<Self::Buffer<f32>>;
 
-    /// One axis of a box dilation of a 0/1 `mask` (`params`), clearing the `held` voxels
-    /// when `params` says.
+    /// One axis of a box dilation of `mask` (`params`; marked where > 0, 1 or 0 out),
+    /// clearing the `held` voxels when `params` says.
     fn dilate(
         &self,
         params: &DilateParams,

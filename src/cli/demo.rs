@@ -1,6 +1,6 @@
 //! `posereg demo [-o DIR] [--size half] [--flexion 60]`: a phantom pair made on the spot and
-//! registered (articulated initialisation, then adaptive cubic-RBF), with its figures
-//! against the known truth.
+//! registered (articulated initialisation, adaptive cubic-RBF, dense refinement), with its
+//! figures against the known truth.
 
 use super::register::settings_file;
 use clap::Args;

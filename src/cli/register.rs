@@ -28,10 +28,11 @@ pub struct RegisterArgs {
     /// Skip the articulated initialisation (the paper's first experiment: small bends only).
     #[arg(long)]
     pub no_init: bool,
-    /// Run the dense refinement on three pyramid levels instead of the target's grid alone
-    /// (dense.levels = 3 with the iterations, fluid_sigma and momentum of real-scans.toml):
-    /// soft tissue carried further on large bends in about the same time (the finest level then
-    /// stops sooner), but on smooth, featureless tissue the coarse levels follow noise.
+    /// Run the dense refinement on three pyramid levels instead of the target's grid alone:
+    /// sets dense.enabled and replaces the settings file's dense levels, iterations,
+    /// fluid_sigma and momentum with real-scans.toml's (3, 100x60x30, 3x3x2, 0.5x0.5x0.25).
+    /// Soft tissue is carried further on large bends in about the same time (the finest level
+    /// then stops sooner), but on smooth, featureless tissue the coarse levels follow noise.
     #[arg(long, conflicts_with = "no_dense")]
     pub dense: bool,
     /// Skip the dense refinement (dense.enabled = false), whatever the settings file says.
@@ -89,6 +90,10 @@ impl RegisterArgs {
         }
         if self.dense {
             options.dense = options.dense.on_three_levels();
+            // The file's other per-level dense settings must now fit three levels.
+            if let Err(e) = options.dense.check() {
+                anyhow::bail!("--dense runs the refinement on three levels: {e}");
+            }
         }
         if self.no_dense {
             options.dense.enabled = false;

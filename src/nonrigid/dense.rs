@@ -9,8 +9,9 @@
 //! small enough to be invertible, composed with itself n times, so the map stays invertible by
 //! construction, and where v is zero exp(v) is exactly the identity: every bone keeps exactly
 //! its rigid motion. A sparse set of RBF points cannot follow the dense, local deformation of
-//! real muscle and fat; this can (greedy's and demons' scheme, with the bones held). Volumes stay where the backend computes; per iteration one
-//! cost and the update's largest vectors per chunk come back.
+//! real muscle and fat; this can (greedy's and demons' scheme, with the bones held). Volumes
+//! stay where the backend computes; per iteration one cost and the update's largest vectors
+//! per chunk come back.
 
 use crate::abi::dense::{CombineParams, ForceParams, ForceTerm, MAX_GAUSS_SIGMA};
 use crate::abi::{
@@ -41,7 +42,7 @@ pub struct DenseOptions {
     /// coarser levels carry the tissue further (`--dense`, real-scans.toml: three levels, see
     /// `on_three_levels`), which the large bends whose truth keeps tissue volume need, but on
     /// the phantom's smooth soft tissue their 4 and 8 mm steps follow noise (half size, 60°:
-    /// 0.81 mm without the stage, 0.76 with the finest level, 1.72 with three).
+    /// 0.81 mm without the stage, 0.76 with the finest level, 1.64 with three).
     pub levels: usize,
     /// Iterations per level, coarse to fine.
     pub iterations: PerLevel<usize>,
@@ -54,11 +55,11 @@ pub struct DenseOptions {
     /// σ (voxels) of the Gaussian smoothing the velocity gets every iteration (elastic), per
     /// level.
     pub elastic_sigma: PerLevel<f64>,
-    /// The largest distance (mm) one update moves a voxel at the finest level; each coarser
-    /// level's step is as much larger as its voxels. In mm, not voxels, because the knee pairs
-    /// at 1 and 2 mm both want about 2 mm: a voxel's step at 1 mm left the volume-keeping
-    /// pairs far behind (45° 2.26 against 1.44 mm, 90° 5.14 against 4.49), two voxels at 2 mm
-    /// overshot (45° 1.98 against 2.51; BENCHMARKS.md, thirty-third session).
+    /// The largest distance (mm) one update moves a voxel at the finest level; each coarser level's
+    /// step is as much larger as its voxels. In mm, not voxels, because the knee pairs at 1 and 2
+    /// mm both want about 2 mm (measured on three levels, `--dense`): a voxel's step at 1 mm left
+    /// the volume-keeping pairs far behind (45° 2.26 against 1.44 mm, 90° 5.14 against 4.49), two
+    /// voxels at 2 mm overshot (45° 1.98 against 2.51; BENCHMARKS.md, thirty-third session).
     pub step_mm: f64,
     /// The velocity is zero on the bones and on the voxels touching them and rises to its whole
     /// this far (mm) beyond; 0 leaves it on the bones too.
@@ -70,19 +71,18 @@ pub struct DenseOptions {
     /// 3.19 / 6.74 → 1.24 / 2.43 / 5.16 mm, polyrigid truths (which squeeze the tissue behind
     /// the knee) 0.40 / 0.77 / 1.66 → 0.38 / 0.93 / 2.02 mm, the half phantom at 30° 0.61 →
     /// 0.58 mm; 0.5 and 1 gain more on the first and lose more on the others (BENCHMARKS.md,
-    /// thirty-second session). 0 leaves it out.
+    /// thirty-second session; on three levels, `--dense`). 0 leaves it out.
     pub volume_weight: f64,
-    /// Each update is this share of the previous update plus the rest of this iteration's
-    /// smoothed force (an exponential average of the updates before their scaling to the step;
-    /// 0 takes the force alone), per level. With the step normalised to `step_mm`, the force
-    /// alone flips at the voxels it moves furthest, so that the cost goes up and down every
-    /// other iteration and a level stalls; averaging cancels the flip and keeps the steady
-    /// part. `0.5x0.5x0.25` against none (both with `min_gain` 0.003), soft-tissue error on
-    /// the 2 mm knee pairs bent 20° / 45° / 90°: volume-keeping 1.24 / 2.43 / 5.16 → 1.32 /
-    /// 1.98 / 4.46 mm, polyrigid 0.38 / 0.93 / 2.02 → 0.40 / 0.88 / 1.95; 0.5 on the finest
-    /// level too gains more on the first (4.47 mm at 90°, 1.82 at 45°) and fits the 20°
-    /// polyrigid pair's noise (0.50 mm, worse than no refinement; BENCHMARKS.md,
-    /// thirty-third session).
+    /// Each update is this share of the previous update plus the rest of this iteration's smoothed
+    /// force (an exponential average of the updates before their scaling to the step; 0 takes the
+    /// force alone), per level. With the step normalised to `step_mm`, the force alone flips at the
+    /// voxels it moves furthest, so that the cost goes up and down every other iteration and a
+    /// level stalls; averaging cancels the flip and keeps the steady part. On three levels
+    /// (`--dense`), `0.5x0.5x0.25` against none (both with `min_gain` 0.003), soft-tissue error on
+    /// the 2 mm knee pairs bent 20° / 45° / 90°: volume-keeping 1.24 / 2.43 / 5.16 → 1.32 / 1.98 /
+    /// 4.46 mm, polyrigid 0.38 / 0.93 / 2.02 → 0.40 / 0.88 / 1.95; 0.5 on the finest level too
+    /// gains more on the first (4.47 mm at 90°, 1.82 at 45°) and fits the 20° polyrigid pair's
+    /// noise (0.50 mm, worse than no refinement; BENCHMARKS.md, thirty-third session).
     pub momentum: PerLevel<f64>,
     /// A level keeps an iteration's velocity only when its cost is more than this fraction
     /// below the best so far, and stops after five iterations without one: smaller gains
@@ -111,12 +111,12 @@ impl Default for DenseOptions {
 }
 
 impl DenseOptions {
-    /// The stage on the three finest levels (`--dense`, real-scans.toml), its finest level
-    /// set as the default's: more iterations, wider fluid smoothing and more momentum at the
-    /// coarse levels, where the tissue has furthest to go. Three levels, 3x3x2 fluid
-    /// smoothing and a whole 2 mm voxel's step lowered soft-tissue error on five of the six
-    /// 2 mm pairs by 0.0-1.9 mm and raised it on one by 0.03 mm (BENCHMARKS.md,
-    /// twenty-seventh session).
+    /// The stage on the three finest levels (`--dense`, real-scans.toml), replacing `levels`,
+    /// `iterations`, `fluid_sigma` and `momentum` (the finest level's values are the defaults'; the
+    /// other settings are kept): more iterations, wider fluid smoothing and more momentum at the
+    /// coarse levels, where the tissue has furthest to go. Three levels, 3x3x2 fluid smoothing and
+    /// a whole 2 mm voxel's step lowered soft-tissue error on five of the six 2 mm pairs by 0.0-1.9
+    /// mm and raised it on one by 0.03 mm (BENCHMARKS.md, twenty-seventh session).
     pub fn on_three_levels(self) -> Self {
         let coarse_to_fine = |v: Vec<f64>| PerLevel::coarse_to_fine(v).expect("three values");
         DenseOptions {
