@@ -404,8 +404,8 @@ fn paper_experiment_one_on_the_gpu() {
 /// (the RBF kernels), and a few f32 kernels whose arithmetic is only multiplies and adds
 /// still differ in the last bit (jacobian, compose, rigid_gn, the dual-quaternion blend: most
 /// likely multiply-adds fused by the driver). Measured here on lavapipe with the defaults (the
-/// dense refinement on the finest level included; 2026-12-07): fields 0.022 and 0.029 mm
-/// apart; 359 / 359 and 398 / 397 points; errors 0.541 / 0.542 and 0.869 / 0.866 mm.
+/// dense refinement on the finest level included; 2026-12-07): fields 0.022 and 0.028 mm
+/// apart; 359 / 359 and 398 / 397 points; errors 0.533 / 0.535 and 0.866 / 0.865 mm.
 /// Both backends give the same bits run to run on one driver, so a run that passes on
 /// lavapipe passes there again; another driver may round differently.
 ///
