@@ -250,6 +250,7 @@ fn demo_bend_and_init_run_end_to_end_on_a_small_phantom() {
         "initialisation [1/",
         "adaptive RBF [1/",
         "adaptive RBF: done in",
+        "dense refinement, level 1 [1/",
     ] {
         assert!(stderr.contains(stage), "no '{stage}' in stderr: {stderr}");
     }
@@ -477,6 +478,36 @@ fn register_refuses_each_bad_input_naming_the_file() {
             !out.exists(),
             "no output folder after a failure on {culprit}"
         );
+    }
+}
+
+/// `--dense` and `--no-dense` mean the same for `demo` (and `series`, which shares the flags)
+/// as for `register`: report.json says which stage ran on how many levels.
+#[test]
+fn demo_takes_the_dense_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    for (flag, levels) in [("--no-dense", None), ("--dense", Some(3))] {
+        let demo = dir.path().join(flag);
+        let args = [
+            "demo",
+            "--size",
+            "quarter",
+            flag,
+            "-o",
+            s(&demo),
+            "--device",
+            "cpu",
+        ];
+        let out = posereg(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let report = std::fs::read_to_string(demo.join("report.json")).unwrap();
+        let report: serde_json::Value = serde_json::from_str(&report).unwrap();
+        let ran = report["dense"]["levels"].as_array().map(|l| l.len());
+        assert_eq!(ran, levels, "{flag}: {}", report["dense"]);
     }
 }
 

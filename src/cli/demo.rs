@@ -2,7 +2,7 @@
 //! registered (articulated initialisation, adaptive cubic-RBF, dense refinement), with its
 //! figures against the known truth.
 
-use super::register::settings_file;
+use super::settings::SettingsArgs;
 use clap::Args;
 use posereg::device::DeviceWanted;
 use posereg::jobs::demo::{run_demo, DemoPair};
@@ -25,14 +25,14 @@ pub struct DemoArgs {
     /// Skip the articulated initialisation (the paper's first experiment, small bends).
     #[arg(long)]
     pub no_init: bool,
-    /// Registration settings file (.toml or .json), as for `posereg register`.
-    #[arg(long)]
-    pub config: Option<PathBuf>,
+    /// --config, --dense, --no-dense, as for `posereg register`.
+    #[command(flatten)]
+    pub settings: SettingsArgs,
 }
 
 /// Makes the pair, registers it, prints the figures and where the outputs are.
 pub fn run(args: &DemoArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
-    let mut options = settings_file(args.config.as_deref())?;
+    let mut options = args.settings.options()?;
     options.initialise &= !args.no_init;
     let demo = DemoPair {
         size: args.size,

@@ -14,6 +14,7 @@ pub mod pose;
 pub mod register;
 pub mod resample;
 pub mod series;
+pub mod settings;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use posereg::abi::Blending;

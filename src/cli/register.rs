@@ -3,16 +3,17 @@
 //! bones/*.tfm, jacobian.nii.gz, report.json and quicklook.png.
 
 use super::init::{with_label_map, PairArgs};
+use super::settings::SettingsArgs;
 use super::BlendingFlag;
 use clap::Args;
 use posereg::device::DeviceWanted;
 use posereg::images::similarity::Similarity;
-use posereg::io::config::{load_options, options_toml};
+use posereg::io::config::options_toml;
 use posereg::jobs::register::{register_files, RegisterFiles, StartOf};
 use posereg::jobs::reporter::Reporter;
 use posereg::levels::PerLevel;
 use posereg::pipeline::register::RegisterOptions;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Arguments of `posereg register`.
 #[derive(Args, Debug)]
@@ -21,23 +22,12 @@ pub struct RegisterArgs {
     /// The inputs and the output folder.
     #[command(flatten)]
     pub pair: PairArgs,
-    /// Settings file (.toml or .json) holding any of the settings listed below; flags given
-    /// here override it.
-    #[arg(long)]
-    pub config: Option<PathBuf>,
+    /// --config, --dense, --no-dense.
+    #[command(flatten)]
+    pub settings: SettingsArgs,
     /// Skip the articulated initialisation (the paper's first experiment: small bends only).
     #[arg(long)]
     pub no_init: bool,
-    /// Run the dense refinement on three pyramid levels instead of the target's grid alone:
-    /// sets dense.enabled and replaces the settings file's dense levels, iterations,
-    /// fluid_sigma and momentum with real-scans.toml's (3, 100x60x30, 3x3x2, 0.5x0.5x0.25).
-    /// Soft tissue is carried further on large bends in about the same time (the finest level
-    /// then stops sooner), but on smooth, featureless tissue the coarse levels follow noise.
-    #[arg(long, conflicts_with = "no_dense")]
-    pub dense: bool,
-    /// Skip the dense refinement (dense.enabled = false), whatever the settings file says.
-    #[arg(long)]
-    pub no_dense: bool,
     /// Bone labels to use, e.g. 2,3,4 (default: every bone label present).
     #[arg(long, value_delimiter = ',')]
     pub bones: Option<Vec<u16>>,
@@ -84,20 +74,7 @@ fn settings_help() -> String {
 impl RegisterArgs {
     /// Defaults, overridden by the config file, overridden by the flags.
     pub fn options(&self) -> anyhow::Result<RegisterOptions> {
-        let mut options = settings_file(self.config.as_deref())?;
-        if self.no_init {
-            options.initialise = false;
-        }
-        if self.dense {
-            options.dense = options.dense.on_three_levels();
-            // The file's other per-level dense settings must now fit three levels.
-            if let Err(e) = options.dense.check() {
-                anyhow::bail!("--dense runs the refinement on three levels: {e}");
-            }
-        }
-        if self.no_dense {
-            options.dense.enabled = false;
-        }
+        let mut options = self.settings.options()?;
         if let Some(bones) = &self.bones {
             options.init.bones = bones.clone();
         }
@@ -118,14 +95,6 @@ impl RegisterArgs {
         }
         with_label_map(options, &self.pair.label_map)
     }
-}
-
-/// The settings `config` holds, or the defaults without one.
-pub fn settings_file(config: Option<&Path>) -> anyhow::Result<RegisterOptions> {
-    Ok(match config {
-        Some(path) => load_options(path)?,
-        None => RegisterOptions::default(),
-    })
 }
 
 /// Runs the registration and writes its outputs.

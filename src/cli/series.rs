@@ -3,7 +3,7 @@
 //! (posereg::jobs::series says how); a series stopped part way resumes when run again.
 
 use super::init::with_label_map;
-use super::register::settings_file;
+use super::settings::SettingsArgs;
 use clap::Args;
 use posereg::device::DeviceWanted;
 use posereg::jobs::reporter::Reporter;
@@ -26,9 +26,9 @@ pub struct SeriesArgs {
     /// Output folder: one folder per pose and series.csv.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Settings file, as `register` takes.
-    #[arg(long)]
-    pub config: Option<PathBuf>,
+    /// --config, --dense, --no-dense, as `register` takes.
+    #[command(flatten)]
+    pub settings: SettingsArgs,
     /// The codes of the bones in your label map, as `register` takes.
     #[arg(long, value_delimiter = ',', value_parser = super::init::bone_code)]
     pub label_map: Option<Vec<(String, u16)>>,
@@ -44,7 +44,7 @@ pub struct SeriesArgs {
 
 /// Registers every pose not yet finished in order and writes series.csv (posereg::jobs::series).
 pub fn run(args: &SeriesArgs, device: &DeviceWanted, reporter: &Reporter) -> anyhow::Result<()> {
-    let options = with_label_map(settings_file(args.config.as_deref())?, &args.label_map)?;
+    let options = with_label_map(args.settings.options()?, &args.label_map)?;
     let files = SeriesFiles {
         source: args.source.clone(),
         labels: args.source_labels.clone(),
