@@ -75,6 +75,9 @@ impl RegisterArgs {
     /// Defaults, overridden by the config file, overridden by the flags.
     pub fn options(&self) -> anyhow::Result<RegisterOptions> {
         let mut options = self.settings.options()?;
+        if self.no_init {
+            options.initialise = false;
+        }
         if let Some(bones) = &self.bones {
             options.init.bones = bones.clone();
         }
@@ -118,4 +121,38 @@ pub fn run(args: &RegisterArgs, device: &DeviceWanted, reporter: &Reporter) -> a
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::cli::{Cli, Command};
+    use clap::Parser;
+
+    /// `posereg register` with the four path arguments and `flags`, parsed into its options.
+    fn options_with(flags: &[&str]) -> posereg::pipeline::register::RegisterOptions {
+        let paths = [
+            "--source",
+            "s",
+            "--source-labels",
+            "l",
+            "--target",
+            "t",
+            "-o",
+            "o",
+        ];
+        let line = [&["posereg", "register"][..], &paths, flags].concat();
+        match Cli::try_parse_from(line).unwrap().command {
+            Command::Register(args) => args.options().unwrap(),
+            other => panic!("parsed as {other:?}"),
+        }
+    }
+
+    #[test]
+    fn each_flag_reaches_the_options() {
+        let defaults = options_with(&[]);
+        assert!(defaults.initialise && defaults.dense.enabled && defaults.dense.levels == 1);
+        assert!(!options_with(&["--no-init"]).initialise);
+        assert!(!options_with(&["--no-dense"]).dense.enabled);
+        assert_eq!(options_with(&["--dense"]).dense.levels, 3);
+    }
 }
