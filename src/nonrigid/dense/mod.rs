@@ -202,7 +202,7 @@ impl<B: Backend> Level<B> {
                 let map = nearest_onto(backend, map, grid)?;
                 let rings = usize::from(finest);
                 Some((
-                    distance_beyond_the_bones(backend, grid, &map, rings)?,
+                    distance_beyond_the_bones(backend, grid, map, rings)?,
                     margin_mm,
                 ))
             }
@@ -441,14 +441,15 @@ fn exponential<B: Backend>(
 fn distance_beyond_the_bones<B: Backend>(
     backend: &B,
     grid: &Grid,
-    bones: &B::Buffer<f32>,
+    bones: B::Buffer<f32>,
     rings: usize,
 ) -> Result<B::Buffer<f32>> {
-    let mut grown = bones.clone();
+    let mut grown = bones;
     if rings > 0 {
         for mut pass in DilateParams::passes(grid, rings) {
+            // Nothing is cleared, so the held voxels (the third argument) are not read.
             pass.clear_held = 0;
-            grown = backend.dilate(&pass, &grown, bones)?;
+            grown = backend.dilate(&pass, &grown, &grown)?;
         }
     }
     let grown = DeviceImage {
