@@ -482,22 +482,24 @@ fn register_refuses_each_bad_input_naming_the_file() {
 }
 
 /// `--dense` and `--no-dense` mean the same for `demo` (and `series`, which shares the flags)
-/// as for `register`: report.json says which stage ran on how many levels.
+/// as for `register`: report.json says which stage ran on how many levels. `--dense` over a
+/// settings file that turns the stage off runs it on the file's levels.
 #[test]
 fn demo_takes_the_dense_flags() {
     let dir = tempfile::tempdir().unwrap();
-    for (flag, levels) in [("--no-dense", None), ("--dense", Some(3))] {
+    let off = dir.path().join("off.toml");
+    let settings = "[dense]\nenabled = false\nlevels = 1\niterations = 3\nfluid_sigma = 2.0\nmomentum = 0.25\n";
+    std::fs::write(&off, settings).unwrap();
+    let off = s(&off);
+    let cases: [(&[&str], _); 2] = [
+        (&["--no-dense"], None),
+        (&["--config", off, "--dense"], Some(1)),
+    ];
+    for (flags, levels) in cases {
+        let flag = flags[flags.len() - 1];
         let demo = dir.path().join(flag);
-        let args = [
-            "demo",
-            "--size",
-            "quarter",
-            flag,
-            "-o",
-            s(&demo),
-            "--device",
-            "cpu",
-        ];
+        let to = ["-o", s(&demo), "--device", "cpu"];
+        let args = [&["demo", "--size", "quarter"][..], flags, &to].concat();
         let out = posereg(&args);
         assert!(
             out.status.success(),
@@ -509,43 +511,6 @@ fn demo_takes_the_dense_flags() {
         let ran = report["dense"]["levels"].as_array().map(|l| l.len());
         assert_eq!(ran, levels, "{flag}: {}", report["dense"]);
     }
-}
-
-/// `--dense` sets three levels over a settings file whose dense settings are for two: refused
-/// before any input is read, naming the flag.
-#[test]
-fn dense_refuses_a_file_set_for_another_number_of_levels() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = |name: &str| dir.path().join(name);
-    let two_levels = path("two_levels.toml");
-    let settings = "[dense]\nlevels = 2\nelastic_sigma = \"1x0.75\"\n";
-    std::fs::write(&two_levels, settings).unwrap();
-    let (scan, labels, out) = (path("scan.nii.gz"), path("labels.nii.gz"), path("out"));
-    let args = [
-        "register",
-        "--source",
-        s(&scan),
-        "--source-labels",
-        s(&labels),
-        "--target",
-        s(&scan),
-        "--config",
-        s(&two_levels),
-        "--dense",
-        "-o",
-        s(&out),
-    ];
-    assert_fails_naming(&posereg(&args), "--dense");
-    assert!(!out.exists(), "no output folder after refusing --dense");
-    // The same file without --dense is a valid two-level refinement (no error about it).
-    let without = posereg(
-        &args
-            .iter()
-            .filter(|&&a| a != "--dense")
-            .copied()
-            .collect::<Vec<_>>(),
-    );
-    assert_fails_naming(&without, "scan.nii.gz");
 }
 
 #[test]

@@ -151,8 +151,8 @@ def register(
 ) -> Registration:
     """Registers ``source`` (the scan with bone labels ``source_labels``, on its grid) onto
     ``target``: per-bone rigid registration, the bones' motions blended across the soft tissue,
-    then the adaptive non-rigid stage and the dense refinement (``dense={"enabled": False}``
-    skips it, ``dense={"levels": 3, ...}`` as in real-scans.toml runs it on three levels).
+    then the adaptive non-rigid stage and the dense refinement (three levels by default;
+    ``dense={"enabled": False}`` skips it).
 
     Each image is a SimpleITK image, a nibabel image, or a 3-D array with voxel axes (x, y, z)
     whose voxel → world RAS affine is given (``source_affine``, also used for the labels, and

@@ -150,9 +150,16 @@ mod tests {
     #[test]
     fn each_flag_reaches_the_options() {
         let defaults = options_with(&[]);
-        assert!(defaults.initialise && defaults.dense.enabled && defaults.dense.levels == 1);
+        assert!(defaults.initialise && defaults.dense.enabled && defaults.dense.levels == 3);
         assert!(!options_with(&["--no-init"]).initialise);
         assert!(!options_with(&["--no-dense"]).dense.enabled);
-        assert_eq!(options_with(&["--dense"]).dense.levels, 3);
+        // --dense over a settings file that turns the stage off.
+        let dir = tempfile::tempdir().unwrap();
+        let off = dir.path().join("off.toml");
+        std::fs::write(&off, "[dense]\nenabled = false\nstep_mm = 1.5\n").unwrap();
+        let off = off.to_str().unwrap();
+        assert!(!options_with(&["--config", off]).dense.enabled);
+        let on = options_with(&["--config", off, "--dense"]).dense;
+        assert!(on.enabled && on.step_mm == 1.5, "{on:?}");
     }
 }

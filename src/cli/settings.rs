@@ -13,11 +13,8 @@ pub struct SettingsArgs {
     /// lists; flags given here override it.
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Run the dense refinement on three pyramid levels instead of the target's grid alone:
-    /// sets dense.enabled and replaces the settings file's dense levels, iterations,
-    /// fluid_sigma and momentum with real-scans.toml's (3, 100x60x30, 3x3x2, 0.5x0.5x0.25).
-    /// Soft tissue is carried further on large bends in about the same time (the finest level
-    /// then stops sooner), but on smooth, featureless tissue the coarse levels follow noise.
+    /// Run the dense refinement (dense.enabled = true), whatever the settings file says; on
+    /// by default.
     #[arg(long, conflicts_with = "no_dense")]
     pub dense: bool,
     /// Skip the dense refinement (dense.enabled = false), whatever the settings file says.
@@ -30,11 +27,7 @@ impl SettingsArgs {
     pub fn options(&self) -> anyhow::Result<RegisterOptions> {
         let mut options = settings_file(self.config.as_deref())?;
         if self.dense {
-            options.dense = options.dense.on_three_levels();
-            // The file's other per-level dense settings must now fit three levels.
-            if let Err(e) = options.dense.check() {
-                anyhow::bail!("--dense runs the refinement on three levels: {e}");
-            }
+            options.dense.enabled = true;
         }
         if self.no_dense {
             options.dense.enabled = false;

@@ -3,7 +3,7 @@
 
 use crate::abi::dense::MAX_GAUSS_SIGMA;
 use crate::check::{check_ranges, Range};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::images::similarity::Similarity;
 use crate::levels::PerLevel;
 
@@ -11,16 +11,14 @@ use crate::levels::PerLevel;
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DenseOptions {
-    /// Run the stage (`--no-dense` skips it). On by default, on the target's own grid only:
-    /// there it lowered soft-tissue error on all twelve knee pairs of make_pair.py and on the
-    /// demo's phantom (BENCHMARKS.md, thirty-fifth session).
+    /// Run the stage (`--no-dense` skips it, `--dense` runs it whatever a settings file says).
     pub enabled: bool,
     /// Pyramid levels of the target it runs on, counted from the finest: 1 the target's own
-    /// grid only (the default), 2 a level at half the resolution first, and so on. The
-    /// coarser levels carry the tissue further (`--dense`, real-scans.toml: three levels, see
-    /// `on_three_levels`), which the large bends whose truth keeps tissue volume need, but on
-    /// the phantom's smooth soft tissue their 4 and 8 mm steps follow noise (half size, 60°:
-    /// 0.81 mm without the stage, 0.76 with the finest level, 1.64 with three).
+    /// grid only, 2 a level at half the resolution first, and so on. Three by default: the
+    /// coarse levels carry the tissue further, which the large bends whose truth keeps tissue
+    /// volume need (2 mm 90°: 9.38 mm on the finest level alone, 5.55 on three), and where
+    /// the image does not follow them (the phantom's smooth tissue) they keep their start
+    /// (half phantom at 60°: 0.76 mm either way; BENCHMARKS.md, thirty-sixth session).
     pub levels: usize,
     /// Iterations per level, coarse to fine.
     pub iterations: PerLevel<usize>,
@@ -35,7 +33,7 @@ pub struct DenseOptions {
     pub elastic_sigma: PerLevel<f64>,
     /// The largest distance (mm) one update moves a voxel at the finest level; each coarser level's
     /// step is as much larger as its voxels. In mm, not voxels, because the knee pairs at 1 and 2
-    /// mm both want about 2 mm (measured on three levels, `--dense`): a voxel's step at 1 mm left
+    /// mm both want about 2 mm (measured on three levels): a voxel's step at 1 mm left
     /// the volume-keeping pairs far behind (45° 2.26 against 1.44 mm, 90° 5.14 against 4.49), two
     /// voxels at 2 mm overshot (45° 1.98 against 2.51; BENCHMARKS.md, thirty-third session).
     pub step_mm: f64,
@@ -43,27 +41,30 @@ pub struct DenseOptions {
     /// this far (mm) beyond; 0 leaves it on the bones too.
     pub bone_margin_mm: f64,
     /// Weight of the volume term, (log det J)² of the whole map per voxel, beside the image
-    /// term: real soft tissue keeps its volume, and the image alone does not say where tissue
-    /// squeezed by the blend behind a bent knee went. 0.3 against none, soft-tissue error on
+    /// term, per level: real soft tissue keeps its volume, and the image alone does not say
+    /// where tissue squeezed by the blend behind a bent knee went. It steers the steps; what a
+    /// level keeps is decided by the image term alone. 0.3 against none, soft-tissue error on
     /// the 2 mm knee pairs bent 20° / 45° / 90° by make_pair.py: volume-keeping truths 1.44 /
     /// 3.19 / 6.74 → 1.24 / 2.43 / 5.16 mm, polyrigid truths (which squeeze the tissue behind
     /// the knee) 0.40 / 0.77 / 1.66 → 0.38 / 0.93 / 2.02 mm, the half phantom at 30° 0.61 →
     /// 0.58 mm; 0.5 and 1 gain more on the first and lose more on the others (BENCHMARKS.md,
-    /// thirty-second session; on three levels, `--dense`). 0 leaves it out.
-    pub volume_weight: f64,
+    /// thirty-second session). The coarse levels' weight is what carries the 90° volume-keeping
+    /// pair: 0x0x0.3 6.73 mm, 0.3x0.3x0 5.49, 0.3 at every level 5.55 (thirty-sixth session).
+    /// 0 leaves it out.
+    pub volume_weight: PerLevel<f64>,
     /// Each update is this share of the previous update plus the rest of this iteration's smoothed
     /// force (an exponential average of the updates before their scaling to the step; 0 takes the
     /// force alone), per level. With the step normalised to `step_mm`, the force alone flips at the
     /// voxels it moves furthest, so that the cost goes up and down every other iteration and a
-    /// level stalls; averaging cancels the flip and keeps the steady part. On three levels
-    /// (`--dense`), `0.5x0.5x0.25` against none (both with `min_gain` 0.003), soft-tissue error on
+    /// level stalls; averaging cancels the flip and keeps the steady part. On three levels,
+    /// `0.5x0.5x0.25` against none (both with `min_gain` 0.003), soft-tissue error on
     /// the 2 mm knee pairs bent 20° / 45° / 90°: volume-keeping 1.24 / 2.43 / 5.16 → 1.32 / 1.98 /
     /// 4.46 mm, polyrigid 0.38 / 0.93 / 2.02 → 0.40 / 0.88 / 1.95; 0.5 on the finest level too
     /// gains more on the first (4.47 mm at 90°, 1.82 at 45°) and fits the 20° polyrigid pair's
     /// noise (0.50 mm, worse than no refinement; BENCHMARKS.md, thirty-third session).
     pub momentum: PerLevel<f64>,
-    /// A level keeps an iteration's velocity only when its cost is more than this fraction
-    /// below the best so far, and stops after five iterations without one: smaller gains
+    /// A level keeps an iteration's velocity only when its image term's cost is more than this
+    /// fraction below the best so far, and stops after five iterations without one: smaller gains
     /// fit the scan's noise more than its anatomy, and stopping on them is where two
     /// backends' last-bit differences part ways.
     pub min_gain: f64,
@@ -73,39 +74,24 @@ impl Default for DenseOptions {
     fn default() -> Self {
         DenseOptions {
             enabled: true,
-            levels: 1,
-            iterations: PerLevel::all(30),
+            levels: 3,
+            iterations: coarse_to_fine(vec![100, 60, 30]),
             similarity: PerLevel::all(Similarity::Lncc),
             lncc_radius: PerLevel::all(2),
-            fluid_sigma: PerLevel::all(2.0),
+            fluid_sigma: coarse_to_fine(vec![3.0, 3.0, 2.0]),
             elastic_sigma: PerLevel::all(0.75),
             step_mm: 2.0,
             bone_margin_mm: 4.0,
-            volume_weight: 0.3,
-            momentum: PerLevel::all(0.25),
+            volume_weight: PerLevel::all(0.3),
+            momentum: coarse_to_fine(vec![0.5, 0.5, 0.25]),
             min_gain: 0.003,
         }
     }
 }
 
-impl DenseOptions {
-    /// The stage on the three finest levels (`--dense`, real-scans.toml), replacing `levels`,
-    /// `iterations`, `fluid_sigma` and `momentum` (the finest level's values are the defaults'; the
-    /// other settings are kept): more iterations, wider fluid smoothing and more momentum at the
-    /// coarse levels, where the tissue has furthest to go. Three levels, 3x3x2 fluid smoothing and
-    /// a whole 2 mm voxel's step lowered soft-tissue error on five of the six 2 mm pairs by 0.0-1.9
-    /// mm and raised it on one by 0.03 mm (BENCHMARKS.md, twenty-seventh session).
-    pub fn on_three_levels(self) -> Self {
-        let coarse_to_fine = |v: Vec<f64>| PerLevel::coarse_to_fine(v).expect("three values");
-        DenseOptions {
-            enabled: true,
-            levels: 3,
-            iterations: PerLevel::coarse_to_fine(vec![100, 60, 30]).expect("three values"),
-            fluid_sigma: coarse_to_fine(vec![3.0, 3.0, 2.0]),
-            momentum: coarse_to_fine(vec![0.5, 0.5, 0.25]),
-            ..self
-        }
-    }
+/// Per-level values, coarse to fine (at least one).
+fn coarse_to_fine<T: Copy>(values: Vec<T>) -> PerLevel<T> {
+    PerLevel::coarse_to_fine(values).expect("values are given")
 }
 
 /// Most levels the stage runs on.
@@ -140,18 +126,33 @@ impl DenseOptions {
             r("elastic_sigma", self.elastic_sigma.values().to_vec(), (0.0, MAX_GAUSS_SIGMA), voxels),
             r("step_mm", one(self.step_mm), (0.01, MAX_STEP_MM), " (mm)"),
             r("bone_margin_mm", one(self.bone_margin_mm), (0.0, MAX_BONE_MARGIN_MM), " (mm)"),
-            r("volume_weight", one(self.volume_weight), (0.0, MAX_VOLUME_WEIGHT), ""),
+            r("volume_weight", self.volume_weight.values().to_vec(), (0.0, MAX_VOLUME_WEIGHT), ""),
             r("momentum", self.momentum.values().to_vec(), (0.0, MAX_MOMENTUM), ""),
             r("min_gain", one(self.min_gain), (0.0, MAX_MIN_GAIN), ""),
         ];
         check_ranges("dense", &table)?;
-        self.iterations.check("dense.iterations", self.levels)?;
-        self.similarity.check("dense.similarity", self.levels)?;
-        self.lncc_radius.check("dense.lncc_radius", self.levels)?;
-        self.fluid_sigma.check("dense.fluid_sigma", self.levels)?;
-        self.elastic_sigma
-            .check("dense.elastic_sigma", self.levels)?;
-        self.momentum.check("dense.momentum", self.levels)
+        let n = self.levels;
+        // Every setting whose value count does not fit the levels, in one message: the
+        // defaults give three values to several of them, so a file that changes `levels`
+        // alone has more than one to set.
+        let counts = [
+            self.iterations.check("dense.iterations", n),
+            self.similarity.check("dense.similarity", n),
+            self.lncc_radius.check("dense.lncc_radius", n),
+            self.fluid_sigma.check("dense.fluid_sigma", n),
+            self.elastic_sigma.check("dense.elastic_sigma", n),
+            self.momentum.check("dense.momentum", n),
+            self.volume_weight.check("dense.volume_weight", n),
+        ];
+        let wrong: Vec<String> = counts
+            .into_iter()
+            .filter_map(|c| c.err().map(|e| e.to_string()))
+            .collect();
+        if wrong.is_empty() {
+            Ok(())
+        } else {
+            Err(Error::InvalidInput(wrong.join("; ")))
+        }
     }
 }
 
@@ -162,8 +163,6 @@ mod tests {
     #[test]
     fn the_defaults_pass_their_own_checks_and_bad_values_are_named() {
         assert!(DenseOptions::default().check().is_ok());
-        let three = DenseOptions::default().on_three_levels();
-        assert!(three.check().is_ok());
         let bad = DenseOptions {
             step_mm: 0.0,
             ..Default::default()
@@ -191,12 +190,21 @@ mod tests {
         };
         let err = bad.check().unwrap_err().to_string();
         assert!(err.contains("dense.min_gain"), "{err}");
-        // Three values per level where two levels run.
-        let bad = DenseOptions { levels: 2, ..three };
+        // Three values per level where two levels run: each such setting named at once.
+        let bad = DenseOptions {
+            levels: 2,
+            ..Default::default()
+        };
         let err = bad.check().unwrap_err().to_string();
-        assert!(
-            err.contains("dense.iterations") && err.contains("2 pyramid levels"),
-            "{err}"
-        );
+        for name in ["iterations", "fluid_sigma", "momentum"] {
+            assert!(err.contains(&format!("dense.{name} has 3 values")), "{err}");
+        }
+        assert!(err.contains("2 pyramid levels"), "{err}");
+        let bad = DenseOptions {
+            volume_weight: "0x0.3".parse().unwrap(),
+            ..Default::default()
+        };
+        let err = bad.check().unwrap_err().to_string();
+        assert!(err.contains("dense.volume_weight"), "{err}");
     }
 }
