@@ -49,13 +49,17 @@ impl<T: Copy> PerLevel<T> {
         T: fmt::Display,
     {
         if self.0.len() == 1 || self.0.len() == levels {
-            Ok(())
-        } else {
-            Err(Error::InvalidInput(format!(
-                "{name} has {} values ({self}) for {levels} pyramid levels: give one value or {levels}",
-                self.0.len()
-            )))
+            return Ok(());
         }
+        let wanted = match levels {
+            1 => "one value".to_string(),
+            n => format!("one value or {n}"),
+        };
+        let plural = if levels == 1 { "" } else { "s" };
+        Err(Error::InvalidInput(format!(
+            "{name} has {} values ({self}) for {levels} pyramid level{plural}: give {wanted}",
+            self.0.len()
+        )))
     }
 }
 

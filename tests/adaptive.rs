@@ -229,7 +229,7 @@ fn local_correlation_registers_across_a_contrast_change_on_both_backends() {
     );
 }
 
-/// 60° with the articulated initialisation, on the CPU: issue 5's bound (≤ 1.5 mm; 0.87 mm
+/// 60° with the articulated initialisation, on the CPU: issue 5's bound (≤ 1.5 mm; 0.89 mm
 /// measured at this size with the defaults, the dense refinement included, 0.90 without it;
 /// 2026-12-07), and the adaptive stage must improve on the
 /// initial field it starts from (1.70 mm here) — before the membrane energy it made it worse at
@@ -342,7 +342,7 @@ fn interior_voxels(labels: &Labels, code: u16) -> Vec<usize> {
 /// 90° with the articulated initialisation, on the CPU: the warp composed with the initial
 /// field, which is sharply compressed behind the knee, folds it there (144 voxels with
 /// det J ≤ 0.05 measured, 2026-12-07); the unfolding lifts them but for a voxel or two pinned
-/// between bones, without costing accuracy (1.58 mm with the defaults).
+/// between bones, without costing accuracy (1.59 mm with the defaults).
 #[test]
 fn ninety_degrees_leaves_the_field_all_but_unfolded() {
     let Scored {
@@ -404,8 +404,8 @@ fn paper_experiment_one_on_the_gpu() {
 /// (the RBF kernels), and a few f32 kernels whose arithmetic is only multiplies and adds
 /// still differ in the last bit (jacobian, compose, rigid_gn, the dual-quaternion blend: most
 /// likely multiply-adds fused by the driver). Measured here on lavapipe with the defaults (the
-/// dense refinement on the finest level included; 2026-12-07): fields 0.022 and 0.028 mm
-/// apart; 359 / 359 and 398 / 397 points; errors 0.533 / 0.535 and 0.866 / 0.865 mm.
+/// dense refinement on three levels included; 2026-12-07): fields 0.028 and 0.026 mm apart;
+/// 359 / 359 and 398 / 397 points; errors 0.543 / 0.550 and 0.893 / 0.892 mm.
 /// Both backends give the same bits run to run on one driver, so a run that passes on
 /// lavapipe passes there again; another driver may round differently.
 ///

@@ -513,6 +513,40 @@ fn demo_takes_the_dense_flags() {
     }
 }
 
+/// A settings file that changes the dense levels alone is refused before any input is read:
+/// one error naming the file and each per-level setting whose default values are for three
+/// levels, and no output folder.
+#[test]
+fn a_file_that_changes_the_dense_levels_alone_is_refused_naming_each_setting() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name);
+    let one_level = path("one_level.toml");
+    std::fs::write(&one_level, "[dense]\nlevels = 1\n").unwrap();
+    let (scan, out) = (path("missing.nii.gz"), path("out"));
+    let args = [
+        "register",
+        "--source",
+        s(&scan),
+        "--source-labels",
+        s(&scan),
+        "--target",
+        s(&scan),
+        "--config",
+        s(&one_level),
+        "-o",
+        s(&out),
+    ];
+    let refused = posereg(&args);
+    assert_fails_naming(&refused, "one_level.toml");
+    for name in ["dense.iterations", "dense.fluid_sigma", "dense.momentum"] {
+        assert_fails_naming(&refused, name);
+    }
+    assert!(
+        !out.exists(),
+        "no output folder after a refused settings file"
+    );
+}
+
 #[test]
 fn apply_apply_points_and_eval_use_a_registration_folder() {
     // A "registration" whose field is a phantom's exact truth, so every answer is known.

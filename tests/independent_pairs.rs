@@ -297,7 +297,7 @@ fn the_real_knee_bent_20_degrees_independently_meets_the_bar_on_both_backends() 
         );
         on_cpu = on_cpu.or((device == "cpu").then_some(score));
     }
-    // The dense refinement (on by default, the finest level) against none on the same pair
+    // The dense refinement (on by default, three levels) against none on the same pair
     // (CPU): soft tissue closer, the bones' motions exactly as without it, still no fold.
     let dense = on_cpu.expect("the CPU registered");
     let plain = register_and_score_with(&pair, &dir.path().join("plain"), "cpu", &["--no-dense"]);

@@ -27,7 +27,7 @@ fn registered(inputs: Inputs, options: &RegisterOptions) -> Registration {
 }
 
 /// Quarter phantom (5 mm voxels), 0° → 60° → 120° against 0° → 120°: mean field error over
-/// the target's body (measured: 2.16 against 3.13 mm with the defaults, 2026-12-07; 2.13 against
+/// the target's body (measured: 2.05 against 3.13 mm with the defaults, 2026-12-07; 2.13 against
 /// 3.34 mm without the dense refinement; 2.16 against 6.00 mm before the blend's
 /// fold smoothing stopped where it stalls, which had smoothed the straight 120° field for 30
 /// rounds).

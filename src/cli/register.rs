@@ -66,7 +66,9 @@ pub struct RegisterArgs {
 /// The settings a config file may hold, with their defaults, for --help.
 fn settings_help() -> String {
     format!(
-        "Settings (config file keys; unknown keys are refused) and their defaults:\n\n{}",
+        "Settings (config file keys; unknown keys are refused) and their defaults. Values that \
+         vary by pyramid level are written coarse to fine (\"100x60x30\"); those shown as one \
+         number take one value for every level or one per level:\n\n{}",
         options_toml(&RegisterOptions::default())
     )
 }

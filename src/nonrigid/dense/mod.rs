@@ -60,11 +60,11 @@ pub struct DenseLevel {
     pub dims: [usize; 3],
     /// The image term.
     pub similarity: Similarity,
-    /// Iterations run (fewer than asked when the cost stopped falling by `min_gain`).
+    /// Iterations run (fewer than asked when the image term stopped falling by `min_gain`).
     pub iterations: usize,
     /// The image term's mean per voxel through the field the level started from.
     pub cost_start: f64,
-    /// The same through the velocity kept (the last that lowered the cost by `min_gain`).
+    /// The same through the velocity kept (the last that lowered it by `min_gain`).
     pub cost_end: f64,
     /// The iteration whose velocity was kept (0: none improved on the start by `min_gain`).
     pub kept_iteration: usize,
@@ -258,8 +258,8 @@ impl<B: Backend> Level<B> {
         }
     }
 
-    /// The level's iterations from the velocity `start`: the velocity with the lowest cost met
-    /// (by at least `min_gain` each time), with a bound on its length (mm), and what was done.
+    /// The level's iterations from the velocity `start`: the velocity with the lowest image term
+    /// met (by at least `min_gain` each time), with a bound on its length (mm), and what was done.
     fn run(
         &self,
         backend: &B,
@@ -397,6 +397,7 @@ impl<B: Backend> Level<B> {
             sums: &det,
         };
         let params = ForceParams::new(grid, ForceTerm::Volume, 0);
+        // The kernel also gives the term's cost per voxel; a level's choice leaves it out.
         Ok(backend.dense_force(&params, &images)?.0)
     }
 }

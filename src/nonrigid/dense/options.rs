@@ -16,7 +16,8 @@ pub struct DenseOptions {
     /// Pyramid levels of the target it runs on, counted from the finest: 1 the target's own
     /// grid only, 2 a level at half the resolution first, and so on. Three by default: the
     /// coarse levels carry the tissue further, which the large bends whose truth keeps tissue
-    /// volume need (2 mm 90°: 9.38 mm on the finest level alone, 5.55 on three), and where
+    /// volume need (2 mm 90°, each kept on the image term: 9.38 mm on the finest level alone,
+    /// 5.55 on three), and where
     /// the image does not follow them (the phantom's smooth tissue) they keep their start
     /// (half phantom at 60°: 0.76 mm either way; BENCHMARKS.md, thirty-sixth session).
     pub levels: usize,
@@ -49,7 +50,8 @@ pub struct DenseOptions {
     /// the knee) 0.40 / 0.77 / 1.66 → 0.38 / 0.93 / 2.02 mm, the half phantom at 30° 0.61 →
     /// 0.58 mm; 0.5 and 1 gain more on the first and lose more on the others (BENCHMARKS.md,
     /// thirty-second session). The coarse levels' weight is what carries the 90° volume-keeping
-    /// pair: 0x0x0.3 6.73 mm, 0.3x0.3x0 5.49, 0.3 at every level 5.55 (thirty-sixth session).
+    /// pair (kept on the sum of both terms, before the image rule: 0x0x0.3 6.73 mm, 0.3x0.3x0
+    /// 5.49, 0.3 at every level 5.26; thirty-sixth session). One value, or one per level.
     /// 0 leaves it out.
     pub volume_weight: PerLevel<f64>,
     /// Each update is this share of the previous update plus the rest of this iteration's smoothed
@@ -149,10 +151,15 @@ impl DenseOptions {
             .filter_map(|c| c.err().map(|e| e.to_string()))
             .collect();
         if wrong.is_empty() {
-            Ok(())
-        } else {
-            Err(Error::InvalidInput(wrong.join("; ")))
+            return Ok(());
         }
+        let defaults = DenseOptions::default().levels;
+        let note = if n == defaults {
+            String::new()
+        } else {
+            format!(" (the defaults are for {defaults} levels)")
+        };
+        Err(Error::InvalidInput(format!("{}{note}", wrong.join("; "))))
     }
 }
 
