@@ -35,8 +35,8 @@ pub use options::DenseOptions;
 /// Iterations without progress (see `min_gain`) after which a level stops.
 const PATIENCE: usize = 5;
 /// Largest vector of v / 2ⁿ (voxels) before it is squared: small against a voxel, so that
-/// the first map is invertible.
-const SQUARING_START_VOXELS: f64 = 0.25;
+/// the first map is invertible (half a voxel, as log-domain demons choose it).
+const SQUARING_START_VOXELS: f64 = 0.5;
 
 /// What the stage refines, where the backend computes, on the target's grid.
 pub struct DenseInputs<'a, B: Backend> {
@@ -498,15 +498,15 @@ mod tests {
     use super::*;
 
     #[test]
-    fn squarings_bring_the_velocity_below_a_quarter_voxel() {
+    fn squarings_bring_the_velocity_below_half_a_voxel() {
         let mut affine = crate::volume::Affine::identity();
         for a in 0..3 {
             affine[(a, a)] = 2.0;
         }
         let grid = Grid::new([8, 8, 8], affine).unwrap();
         assert_eq!(squarings(0.0, &grid), 0);
-        assert_eq!(squarings(0.5, &grid), 0);
-        assert_eq!(squarings(0.6, &grid), 1);
-        assert_eq!(squarings(8.0, &grid), 4);
+        assert_eq!(squarings(1.0, &grid), 0);
+        assert_eq!(squarings(1.1, &grid), 1);
+        assert_eq!(squarings(8.0, &grid), 3);
     }
 }
