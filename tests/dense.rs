@@ -475,7 +475,7 @@ fn norm_max_and_combine_parity() {
 /// Whether the field comes closer to the truth is tested on the real knee
 /// (tests/independent_pairs.rs); on this phantom, whose smooth, noisy soft tissue gives the
 /// local correlation little to hold, keeping every gain moves the soft tissue away from the
-/// truth (measured 2026-12-07: 0.662 -> 0.767 mm, the field moved 0.62 mm; with the default
+/// truth (measured 2026-12-07: 0.662 -> 0.769 mm, the field moved 0.62 mm; with the default
 /// `min_gain` the levels keep almost nothing there: 0.662 -> 0.662), so the figures are
 /// printed, not held to a bar.
 #[test]
@@ -649,7 +649,7 @@ fn without_dense() -> RegisterOptions {
 /// each level runs as many iterations and ends at nearly the same cost (measured 2026-12-07:
 /// under 0.0001 mm apart on average; the quarter phantom's two coarse levels, 8 and 17 voxels
 /// across, keep their start on both, their image term rising from the first step; the finest
-/// 8 iterations on both, the third kept, costs within 1e-9). The whole pipeline with it is
+/// 10 iterations on both, the fifth kept, costs within 1e-9). The whole pipeline with it is
 /// held to the backends' agreement in tests/adaptive.rs.
 #[test]
 fn the_refinement_of_one_field_agrees_on_both_backends() {
