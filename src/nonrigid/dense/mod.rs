@@ -1,19 +1,21 @@
 //! The dense refinement (beyond the paper): after the adaptive RBF stage, a stationary
-//! velocity field v on the target's finest pyramid levels (three by default) refines the
-//! whole field T to T ∘ exp(v). Each iteration compares the source seen through T ∘ exp(v)
-//! with the target (SSD or LNCC, shaders/dense/dense_force.wgsl), adds a volume term's force
-//! (tissue keeps its volume), smooths the force (fluid) and the velocity (elastic), adds the
-//! step (averaged with the previous one: `momentum`), scaled so that no voxel moves further
-//! than `step_mm` (at the finest level; more at the coarser ones), holds v at zero on the
-//! bones and, at the finest level, the voxels touching them, fading it in over
-//! `bone_margin_mm` beyond. exp(v) is taken by scaling and squaring: v / 2ⁿ,
-//! small enough to be invertible, composed with itself n times, so the map stays invertible by
-//! construction, and where v is zero exp(v) is exactly the identity: every bone keeps exactly
-//! its rigid motion. A sparse set of RBF points cannot follow the dense, local deformation of
-//! real muscle and fat; this can (greedy's and demons' scheme, with the bones held). Volumes
-//! stay where the backend computes; per iteration one cost and the update's largest vectors
-//! per chunk come back. A level keeps the velocity whose image term is lowest: where the
-//! volume term's steps do not make the scans match better, the level keeps its start.
+//! velocity field per level on the target's finest pyramid levels (three by default), coarse
+//! to fine, refines the whole field T to T ∘ exp(v₁) ∘ … ∘ exp(vₙ): each level starts from zero
+//! on the field the coarser ones left. Each iteration compares the source seen through the
+//! field ∘ exp(v) with the target (SSD or LNCC, shaders/dense/dense_force.wgsl), adds a volume
+//! term's force (tissue keeps its volume), smooths the force (fluid) and the velocity
+//! (elastic), adds the step (averaged with the previous one: `momentum`), scaled so that no
+//! voxel moves further than `step_mm` (at the finest level; more at the coarser ones), holds v
+//! at zero on the bones, fading it in over `bone_margin_mm` beyond. exp(v) is taken by scaling
+//! and squaring: v / 2ⁿ, small enough to be invertible, composed with itself n times, so each
+//! map stays invertible by construction, and where v is zero exp(v) is exactly the identity:
+//! every bone keeps exactly its rigid motion (a level's velocity is held again, with the
+//! voxels touching the bones, on the target's own grid before its exponential joins the
+//! field). A sparse set of RBF points cannot follow the dense, local deformation of real
+//! muscle and fat; this can (greedy's and demons' scheme, with the bones held). Volumes stay
+//! where the backend computes; per iteration one cost and the update's largest vectors per
+//! chunk come back. A level keeps the velocity whose image term is lowest: where the volume
+//! term's steps do not make the scans match better, the level keeps its start.
 
 use crate::abi::dense::{CombineParams, ForceParams, ForceTerm};
 use crate::abi::{
@@ -75,14 +77,17 @@ pub struct DenseLevel {
 pub struct DenseReport {
     /// Each level's figures, coarse to fine.
     pub levels: Vec<DenseLevel>,
-    /// Squarings of the final exponential.
+    /// Most squarings of a level's exponential on the target's grid.
     pub squarings: u32,
-    /// Smallest Jacobian determinant of exp(v) on the target's grid: above 0, the refinement
-    /// is invertible.
+    /// Smallest Jacobian determinant of the levels' exp(v) on the target's grid (1 when no
+    /// level kept a step): above 0, the refinement is invertible.
     pub min_det: f32,
 }
 
-/// T refined to T ∘ exp(v) (on the target's grid), and what the stage did.
+/// T refined to T ∘ exp(v₁) ∘ … ∘ exp(vₙ) (on the target's grid), one stationary velocity per
+/// level, coarse to fine, and what the stage did. Each level refines the field the coarser ones
+/// left, from a zero velocity, so that the finest level's velocity, and with it the squarings
+/// each of its evaluations takes, stays as short as what that level adds.
 pub fn refine<B: Backend>(
     backend: &B,
     inputs: &DenseInputs<B>,
@@ -92,51 +97,67 @@ pub fn refine<B: Backend>(
     options.check()?;
     let targets = pyramid::build(backend, inputs.target.clone(), options.levels)?;
     let sources = pyramid::build(backend, inputs.source.clone(), targets.len())?;
-    let mut levels = Vec::new();
-    let mut velocity: Option<(DeviceImage<B>, f64)> = None;
+    let margin = options.bone_margin_mm;
+    // Held on the target's own grid with a ring ([`distance_beyond_the_bones`]), where every
+    // level's exp(v) is taken: the finest level's hold.
+    let held_here = held_map(backend, inputs.bones, &inputs.field.grid, margin, 1)?;
+    let mut field = inputs.field.clone();
+    let mut report = DenseReport {
+        levels: Vec::new(),
+        squarings: 0,
+        min_det: 1.0,
+    };
     for (index, target) in targets.iter().enumerate().rev() {
         let source = &sources[index.min(sources.len() - 1)];
-        let held = (options.bone_margin_mm, index == 0);
-        let level = Level::new(backend, inputs, target, source, held)?;
-        let start = level.start(backend, velocity.as_ref())?;
+        let held = match index {
+            0 => held_here.clone(),
+            _ => held_map(backend, inputs.bones, &target.grid, margin, 0)?,
+        };
+        let level = Level::new(backend, (&field, inputs.mask), target, source, held)?;
         progress.begin(
             &format!("dense refinement, level {}", targets.len() - index),
             options.iterations.at_level(index),
         );
         let coarser = target.grid.finest_spacing() / targets[0].grid.finest_spacing();
         let settings = LevelSettings::of(options, index, coarser);
-        let (kept, done) = level.run(backend, start, &settings, progress)?;
+        let (kept, done) = level.run(backend, &settings, progress)?;
         progress.end();
-        levels.push(done);
-        velocity = Some(kept);
+        if done.kept_iteration > 0 {
+            let (refined, squarings, min_det) = composed(backend, &field, &held_here, kept)?;
+            field = refined;
+            report.squarings = report.squarings.max(squarings);
+            report.min_det = report.min_det.min(min_det);
+        }
+        report.levels.push(done);
     }
-    let (v, bound) = velocity.expect("at least one level");
-    let grid = &inputs.field.grid;
+    Ok((field, report))
+}
+
+/// `field` ∘ exp(v) on `field`'s grid, v (a level's velocity on its own grid, its vectors at
+/// most `bound` mm long) sampled there and held where `held` says; with the squarings taken
+/// and exp(v)'s smallest Jacobian determinant.
+fn composed<B: Backend>(
+    backend: &B,
+    field: &DeviceImage<B>,
+    held: &Held<B>,
+    (v, bound): (DeviceImage<B>, f64),
+) -> Result<(DeviceImage<B>, u32, f32)> {
+    let grid = &field.grid;
+    let sampled = sampled_field(backend, &v, grid)?;
+    let v = combine(backend, grid, held, (1.0, &sampled), (0.0, &sampled))?;
     let squarings = squarings(bound, grid);
-    let phi = exponential(backend, grid, &v.data, squarings)?;
-    let nothing_held = backend.zeros("nothing held", grid.len())?;
     let phi = DeviceImage {
-        data: phi,
+        data: exponential(backend, grid, &v, squarings)?,
         grid: grid.clone(),
     };
+    let nothing_held = backend.zeros("nothing held", grid.len())?;
     let (_, folds) = determinant(backend, &phi, &nothing_held)?;
-    let refined = backend.compose(
-        &ComposeParams::new(grid, grid),
-        &phi.data,
-        &inputs.field.data,
-    )?;
-    let report = DenseReport {
-        levels,
-        squarings,
-        min_det: folds.min,
+    let params = ComposeParams::new(grid, grid);
+    let refined = DeviceImage {
+        data: backend.compose(&params, &phi.data, &field.data)?,
+        grid: grid.clone(),
     };
-    Ok((
-        DeviceImage {
-            data: refined,
-            grid: grid.clone(),
-        },
-        report,
-    ))
+    Ok((refined, squarings, folds.min))
 }
 
 /// One level's settings.
@@ -181,40 +202,26 @@ struct Level<B: Backend> {
     field: B::Buffer<f32>,
     /// The target mask at this level.
     mask: B::Buffer<f32>,
-    /// The distance to the nearest bone (mm) at this level, with the margin; None: nothing
-    /// held.
-    held: Option<(B::Buffer<f32>, f64)>,
+    /// Where the velocity is held at this level.
+    held: Held<B>,
 }
 
 impl<B: Backend> Level<B> {
-    /// The level on `target`'s grid, the velocity held on the bones over `margin_mm` and, at
-    /// the `finest` level, on the voxels touching them too ([`distance_beyond_the_bones`]).
+    /// The level on `target`'s grid: the field so far and the target mask sampled there, the
+    /// velocity held where `held` says.
     fn new(
         backend: &B,
-        inputs: &DenseInputs<B>,
+        (field, mask): (&DeviceImage<B>, &DeviceImage<B>),
         target: &DeviceImage<B>,
         source: &DeviceImage<B>,
-        (margin_mm, finest): (f64, bool),
+        held: Held<B>,
     ) -> Result<Self> {
         let grid = &target.grid;
-        let field = sampled_field(backend, inputs.field, grid)?;
-        let mask = nearest_onto(backend, inputs.mask, grid)?;
-        let held = match inputs.bones.filter(|_| margin_mm > 0.0) {
-            Some(map) => {
-                let map = nearest_onto(backend, map, grid)?;
-                let rings = usize::from(finest);
-                Some((
-                    distance_beyond_the_bones(backend, grid, map, rings)?,
-                    margin_mm,
-                ))
-            }
-            None => None,
-        };
         Ok(Level {
             target: target.clone(),
             source: source.clone(),
-            field,
-            mask,
+            field: sampled_field(backend, field, grid)?,
+            mask: nearest_onto(backend, mask, grid)?,
             held,
         })
     }
@@ -223,53 +230,17 @@ impl<B: Backend> Level<B> {
         &self.target.grid
     }
 
-    /// fade · (a_scale · a + b_scale · b), faded where bones are held.
-    fn combine(
-        &self,
-        backend: &B,
-        (a_scale, a): (f64, &B::Buffer<f32>),
-        (b_scale, b): (f64, &B::Buffer<f32>),
-    ) -> Result<B::Buffer<f32>> {
-        let params = CombineParams::sum(self.grid(), a_scale, b_scale);
-        match &self.held {
-            Some((distance, margin)) => {
-                backend.field_combine(&params.faded(*margin), a, b, distance)
-            }
-            None => backend.field_combine(&params, a, b, a),
-        }
-    }
-
-    /// The velocity this level starts from, with a bound on its vectors' length (mm): zero, or
-    /// the coarser level's sampled on this grid and held off the bones here.
-    fn start(
-        &self,
-        backend: &B,
-        coarser: Option<&(DeviceImage<B>, f64)>,
-    ) -> Result<(B::Buffer<f32>, f64)> {
-        match coarser {
-            None => Ok((backend.zeros("velocity", 3 * self.grid().len())?, 0.0)),
-            Some((v, bound)) => {
-                let sampled = sampled_field(backend, v, self.grid())?;
-                Ok((
-                    self.combine(backend, (1.0, &sampled), (0.0, &sampled))?,
-                    *bound,
-                ))
-            }
-        }
-    }
-
-    /// The level's iterations from the velocity `start`: the velocity with the lowest image term
-    /// met (by at least `min_gain` each time), with a bound on its length (mm), and what was done.
+    /// The level's iterations from a zero velocity: the velocity with the lowest image term met
+    /// (by at least `min_gain` each time), with a bound on its length (mm), and what was done.
     fn run(
         &self,
         backend: &B,
-        (start, start_bound): (B::Buffer<f32>, f64),
         settings: &LevelSettings,
         progress: &dyn Progress,
     ) -> Result<((DeviceImage<B>, f64), DenseLevel)> {
         let grid = self.grid();
         let update_sigma = settings.fluid_sigma.hypot(settings.elastic_sigma);
-        let (mut v, mut bound) = (start, start_bound);
+        let (mut v, mut bound) = (backend.zeros("velocity", 3 * grid.len())?, 0.0);
         let mut kept = (v.clone(), bound, f64::INFINITY, 0);
         let (mut cost_start, mut ran, mut previous) = (f64::NAN, 0, None);
         for iteration in 0..=settings.iterations {
@@ -303,8 +274,10 @@ impl<B: Backend> Level<B> {
             if largest <= 0.0 {
                 break;
             }
-            v = self.combine(
+            v = combine(
                 backend,
+                grid,
+                &self.held,
                 (1.0, &smoothed),
                 (settings.step_mm / largest as f64, &update),
             )?;
@@ -336,8 +309,8 @@ impl<B: Backend> Level<B> {
     /// where the image has little to hold (the half phantom at 60°, whose truth squeezes a
     /// fifth of its soft tissue, 0.76 mm without the coarse levels, 1.64 with them; now their
     /// start is kept and it is 0.76), while on the knee pairs whose truth keeps tissue volume
-    /// the image follows the volume term (2 mm 90°: 5.26 mm kept on the sum, 5.55 on the image;
-    /// BENCHMARKS.md, thirty-sixth session).
+    /// the image follows the volume term (2 mm 90°, one velocity through the levels: 5.26 mm
+    /// kept on the sum, 5.55 on the image; BENCHMARKS.md, thirty-sixth session).
     fn evaluate(
         &self,
         backend: &B,
@@ -402,6 +375,45 @@ impl<B: Backend> Level<B> {
     }
 }
 
+/// The distance (mm) to the nearest held voxel and the margin over which the velocity rises
+/// beyond it; None: nothing held.
+type Held<B> = Option<(<B as crate::backend::Core>::Buffer<f32>, f64)>;
+
+/// Where the velocity is held on `grid`: on `bones` (a bone index per voxel, on its own grid)
+/// grown by `rings` voxels, rising to its whole `margin_mm` beyond; nothing without bones or
+/// margin.
+fn held_map<B: Backend>(
+    backend: &B,
+    bones: Option<&DeviceImage<B>>,
+    grid: &Grid,
+    margin_mm: f64,
+    rings: usize,
+) -> Result<Held<B>> {
+    match bones.filter(|_| margin_mm > 0.0) {
+        Some(map) => {
+            let map = nearest_onto(backend, map, grid)?;
+            let distance = distance_beyond_the_bones(backend, grid, map, rings)?;
+            Ok(Some((distance, margin_mm)))
+        }
+        None => Ok(None),
+    }
+}
+
+/// fade · (a_scale · a + b_scale · b) on `grid`, faded where `held` says.
+fn combine<B: Backend>(
+    backend: &B,
+    grid: &Grid,
+    held: &Held<B>,
+    (a_scale, a): (f64, &B::Buffer<f32>),
+    (b_scale, b): (f64, &B::Buffer<f32>),
+) -> Result<B::Buffer<f32>> {
+    let params = CombineParams::sum(grid, a_scale, b_scale);
+    match held {
+        Some((distance, margin)) => backend.field_combine(&params.faded(*margin), a, b, distance),
+        None => backend.field_combine(&params, a, b, a),
+    }
+}
+
 /// The mean of each of `values` (one per voxel of `grid`), reduced where the backend
 /// computes; the sums come back together, with one wait.
 fn means<B: Backend>(backend: &B, grid: &Grid, values: &[&B::Buffer<f32>]) -> Result<Vec<f64>> {
@@ -444,7 +456,8 @@ fn exponential<B: Backend>(
 /// it was: through the field, the small phantom's patella (20°) covered 523 target voxels
 /// against its rigid motion's 492 and the truth's 488, the 2 mm 90° knee's femur 649 voxels
 /// more than the truth's against 142 without the stage. The coarser levels' velocities are
-/// held again at the finest, so they keep the bones alone: a ring of their 4 and 8 mm voxels
+/// held again with the ring on the target's own grid before their exponentials join the
+/// field, so at their own grids they keep the bones alone: a ring of their 4 and 8 mm voxels
 /// held the tissue near the bones back (BENCHMARKS.md, thirty-fifth session).
 fn distance_beyond_the_bones<B: Backend>(
     backend: &B,
