@@ -340,7 +340,7 @@ fn interior_voxels(labels: &Labels, code: u16) -> Vec<usize> {
 }
 
 /// 90° with the articulated initialisation, on the CPU: the warp composed with the initial
-/// field, which is sharply compressed behind the knee, folds it there (142 voxels with
+/// field, which is sharply compressed behind the knee, folds it there (144 voxels with
 /// det J ≤ 0.05 measured, 2026-12-07); the unfolding lifts them but for a voxel or two pinned
 /// between bones, without costing accuracy (1.59 mm with the defaults).
 #[test]
@@ -405,7 +405,7 @@ fn paper_experiment_one_on_the_gpu() {
 /// still differ in the last bit (jacobian, compose, rigid_gn, the dual-quaternion blend: most
 /// likely multiply-adds fused by the driver). Measured here on lavapipe with the defaults (the
 /// dense refinement on three levels included; 2026-12-07): fields 0.028 and 0.026 mm apart;
-/// 359 / 359 and 398 / 397 points; errors 0.543 / 0.550 and 0.892 / 0.892 mm.
+/// 359 / 359 and 398 / 397 points; errors 0.543 / 0.550 and 0.893 / 0.893 mm.
 /// Both backends give the same bits run to run on one driver, so a run that passes on
 /// lavapipe passes there again; another driver may round differently.
 ///

@@ -134,8 +134,8 @@ pub fn refine<B: Backend>(
 }
 
 /// `field` ∘ exp(v) on `field`'s grid, v (a level's velocity on its own grid, its vectors at
-/// most `bound` mm long) sampled there and held where `held` says; with the squarings taken
-/// and exp(v)'s smallest Jacobian determinant.
+/// most `bound` mm long) sampled there and, from a coarser grid, held where `held` says; with
+/// the squarings taken and exp(v)'s smallest Jacobian determinant.
 fn composed<B: Backend>(
     backend: &B,
     field: &DeviceImage<B>,
@@ -143,8 +143,14 @@ fn composed<B: Backend>(
     (v, bound): (DeviceImage<B>, f64),
 ) -> Result<(DeviceImage<B>, u32, f32)> {
     let grid = &field.grid;
-    let sampled = sampled_field(backend, &v, grid)?;
-    let v = combine(backend, grid, held, (1.0, &sampled), (0.0, &sampled))?;
+    // The finest level's velocity was held with `held` itself at its every step: fading it
+    // again would shrink it over the margin, away from the velocity the level evaluated.
+    let v = if v.grid.same_as(grid, 0.0) {
+        v.data
+    } else {
+        let sampled = sampled_field(backend, &v, grid)?;
+        combine(backend, grid, held, (1.0, &sampled), (0.0, &sampled))?
+    };
     let squarings = squarings(bound, grid);
     let phi = DeviceImage {
         data: exponential(backend, grid, &v, squarings)?,

@@ -16,7 +16,7 @@ pub struct DenseOptions {
     /// Pyramid levels of the target it runs on, counted from the finest: 1 the target's own
     /// grid only, 2 a level at half the resolution first, and so on. Three by default: the
     /// coarse levels carry the tissue further, which the large bends whose truth keeps tissue
-    /// volume need (2 mm 90°: 9.38 mm on the finest level alone, 4.27 on three), and where
+    /// volume need (2 mm 90°: 9.38 mm on the finest level alone, 4.25 on three), and where
     /// the image does not follow them (the phantom's smooth tissue) they keep their start
     /// (half phantom at 60°: 0.76 mm either way; BENCHMARKS.md, thirty-sixth session).
     pub levels: usize,
