@@ -43,6 +43,19 @@ impl<T: Copy> PerLevel<T> {
         &self.0
     }
 
+    /// Checks the count of a value a settings file gave; the setting's own `default` reads for
+    /// any level count (at_level takes its finest values), so a file that changes only the
+    /// number of levels runs the defaults' finest levels.
+    pub fn check_given(&self, default: &Self, name: &str, levels: usize) -> Result<()>
+    where
+        T: fmt::Display + PartialEq,
+    {
+        match self == default {
+            true => Ok(()),
+            false => self.check(name, levels),
+        }
+    }
+
     /// Checks the value count against the number of levels (`name` names the setting).
     pub fn check(&self, name: &str, levels: usize) -> Result<()>
     where

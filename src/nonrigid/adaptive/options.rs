@@ -131,11 +131,9 @@ impl AdaptiveOptions {
                         leave the warp untouched)",
             );
         }
-        // The default reads as "4 at the finest level, 8 above" for any level count
-        // (PerLevel::at_level takes the finest values); a threshold given is held to the count.
-        if self.threshold != default_threshold() {
-            self.threshold.check("adaptive.threshold", self.levels)?;
-        }
+        // The default reads as "4 at the finest level, 8 above" for any level count.
+        let threshold = &self.threshold;
+        threshold.check_given(&default_threshold(), "adaptive.threshold", self.levels)?;
         self.similarity.check("adaptive.similarity", self.levels)?;
         self.membrane.check("adaptive.membrane", self.levels)?;
         self.bending.check("adaptive.bending", self.levels)?;

@@ -132,39 +132,54 @@ impl DenseOptions {
             r("min_gain", one(self.min_gain), (0.0, MAX_MIN_GAIN), ""),
         ];
         check_ranges("dense", &table)?;
-        let n = self.levels;
-        // Every setting whose value count does not fit the levels, in one message: the
-        // defaults give three values to several of them, so a file that changes `levels`
-        // alone has more than one to set.
+        let (n, d) = (self.levels, DenseOptions::default());
+        // The defaults' per-level values read for any level count (`levels = 1` alone runs
+        // the finest level's 30 iterations, fluid σ 2, momentum 0.25); each value a file gives
+        // that does not fit the count is named, all in one message.
         let counts = [
-            self.iterations.check("dense.iterations", n),
-            self.similarity.check("dense.similarity", n),
-            self.lncc_radius.check("dense.lncc_radius", n),
-            self.fluid_sigma.check("dense.fluid_sigma", n),
-            self.elastic_sigma.check("dense.elastic_sigma", n),
-            self.momentum.check("dense.momentum", n),
-            self.volume_weight.check("dense.volume_weight", n),
+            self.iterations
+                .check_given(&d.iterations, "dense.iterations", n),
+            self.similarity
+                .check_given(&d.similarity, "dense.similarity", n),
+            self.lncc_radius
+                .check_given(&d.lncc_radius, "dense.lncc_radius", n),
+            self.fluid_sigma
+                .check_given(&d.fluid_sigma, "dense.fluid_sigma", n),
+            self.elastic_sigma
+                .check_given(&d.elastic_sigma, "dense.elastic_sigma", n),
+            self.momentum.check_given(&d.momentum, "dense.momentum", n),
+            self.volume_weight
+                .check_given(&d.volume_weight, "dense.volume_weight", n),
         ];
         let wrong: Vec<String> = counts
             .into_iter()
             .filter_map(|c| c.err().map(|e| e.to_string()))
             .collect();
-        if wrong.is_empty() {
-            return Ok(());
+        match wrong.is_empty() {
+            true => Ok(()),
+            false => Err(Error::InvalidInput(wrong.join("; "))),
         }
-        let defaults = DenseOptions::default().levels;
-        let note = if n == defaults {
-            String::new()
-        } else {
-            format!(" (the defaults are for {defaults} levels)")
-        };
-        Err(Error::InvalidInput(format!("{}{note}", wrong.join("; "))))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_defaults_fit_any_level_count_and_read_as_their_finest_levels() {
+        for levels in 1..=MAX_DENSE_LEVELS {
+            let options = DenseOptions {
+                levels,
+                ..Default::default()
+            };
+            assert!(options.check().is_ok(), "{levels} levels");
+        }
+        // One level runs what the finest of the default three does.
+        let d = DenseOptions::default();
+        let finest = (d.iterations.at_level(0), d.fluid_sigma.at_level(0));
+        assert_eq!((finest, d.momentum.at_level(0)), ((30, 2.0), 0.25));
+    }
 
     #[test]
     fn the_defaults_pass_their_own_checks_and_bad_values_are_named() {
@@ -196,13 +211,15 @@ mod tests {
         };
         let err = bad.check().unwrap_err().to_string();
         assert!(err.contains("dense.min_gain"), "{err}");
-        // Three values per level where two levels run: each such setting named at once.
+        // Values given for three levels where two levels run: each such setting named at once.
         let bad = DenseOptions {
             levels: 2,
+            iterations: "50x40x20".parse().unwrap(),
+            momentum: "0.5x0.4x0.2".parse().unwrap(),
             ..Default::default()
         };
         let err = bad.check().unwrap_err().to_string();
-        for name in ["iterations", "fluid_sigma", "momentum"] {
+        for name in ["iterations", "momentum"] {
             assert!(err.contains(&format!("dense.{name} has 3 values")), "{err}");
         }
         assert!(err.contains("2 pyramid levels"), "{err}");
