@@ -18,7 +18,9 @@ pub struct DenseOptions {
     /// coarse levels carry the tissue further, which the large bends whose truth keeps tissue
     /// volume need (2 mm 90°: 9.38 mm on the finest level alone, 4.25 on three), and where
     /// the image does not follow them (the phantom's smooth tissue) they keep their start
-    /// (half phantom at 60°: 0.76 mm either way; BENCHMARKS.md, thirty-sixth session).
+    /// (half phantom at 60°: 0.76 mm either way; BENCHMARKS.md, thirty-sixth session). The
+    /// per-level defaults below read from the finest level up for any count, so `levels = 1`
+    /// alone runs the finest of the three.
     pub levels: usize,
     /// Iterations per level, coarse to fine.
     pub iterations: PerLevel<usize>,
