@@ -13,10 +13,13 @@ scripts/score_pair.py reads it), over the pair's soft tissue:
 - for each FIELD, the error against the truth: mean, and the part left after smoothing the error
   field with Gaussians of 6, 12 and 24 mm (how much of it is of middle or large scale); and the
   error split by d1 + d2, the distances (mm) to the nearest two bones of the target's labels
-  (below 20 mm: the gaps between bones, where posereg holds the dense velocity).
+  (the bones truth.json lists; below 20 mm: the gaps between bones, where posereg's dense
+  velocity, held at zero on the bones and rising over a few mm, is smallest), each bin's mean
+  and its share of the summed error.
 Shares nothing with the registration (numpy, scipy, SimpleITK); BENCHMARKS.md, thirty-seventh
 session, reports what it printed for the knee pairs.
 """
+import json
 import os
 import sys
 
@@ -25,11 +28,10 @@ import scipy.ndimage as nd
 import SimpleITK as sitk
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from score_pair import jacobian_determinant, read_field  # noqa: E402
+from score_pair import KEPT_VOLUME, jacobian_determinant, read_field  # noqa: E402
 
 RADII = (1, 2, 4)
 SMOOTHING_MM = (6, 12, 24)
-KEPT_VOLUME = (0.8, 1.25)
 
 
 def warped(source, target, field):
@@ -43,12 +45,11 @@ def lncc(a, b, radius):
     mean = lambda x: nd.uniform_filter(x, 2 * radius + 1)  # noqa: E731
     ma, mb = mean(a), mean(b)
     va, vb, cab = mean(a * a) - ma**2, mean(b * b) - mb**2, mean(a * b) - ma * mb
-    return cab**2 / np.maximum(va * vb, 1e-12)
+    return np.clip(cab**2 / np.maximum(va * vb, 1e-12), 0.0, 1.0)
 
 
-def image_and_volume(name, field, pair, soft):
-    target = sitk.ReadImage(os.path.join(pair, "target.nii.gz"), sitk.sitkFloat64)
-    source = sitk.ReadImage(os.path.join(pair, "source.nii.gz"), sitk.sitkFloat64)
+def image_and_volume(name, field, scans, soft):
+    source, target = scans
     fixed, moved = sitk.GetArrayFromImage(target), warped(source, target, field)
     match = " / ".join(f"{lncc(fixed, moved, r)[soft].mean():.3f}" for r in RADII)
     det = jacobian_determinant(field)[soft]
@@ -71,10 +72,10 @@ def error_by_scale(error, soft, spacing):
 
 def error_by_gap(length, soft, pair, spacing):
     labels = sitk.GetArrayFromImage(sitk.ReadImage(os.path.join(pair, "target_labels.nii.gz")))
-    bones = [c for c in np.unique(labels) if c > 1]
+    bones = [b["label"] for b in json.load(open(os.path.join(pair, "truth.json")))["bones"]]
     if len(bones) < 2:
         return "fewer than two bones"
-    distances = np.sort(np.stack([nd.distance_transform_edt(labels != c) * spacing
+    distances = np.sort(np.stack([nd.distance_transform_edt(labels != c, sampling=spacing)
                                   for c in bones]), axis=0)
     gap = distances[0] + distances[1]
     total = length[soft].sum()
@@ -82,7 +83,8 @@ def error_by_gap(length, soft, pair, spacing):
     for lo, hi in ((0, 20), (20, 40), (40, np.inf)):
         m = soft & (gap >= lo) & (gap < hi)
         if m.any():
-            parts.append(f"{lo}-{hi} mm: {length[m].mean():.2f} ({length[m].sum() / total:.0%})")
+            parts.append(f"{lo}-{hi} mm: {length[m].mean():.2f} "
+                         f"({length[m].sum() / total:.0%} of the summed error)")
     return ", ".join(parts)
 
 
@@ -92,13 +94,15 @@ def main():
     pair, fields = sys.argv[1], sys.argv[2:]
     soft_image = sitk.ReadImage(os.path.join(pair, "mask_soft.nii.gz"))
     soft = sitk.GetArrayFromImage(soft_image) > 0
-    spacing = float(np.mean(soft_image.GetSpacing()))
+    spacing = np.array(soft_image.GetSpacing())[::-1]  # per numpy axis (z, y, x), mm
+    scans = [sitk.ReadImage(os.path.join(pair, f"{name}.nii.gz"), sitk.sitkFloat64)
+             for name in ("source", "target")]
     truth = read_field(os.path.join(pair, "truth_field.nii.gz"), soft_image)
-    image_and_volume("truth", truth, pair, soft)
+    image_and_volume("truth", truth, scans, soft)
     truth_u = sitk.GetArrayFromImage(truth)
     for path in fields:
         field = read_field(path, soft_image)
-        image_and_volume(path, field, pair, soft)
+        image_and_volume(path, field, scans, soft)
         error = sitk.GetArrayFromImage(field) - truth_u
         length = np.linalg.norm(error, axis=-1)
         print(f"  error {length[soft].mean():.2f} mm; its smooth part after "

@@ -32,7 +32,7 @@ impl<T: Copy> PerLevel<T> {
 
     /// The value at pyramid level `level` counted from the finest (0): the last value is the
     /// finest level's, so a pyramid that came out shallower than asked for (a small image)
-    /// uses the finer levels' values.
+    /// uses the finer levels' values; levels beyond the list repeat its coarsest value.
     pub fn at_level(&self, level: usize) -> T {
         let n = self.0.len();
         self.0[n - 1 - level.min(n - 1)]
@@ -43,9 +43,11 @@ impl<T: Copy> PerLevel<T> {
         &self.0
     }
 
-    /// Checks the count of a value a settings file gave; the setting's own `default` reads for
-    /// any level count (at_level takes its finest values), so a file that changes only the
-    /// number of levels runs the defaults' finest levels.
+    /// Checks the value count against the number of levels unless the value is the setting's
+    /// own `default`, which reads for any level count through at_level (its finest values for
+    /// fewer levels, its coarsest repeated for more): a file that changes only the number of
+    /// levels runs the defaults' finest levels. A value written equal to the default counts as
+    /// the default.
     pub fn check_given(&self, default: &Self, name: &str, levels: usize) -> Result<()>
     where
         T: fmt::Display + PartialEq,
@@ -161,6 +163,21 @@ mod tests {
             err.contains("40x30x20") && err.contains("4 pyramid levels"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn a_default_fits_any_level_count_and_another_value_its_own() {
+        let default: PerLevel<usize> = "100x60x30".parse().unwrap();
+        for levels in 1..=MAX_LEVELS {
+            assert!(default.check_given(&default, "iterations", levels).is_ok());
+        }
+        let given: PerLevel<usize> = "50x40x20".parse().unwrap();
+        assert!(given.check_given(&default, "iterations", 3).is_ok());
+        let err = given.check_given(&default, "iterations", 2).unwrap_err();
+        assert!(err.to_string().contains("iterations has 3 values"), "{err}");
+        assert!(PerLevel::all(9)
+            .check_given(&default, "iterations", 2)
+            .is_ok());
     }
 
     #[test]

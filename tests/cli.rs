@@ -542,6 +542,11 @@ fn a_file_whose_dense_values_do_not_fit_its_levels_is_refused_naming_each_settin
     for name in ["dense.iterations", "dense.momentum"] {
         assert_fails_naming(&refused, name);
     }
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        !stderr.contains("fluid_sigma"),
+        "a setting left at its default is not named: {stderr}"
+    );
     assert!(
         !out.exists(),
         "no output folder after a refused settings file"

@@ -68,8 +68,9 @@ fn settings_help() -> String {
     format!(
         "Settings (config file keys; unknown keys are refused) and their defaults. Values that \
          vary by pyramid level are written coarse to fine (\"100x60x30\"); those shown as one \
-         number take one value for every level or one per level; with fewer `levels` than a \
-         default has values, the default is read from its finest level up:\n\n{}",
+         number take one value for every level or one per level. Where `levels` differs from \
+         the number of values a default has, the default is read from its finest level up \
+         (levels beyond its values repeat its coarsest):\n\n{}",
         options_toml(&RegisterOptions::default())
     )
 }

@@ -171,6 +171,10 @@ mod tests {
             threshold: "8x8x3".parse().unwrap(),
             ..Default::default()
         };
-        assert!(given.check().is_err(), "three values for two levels");
+        let err = given.check().unwrap_err().to_string();
+        assert!(
+            err.contains("adaptive.threshold"),
+            "three values for two levels: {err}"
+        );
     }
 }

@@ -517,6 +517,25 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_level_reads_the_defaults_from_the_finest_up() {
+        let options = DenseOptions {
+            levels: 4,
+            ..Default::default()
+        };
+        let read = |index, coarser| {
+            let s = LevelSettings::of(&options, index, coarser);
+            (s.iterations, s.fluid_sigma, s.momentum, s.step_mm)
+        };
+        assert_eq!(read(0, 1.0), (30, 2.0, 0.25, 2.0), "the finest level");
+        assert_eq!(read(2, 4.0), (100, 3.0, 0.5, 8.0));
+        assert_eq!(
+            read(3, 8.0),
+            (100, 3.0, 0.5, 16.0),
+            "a fourth repeats the coarsest"
+        );
+    }
+
+    #[test]
     fn squarings_bring_the_velocity_below_half_a_voxel() {
         let mut affine = crate::volume::Affine::identity();
         for a in 0..3 {
