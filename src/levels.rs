@@ -38,6 +38,15 @@ impl<T: Copy> PerLevel<T> {
         self.0[n - 1 - level.min(n - 1)]
     }
 
+    /// What `levels` levels read, written out coarse to fine (one value stays one): the
+    /// setting as the stage ran it, for the report.
+    pub fn for_levels(&self, levels: usize) -> Self {
+        match self.0.len() {
+            1 => self.clone(),
+            _ => PerLevel((0..levels.max(1)).rev().map(|l| self.at_level(l)).collect()),
+        }
+    }
+
     /// The values, coarse to fine.
     pub fn values(&self) -> &[T] {
         &self.0
@@ -178,6 +187,14 @@ mod tests {
         assert!(PerLevel::all(9)
             .check_given(&default, "iterations", 2)
             .is_ok());
+        let run = |levels| default.for_levels(levels).to_string();
+        assert_eq!([run(1), run(2), run(3)], ["30", "60x30", "100x60x30"]);
+        assert_eq!(
+            run(4),
+            "100x100x60x30",
+            "a fourth level repeats the coarsest"
+        );
+        assert_eq!(PerLevel::all(9).for_levels(3).to_string(), "9");
     }
 
     #[test]

@@ -484,7 +484,7 @@ fn register_refuses_each_bad_input_naming_the_file() {
 /// `--dense` and `--no-dense` mean the same for `demo` (and `series`, which shares the flags)
 /// as for `register`: report.json says which stage ran on how many levels. `--dense` over a
 /// settings file that turns the stage off runs it on the file's levels (one, whose settings
-/// the file leaves at the defaults' finest values).
+/// the file leaves at the defaults' finest values, as report.json's options record).
 #[test]
 fn demo_takes_the_dense_flags() {
     let dir = tempfile::tempdir().unwrap();
@@ -511,6 +511,12 @@ fn demo_takes_the_dense_flags() {
         let report: serde_json::Value = serde_json::from_str(&report).unwrap();
         let ran = report["dense"]["levels"].as_array().map(|l| l.len());
         assert_eq!(ran, levels, "{flag}: {}", report["dense"]);
+        if levels == Some(1) {
+            // The report records what the one level read of the three-level defaults.
+            let used = &report["options"]["dense"];
+            let read = (&used["fluid_sigma"], &used["momentum"], &used["iterations"]);
+            assert_eq!(read, (&2.0.into(), &0.25.into(), &3.into()), "{used}");
+        }
     }
 }
 

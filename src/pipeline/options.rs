@@ -51,6 +51,15 @@ impl crate::io::config::Settings for RegisterOptions {
 }
 
 impl RegisterOptions {
+    /// The settings as the stages ran them: per-level values written out for their levels.
+    pub fn as_run(&self) -> Self {
+        RegisterOptions {
+            adaptive: self.adaptive.as_run(),
+            dense: self.dense.as_run(),
+            ..self.clone()
+        }
+    }
+
     /// Rejects settings the registration cannot run with, naming the setting.
     pub fn check(&self) -> Result<()> {
         self.init.check()?;

@@ -92,7 +92,7 @@ fn content(
         "device": device,
         "seconds": run.seconds,
         "inputs": run.inputs,
-        "options": run.options,
+        "options": run.options.as_run(),
         "initialisation": result.init.as_ref().map(|i| serde_json::json!({
             "bones": i.reports,
             "fold_repair": i.repair,

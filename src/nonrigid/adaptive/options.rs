@@ -93,6 +93,21 @@ impl Default for AdaptiveOptions {
 }
 
 impl AdaptiveOptions {
+    /// The settings with each per-level value written out for the levels run (the default
+    /// threshold read for another count), as the report records them.
+    pub fn as_run(&self) -> Self {
+        let n = self.levels;
+        AdaptiveOptions {
+            threshold: self.threshold.for_levels(n),
+            iterations: self.iterations.for_levels(n),
+            tolerance: self.tolerance.for_levels(n),
+            membrane: self.membrane.for_levels(n),
+            bending: self.bending.for_levels(n),
+            similarity: self.similarity.for_levels(n),
+            ..self.clone()
+        }
+    }
+
     /// Rejects settings the stage cannot run with, naming the setting.
     pub fn check(&self) -> Result<()> {
         let bad = |what: &str| Err(Error::InvalidInput(format!("adaptive.{what}")));

@@ -115,6 +115,22 @@ const MAX_MOMENTUM: f64 = 0.95;
 const MAX_MIN_GAIN: f64 = 0.5;
 
 impl DenseOptions {
+    /// The settings with each per-level value written out for the levels run (the defaults'
+    /// three values read for another count), as the report records them.
+    pub fn as_run(&self) -> Self {
+        let n = self.levels;
+        DenseOptions {
+            iterations: self.iterations.for_levels(n),
+            similarity: self.similarity.for_levels(n),
+            lncc_radius: self.lncc_radius.for_levels(n),
+            fluid_sigma: self.fluid_sigma.for_levels(n),
+            elastic_sigma: self.elastic_sigma.for_levels(n),
+            volume_weight: self.volume_weight.for_levels(n),
+            momentum: self.momentum.for_levels(n),
+            ..self.clone()
+        }
+    }
+
     /// Rejects settings the stage cannot run with, naming the setting.
     pub fn check(&self) -> Result<()> {
         let counts = |v: &PerLevel<usize>| v.values().iter().map(|&n| n as f64).collect();
