@@ -36,9 +36,17 @@ import SimpleITK as sitk
 
 
 def read_field(path, like):
+    """The field at `path`, refused unless it lies on `like`'s grid: a field on a shifted or
+    rescaled grid would be scored against the wrong voxels."""
     field = sitk.ReadImage(path, sitk.sitkVectorFloat64)
     if field.GetSize() != like.GetSize():
         raise SystemExit(f"{path}: grid {field.GetSize()} is not the pair's {like.GetSize()}")
+    for what, tolerance in (("Origin", 1e-3), ("Spacing", 1e-5), ("Direction", 1e-5)):
+        mine, theirs = (np.array(getattr(i, f"Get{what}")()) for i in (field, like))
+        if np.abs(mine - theirs).max() > tolerance:
+            text = lambda v: ", ".join(f"{x:.4f}" for x in v)  # noqa: E731
+            raise SystemExit(f"{path}: {what.lower()} ({text(mine)}) is not the pair's "
+                             f"({text(theirs)})")
     return field
 
 
