@@ -28,16 +28,10 @@ import scipy.ndimage as nd
 import SimpleITK as sitk
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from score_pair import KEPT_VOLUME, jacobian_determinant, read_field  # noqa: E402
+from score_pair import KEPT_VOLUME, jacobian_determinant, read_field, resampled  # noqa: E402
 
 RADII = (1, 2, 4)
 SMOOTHING_MM = (6, 12, 24)
-
-
-def warped(source, target, field):
-    transform = sitk.DisplacementFieldTransform(sitk.Image(field))
-    moved = sitk.Resample(source, target, transform, sitk.sitkLinear, 0.0)
-    return sitk.GetArrayFromImage(moved)
 
 
 def lncc(a, b, radius):
@@ -50,7 +44,7 @@ def lncc(a, b, radius):
 
 def image_and_volume(name, field, scans, soft):
     source, target = scans
-    fixed, moved = sitk.GetArrayFromImage(target), warped(source, target, field)
+    fixed, moved = sitk.GetArrayFromImage(target), resampled(source, field)
     match = " / ".join(f"{lncc(fixed, moved, r)[soft].mean():.3f}" for r in RADII)
     det = jacobian_determinant(field)[soft]
     kept = ((det >= KEPT_VOLUME[0]) & (det <= KEPT_VOLUME[1])).mean()

@@ -50,6 +50,12 @@ def read_field(path, like):
     return field
 
 
+def resampled(image, field, interpolator=sitk.sitkLinear):
+    """`image` seen through `field` on the field's grid (0 where it maps outside), as an array."""
+    transform = sitk.DisplacementFieldTransform(sitk.Image(field))
+    return sitk.GetArrayFromImage(sitk.Resample(image, field, transform, interpolator, 0.0))
+
+
 def jacobian_determinant(field):
     u = sitk.GetArrayFromImage(field)
     direction = np.array(field.GetDirection()).reshape(3, 3)
@@ -66,8 +72,7 @@ def bone_contacts(field, pair):
     across the jump from one bone's motion to the other's measures their slide, not the field's
     derivative."""
     labels = sitk.ReadImage(os.path.join(pair, "source_labels.nii.gz"))
-    transform = sitk.DisplacementFieldTransform(sitk.Image(field))
-    mapped = sitk.GetArrayFromImage(sitk.Resample(labels, field, transform, sitk.sitkNearestNeighbor, 0))
+    mapped = resampled(labels, field, sitk.sitkNearestNeighbor)
     bones = [b["label"] for b in json.load(open(os.path.join(pair, "truth.json")))["bones"]]
     mapped = np.where(np.isin(mapped, bones), mapped, 0)
     padded = np.pad(mapped, 1, mode="edge")
@@ -107,11 +112,10 @@ def warped_correlation(pair, field, body):
     source: the same image measure for every tool, whatever its own resampling."""
     source = sitk.ReadImage(os.path.join(pair, "source.nii.gz"), sitk.sitkFloat32)
     target = sitk.GetArrayFromImage(sitk.ReadImage(os.path.join(pair, "target.nii.gz"), sitk.sitkFloat32))
-    transform = sitk.DisplacementFieldTransform(sitk.Image(field))
-    warped = sitk.GetArrayFromImage(sitk.Resample(source, field, transform, sitk.sitkLinear, 0.0))
+    warped = resampled(source, field)
     ones = sitk.Image(source.GetSize(), sitk.sitkUInt8) + 1
     ones.CopyInformation(source)
-    inside = sitk.GetArrayFromImage(sitk.Resample(ones, field, transform, sitk.sitkNearestNeighbor, 0)) > 0
+    inside = resampled(ones, field, sitk.sitkNearestNeighbor) > 0
     m = body & inside
     return float(np.corrcoef(warped[m], target[m])[0, 1]), float(m.sum() / body.sum())
 
