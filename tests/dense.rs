@@ -554,6 +554,7 @@ fn the_refinement_leaves_the_bones_as_they_were_and_stays_invertible() {
 fn the_refinement_carries_no_tissue_into_a_bone() {
     use posereg::abi::Interpolation;
     use posereg::backend::sampling::resample_volume;
+    use posereg::report::evaluate::field_error;
     let pair = DemoPair {
         size: PhantomSize::Small,
         flexion: 20.0,
@@ -573,12 +574,11 @@ fn the_refinement_carries_no_tissue_into_a_bone() {
         let carried = carried.unwrap().data;
         let bones = [label::FEMUR, label::TIBIA, label::PATELLA, label::FIBULA];
         let counts = bones.map(|bone| carried.iter().filter(|&&l| l == bone as f32).count());
-        (counts, field.data)
+        (counts, field)
     };
     let ((with, refined), (without, plain)) =
         (covered(&keeping_every_gain()), covered(&without_dense()));
-    let apart = |(a, b): (&[f32; 3], &[f32; 3])| (0..3).map(|c| (a[c] - b[c]).abs()).sum::<f32>();
-    let moved = refined.iter().zip(&plain).map(apart).sum::<f32>() / plain.len() as f32;
+    let moved = field_error(&refined, &plain, |_| true).unwrap().mean_mm;
     eprintln!(
         "voxels in femur, tibia, patella, fibula: {with:?} with the stage, {without:?} without; \
          the field moved {moved:.4} mm on average"
