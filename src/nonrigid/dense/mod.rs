@@ -7,11 +7,13 @@
 //! (elastic), adds the step (averaged with the previous one: `momentum`), scaled so that no
 //! voxel moves further than `step_mm` (at the finest level; more at the coarser ones), holds v
 //! at zero on the bones, fading it in over `bone_margin_mm` beyond. exp(v) is taken by scaling
-//! and squaring: v / 2ⁿ, small enough to be invertible, composed with itself n times, so each
-//! map stays invertible by construction, and where v is zero exp(v) is exactly the identity:
-//! every bone keeps exactly its rigid motion (a level's velocity is held again, with the
-//! voxels touching the bones, on the target's own grid before its exponential joins the
-//! field). A sparse set of RBF points cannot follow the dense, local deformation of real
+//! and squaring: v / 2ⁿ, small enough to be invertible, composed with itself n times, and
+//! where v is zero exp(v) is exactly the identity: every bone keeps exactly its rigid motion
+//! (a level's velocity is held again, with the voxels touching the bones, on the target's own
+//! grid before its exponential joins the field). The exponential that joins the field is
+//! checked on that grid: where it folds (tissue pushed against a held bone), the velocity is
+//! faded around the folded voxels until it does not (exponential::unfolded), so each map
+//! joining the field is invertible. A sparse set of RBF points cannot follow the dense, local deformation of real
 //! muscle and fat; this can (greedy's and demons' scheme, with the bones held). Volumes stay
 //! where the backend computes; per iteration one cost and the update's largest vectors per
 //! chunk come back. A level keeps the velocity whose image term is lowest: where the volume
@@ -25,21 +27,18 @@ use crate::abi::{
 use crate::backend::dense::{largest_vectors, smooth, ForceImages};
 use crate::backend::{box_sums, resample_onto, totals, Backend, DeviceImage};
 use crate::error::Result;
-use crate::images::fold_repair::determinant;
 use crate::images::similarity::Similarity;
 use crate::images::{pyramid, regions};
 use crate::progress::Progress;
 use crate::volume::Grid;
 
+mod exponential;
 mod options;
+use exponential::{exponential, squarings, Exponential};
 pub use options::DenseOptions;
 
 /// Iterations without progress (see `min_gain`) after which a level stops.
 const PATIENCE: usize = 5;
-/// Largest vector of v / 2ⁿ (voxels) before it is squared: small against a voxel, so that
-/// the first map is invertible (half a voxel, as log-domain demons choose it).
-const SQUARING_START_VOXELS: f64 = 0.5;
-
 /// What the stage refines, where the backend computes, on the target's grid.
 pub struct DenseInputs<'a, B: Backend> {
     /// The source scan, on its own grid.
@@ -82,6 +81,10 @@ pub struct DenseReport {
     /// Smallest Jacobian determinant of the levels' exp(v) on the target's grid (1 when no
     /// level kept a step): above 0, the refinement is invertible.
     pub min_det: f32,
+    /// Voxels where a level's exp(v) folded on the target's grid (det J ≤ 0) before its
+    /// velocity was faded around them ([`exponential::unfolded`]), summed over the fades and
+    /// levels; 0: none folded.
+    pub folds_faded: usize,
 }
 
 /// T refined to T ∘ exp(v₁) ∘ … ∘ exp(vₙ) (on the target's grid), one stationary velocity per
@@ -106,6 +109,7 @@ pub fn refine<B: Backend>(
         levels: Vec::new(),
         squarings: 0,
         min_det: 1.0,
+        folds_faded: 0,
     };
     for (index, target) in targets.iter().enumerate().rev() {
         let source = &sources[index.min(sources.len() - 1)];
@@ -123,10 +127,11 @@ pub fn refine<B: Backend>(
         let (kept, done) = level.run(backend, &settings, progress)?;
         progress.end();
         if done.kept_iteration > 0 {
-            let (refined, squarings, min_det) = composed(backend, &field, &held_here, kept)?;
+            let (refined, exp) = composed(backend, &field, &held_here, kept)?;
             field = refined;
-            report.squarings = report.squarings.max(squarings);
-            report.min_det = report.min_det.min(min_det);
+            report.squarings = report.squarings.max(exp.squarings);
+            report.min_det = report.min_det.min(exp.folds.min);
+            report.folds_faded += exp.faded;
         }
         report.levels.push(done);
     }
@@ -135,13 +140,13 @@ pub fn refine<B: Backend>(
 
 /// `field` ∘ exp(v) on `field`'s grid, v (a level's velocity on its own grid, its vectors at
 /// most `bound` mm long) sampled there and, from a coarser grid, held where `held` says; with
-/// the squarings taken and exp(v)'s smallest Jacobian determinant.
+/// the exponential taken, faded where it folded ([`exponential::unfolded`]).
 fn composed<B: Backend>(
     backend: &B,
     field: &DeviceImage<B>,
     held: &Held<B>,
     (v, bound): (DeviceImage<B>, f64),
-) -> Result<(DeviceImage<B>, u32, f32)> {
+) -> Result<(DeviceImage<B>, Exponential<B>)> {
     let grid = &field.grid;
     // The finest level's velocity was held with `held` itself at its every step: fading it
     // again would shrink it over the margin, away from the velocity the level evaluated.
@@ -151,19 +156,13 @@ fn composed<B: Backend>(
         let sampled = sampled_field(backend, &v, grid)?;
         combine(backend, grid, held, (1.0, &sampled), (0.0, &sampled))?
     };
-    let squarings = squarings(bound, grid);
-    let phi = DeviceImage {
-        data: exponential(backend, grid, &v, squarings)?,
-        grid: grid.clone(),
-    };
-    let nothing_held = backend.zeros("nothing held", grid.len())?;
-    let (_, folds) = determinant(backend, &phi, &nothing_held)?;
+    let exp = exponential::unfolded(backend, grid, v, bound)?;
     let params = ComposeParams::new(grid, grid);
     let refined = DeviceImage {
-        data: backend.compose(&params, &phi.data, &field.data)?,
+        data: backend.compose(&params, &exp.map.data, &field.data)?,
         grid: grid.clone(),
     };
-    Ok((refined, squarings, folds.min))
+    Ok((refined, exp))
 }
 
 /// One level's settings.
@@ -427,34 +426,6 @@ fn means<B: Backend>(backend: &B, grid: &Grid, values: &[&B::Buffer<f32>]) -> Re
     Ok(totals.iter().map(|t| t / grid.len() as f64).collect())
 }
 
-/// Squarings that bring a velocity whose vectors are at most `bound` mm long below
-/// [`SQUARING_START_VOXELS`] of `grid`'s finest voxel.
-fn squarings(bound: f64, grid: &Grid) -> u32 {
-    let ratio = bound / (SQUARING_START_VOXELS * grid.finest_spacing());
-    if ratio <= 1.0 {
-        0
-    } else {
-        ratio.log2().ceil().min(20.0) as u32
-    }
-}
-
-/// exp(v) by scaling and squaring: v / 2ⁿ composed with itself n times (3 floats per voxel of
-/// `grid`, mm).
-fn exponential<B: Backend>(
-    backend: &B,
-    grid: &Grid,
-    v: &B::Buffer<f32>,
-    squarings: u32,
-) -> Result<B::Buffer<f32>> {
-    let scale = 0.5f64.powi(squarings as i32);
-    let mut phi = backend.field_combine(&CombineParams::sum(grid, scale, 0.0), v, v, v)?;
-    let params = ComposeParams::new(grid, grid);
-    for _ in 0..squarings {
-        phi = backend.compose(&params, &phi, &phi)?;
-    }
-    Ok(phi)
-}
-
 /// The distance (mm) from the bones (`bones`: a bone index per voxel, 0 off the bones) grown
 /// by `rings` voxels, 0 on them. One ring at the finest level holds the velocity at zero on
 /// every voxel touching a bone too, so that, sampled trilinearly, it is zero over each bone
@@ -533,18 +504,5 @@ mod tests {
             (100, 3.0, 0.5, 16.0),
             "a fourth repeats the coarsest"
         );
-    }
-
-    #[test]
-    fn squarings_bring_the_velocity_below_half_a_voxel() {
-        let mut affine = crate::volume::Affine::identity();
-        for a in 0..3 {
-            affine[(a, a)] = 2.0;
-        }
-        let grid = Grid::new([8, 8, 8], affine).unwrap();
-        assert_eq!(squarings(0.0, &grid), 0);
-        assert_eq!(squarings(1.0, &grid), 0);
-        assert_eq!(squarings(1.1, &grid), 1);
-        assert_eq!(squarings(8.0, &grid), 3);
     }
 }
