@@ -114,60 +114,6 @@ pub fn exponential<B: Backend>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::backend::Core;
-    use crate::cpu::CpuBackend;
-    use crate::images::fold_repair::determinant;
-
-    /// A 1 mm grid of `n`³ voxels.
-    fn grid(n: usize) -> Grid {
-        Grid::new([n; 3], crate::volume::Affine::identity()).unwrap()
-    }
-
-    /// Tissue pushed against a held ball of radius `r` at the grid's centre: v = 0 on the
-    /// ball, `length` mm long and pointing at the centre from `ramp` mm beyond its surface, as
-    /// a coarse level's velocity sampled beside a bone can be.
-    fn pushed_against_a_ball(n: usize, r: f32, (length, ramp): (f32, f32)) -> Vec<f32> {
-        let c = (n as f32 - 1.0) / 2.0;
-        let mut v = vec![0.0f32; 3 * n * n * n];
-        for (voxel, vector) in v.chunks_exact_mut(3).enumerate() {
-            let p = [voxel % n, voxel / n % n, voxel / (n * n)].map(|i| i as f32 - c);
-            let d = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-            let speed = length * ((d - r) / ramp).clamp(0.0, 1.0);
-            for a in 0..3 {
-                vector[a] = -speed * p[a] / d.max(1e-6);
-            }
-        }
-        v
-    }
-
-    #[test]
-    fn an_exponential_that_folds_is_faded_until_it_does_not_and_the_held_voxels_stay_put() {
-        let (n, r) = (24, 3.0);
-        let grid = grid(n);
-        let (length, ramp) = (12.0, 2.0);
-        let data = pushed_against_a_ball(n, r, (length, ramp));
-        let v = CpuBackend.upload("velocity", data.clone()).unwrap();
-        let bound = length as f64;
-        // The scenario folds as it stands (else the fade below would test nothing).
-        let raw = DeviceImage {
-            data: exponential(&CpuBackend, &grid, &v, squarings(bound, &grid)).unwrap(),
-            grid: grid.clone(),
-        };
-        let nothing = CpuBackend.zeros("nothing held", grid.len()).unwrap();
-        let (_, raw_folds) = determinant(&CpuBackend, &raw, &nothing).unwrap();
-        assert!(raw_folds.folded > 0, "exp(v) does not fold: {raw_folds:?}");
-
-        let exp = unfolded(&CpuBackend, &grid, v, bound).unwrap();
-        assert!(exp.folds.min > 0.0, "still folds: {:?}", exp.folds);
-        assert!(exp.faded >= raw_folds.folded, "{} faded", exp.faded);
-        let map = CpuBackend.download_one(&exp.map.data).unwrap();
-        for (voxel, (u, v)) in map.chunks_exact(3).zip(data.chunks_exact(3)).enumerate() {
-            if v == [0.0; 3] {
-                assert_eq!(u, [0.0; 3], "voxel {voxel}, where v is zero, moved");
-            }
-        }
-    }
-
     #[test]
     fn squarings_bring_the_velocity_below_half_a_voxel() {
         let mut affine = crate::volume::Affine::identity();

@@ -32,7 +32,7 @@ use crate::images::{pyramid, regions};
 use crate::progress::Progress;
 use crate::volume::Grid;
 
-mod exponential;
+pub mod exponential;
 mod options;
 use exponential::{exponential, squarings, Exponential};
 pub use options::DenseOptions;
@@ -126,16 +126,43 @@ pub fn refine<B: Backend>(
         let settings = LevelSettings::of(options, index, coarser);
         let (kept, done) = level.run(backend, &settings, progress)?;
         progress.end();
+        let name = format!("dense refinement, level {}", targets.len() - index);
         if done.kept_iteration > 0 {
             let (refined, exp) = composed(backend, &field, &held_here, kept)?;
             field = refined;
             report.squarings = report.squarings.max(exp.squarings);
             report.min_det = report.min_det.min(exp.folds.min);
             report.folds_faded += exp.faded;
+            progress.say(&format!(
+                "{name}: {}; exp(v) {}",
+                kept_line(&done),
+                folds_line(&exp)
+            ));
+        } else {
+            progress.say(&format!(
+                "{name}: no step lowered the image term; the field is kept"
+            ));
         }
         report.levels.push(done);
     }
     Ok((field, report))
+}
+
+/// What a level kept, for the log.
+fn kept_line(done: &DenseLevel) -> String {
+    format!(
+        "iteration {} of {} kept, image term {:.4} -> {:.4}",
+        done.kept_iteration, done.iterations, done.cost_start, done.cost_end
+    )
+}
+
+/// How a level's exponential came out, for the log.
+fn folds_line<B: Backend>(exp: &Exponential<B>) -> String {
+    let det = format!("min det J {:.3}", exp.folds.min);
+    match exp.faded {
+        0 => det,
+        n => format!("{det} (faded around {n} folded voxels first)"),
+    }
 }
 
 /// `field` ∘ exp(v) on `field`'s grid, v (a level's velocity on its own grid, its vectors at
