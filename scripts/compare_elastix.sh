@@ -18,7 +18,10 @@
 #                          target cut below (the fibula mostly out of view);
 #   indep{2,1}-{20,45,90}v the same bends and seeds with volume-keeping soft tissue
 #                          (make_pair.py --tissue incompressible: the flow made divergence-free,
-#                          plus a curl-noise wobble). MAKE_PAIR_OPTS adds make_pair.py options to
+#                          plus a curl-noise wobble); indep{2,1}-{20,45,90}f the same with the air
+#                          free (--air free: only the body keeps its volume, the skin bulges; the
+#                          v pairs' projection keeps the air's volume too, and what the bend pushes
+#                          out circulates through the whole box). MAKE_PAIR_OPTS adds make_pair.py options to
 #                          every independent pair made (a pair already in OUT_DIR/NAME/pair is
 #                          reused as it is). Scored by scripts/score_pair.py (body, bone, soft
 #                          tissue split by whether the truth keeps its volume, the warped source's
@@ -160,6 +163,11 @@ for pair in ${PAIRS:-phantom10 phantom60 knee10}; do
         seed=$(( 10 + (mm == 2 ? 0 : 3) + (deg == 20 ? 1 : deg == 45 ? 2 : 3) ))
         independent_pair "$dir" "knee ${mm} mm, $deg°, volume kept" "$mm" "$deg" "$seed" \
             --tissue incompressible ;;
+    indep2-20f | indep2-45f | indep2-90f | indep1-20f | indep1-45f | indep1-90f)
+        mm=${pair:5:1} deg=${pair#*-} deg=${deg%f}
+        seed=$(( 10 + (mm == 2 ? 0 : 3) + (deg == 20 ? 1 : deg == 45 ? 2 : 3) ))
+        independent_pair "$dir" "knee ${mm} mm, $deg°, volume kept, air free" "$mm" "$deg" "$seed" \
+            --tissue incompressible --air free ;;
     indep2-fibula)
         independent_pair "$dir" "knee 2 mm, 20°, target cut (fibula 8% seen)" 2 20 7 --target-keep 1 0 0.75 ;;
     *)
