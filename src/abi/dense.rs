@@ -177,13 +177,13 @@ pub struct CombineParams {
     pub ny: u32,
     /// Voxels along z.
     pub nz: u32,
-    /// 1: faded by the distance to the nearest bone; 0: not.
+    /// 1: faded by the distance to the nearest marked voxel (a bone, or a fold); 0: not.
     pub faded: u32,
     /// Factor of the first field.
     pub a_scale: f32,
     /// Factor of the second field.
     pub b_scale: f32,
-    /// mm over which the fade rises from 0 on a bone to 1 (> 0 where `bones` > 0).
+    /// mm over which the fade rises from 0 on a marked voxel to 1 (> 0 where faded).
     pub margin_mm: f32,
     /// Padding to 16 bytes.
     pub pad: u32,
@@ -204,8 +204,8 @@ impl CombineParams {
         }
     }
 
-    /// The same, faded to zero on the bones over `margin_mm` (> 0) by the distance to the
-    /// nearest (images::regions::distance_to_nearest).
+    /// The same, faded to zero on marked voxels (the bones, or where a map folds) over
+    /// `margin_mm` (> 0) by the distance to the nearest (images::regions::distance_to_nearest).
     pub fn faded(self, margin_mm: f64) -> Self {
         CombineParams {
             faded: 1,

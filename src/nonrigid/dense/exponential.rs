@@ -5,11 +5,13 @@
 //! where a coarse level's velocity pushes tissue against a bone, on which the velocity is held
 //! at zero, the tissue is squeezed into a voxel or two and the squarings' trilinear samples
 //! cross (2 mm 90° volume-keeping knee: 29 voxels with det ≤ 0, 1 mm: 147, at one and two
-//! voxels from a bone, the velocity 14 and 19 mm long there). More squarings do not help
+//! voxels from a bone, the velocity up to 14 and 19 mm long there). More squarings do not help
 //! (5 → 11: 29 → 26 voxels); scaling the whole velocity down until none folds costs the soft
 //! tissue 0.8 mm there (4.25 → 5.03), a wider bone margin at the coarse levels as much. So the
-//! velocity is faded to zero around the voxels that fold alone, over half its length, which
-//! bounds how fast it falls toward them (BENCHMARKS.md, thirty-eighth session).
+//! velocity is faded to zero around the folded voxels alone, over half its longest vector,
+//! which bounds how fast one fade makes it fall toward them (BENCHMARKS.md, thirty-eighth
+//! session). Where folds outlast [`MOST_FADES`] fades the last map is kept and its determinant
+//! reported (report.json's dense `min_det`, the log).
 
 use crate::abi::dense::CombineParams;
 use crate::abi::{ComposeParams, ThresholdParams};
@@ -24,10 +26,13 @@ use crate::volume::Grid;
 const SQUARING_START_VOXELS: f64 = 0.5;
 /// Most times a velocity is faded around the voxels where its exponential folds.
 const MOST_FADES: usize = 4;
-/// The fade around folded voxels rises over this share of the velocity's longest vector: the
-/// velocity then falls toward a fold at most twice as fast as its length (per unit time of
-/// the flow, squeezing by at most e⁻² there). A share of 0.25 left folds on the 1 mm knee
-/// after four fades; 1 cost it 0.14 mm (BENCHMARKS.md, thirty-eighth session).
+/// The fade around folded voxels rises over this share of the velocity's longest vector: one
+/// fade makes the velocity fall toward a fold at most about twice as fast as its length (per
+/// unit time of the flow, squeezing by about e⁻² there). Measured on the three pairs that fold
+/// (2 mm 45° / 90°, 1 mm 90°, volume kept): a fixed 4 mm left folds after four fades, 8 mm left
+/// 2 voxels on the 1 mm pair; half the longest vector ended them in one fade (soft tissue 2.10 /
+/// 4.26 / 4.30 mm against 2.09 / 4.25 / 4.21 unfaded), the whole of it cost more (2.11 / 4.44 /
+/// 4.35; BENCHMARKS.md, thirty-eighth session).
 const FADE_SHARE: f64 = 0.5;
 
 /// exp(v) with the velocity faded where it folds, and what that took.
@@ -39,7 +44,9 @@ pub struct Exponential<B: Backend> {
     /// The map's fold statistics (its smallest determinant above 0 unless folds outlasted
     /// every fade).
     pub folds: Folds,
-    /// Voxels with det ≤ 0 before each fade, summed over the fades (0: exp(v) did not fold).
+    /// Fades taken (0: exp(v) did not fold).
+    pub fades: usize,
+    /// Voxels with det ≤ 0 before each fade, summed over the fades.
     pub faded: usize,
 }
 
@@ -69,6 +76,7 @@ pub fn unfolded<B: Backend>(
                 map,
                 squarings,
                 folds,
+                fades,
                 faded,
             });
         }

@@ -13,8 +13,10 @@
 //! grid before its exponential joins the field). The exponential that joins the field is
 //! checked on that grid: where it folds (tissue pushed against a held bone), the velocity is
 //! faded around the folded voxels until it does not (exponential::unfolded), so each map
-//! joining the field is invertible. A sparse set of RBF points cannot follow the dense, local deformation of real
-//! muscle and fat; this can (greedy's and demons' scheme, with the bones held). Volumes stay
+//! joining the field has det J > 0 on the grid unless folds outlast every fade (then
+//! report.json's `min_det` is ≤ 0 and the log warns). A sparse set of RBF points cannot follow
+//! the dense, local deformation of real muscle and fat; this can (greedy's and demons' scheme,
+//! with the bones held). Volumes stay
 //! where the backend computes; per iteration one cost and the update's largest vectors per
 //! chunk come back. A level keeps the velocity whose image term is lowest: where the volume
 //! term's steps do not make the scans match better, the level keeps its start.
@@ -118,29 +120,20 @@ pub fn refine<B: Backend>(
             _ => held_map(backend, inputs.bones, &target.grid, margin, 0)?,
         };
         let level = Level::new(backend, (&field, inputs.mask), target, source, held)?;
-        progress.begin(
-            &format!("dense refinement, level {}", targets.len() - index),
-            options.iterations.at_level(index),
-        );
+        let name = format!("dense refinement, level {}", targets.len() - index);
+        progress.begin(&name, options.iterations.at_level(index));
         let coarser = target.grid.finest_spacing() / targets[0].grid.finest_spacing();
         let settings = LevelSettings::of(options, index, coarser);
         let (kept, done) = level.run(backend, &settings, progress)?;
         progress.end();
-        let name = format!("dense refinement, level {}", targets.len() - index);
         if done.kept_iteration > 0 {
             let (refined, exp) = composed(backend, &field, &held_here, kept)?;
             field = refined;
-            report.squarings = report.squarings.max(exp.squarings);
-            report.min_det = report.min_det.min(exp.folds.min);
-            report.folds_faded += exp.faded;
-            progress.say(&format!(
-                "{name}: {}; exp(v) {}",
-                kept_line(&done),
-                folds_line(&exp)
-            ));
+            report.join(&exp);
+            say_kept(progress, &name, &done, &exp);
         } else {
             progress.say(&format!(
-                "{name}: no step lowered the image term; the field is kept"
+                "{name}: no step lowered the image term by min_gain; the field is kept"
             ));
         }
         report.levels.push(done);
@@ -148,20 +141,41 @@ pub fn refine<B: Backend>(
     Ok((field, report))
 }
 
-/// What a level kept, for the log.
-fn kept_line(done: &DenseLevel) -> String {
-    format!(
-        "iteration {} of {} kept, image term {:.4} -> {:.4}",
-        done.kept_iteration, done.iterations, done.cost_start, done.cost_end
-    )
+impl DenseReport {
+    /// Counts in a level's exponential, now part of the field.
+    fn join<B: Backend>(&mut self, exp: &Exponential<B>) {
+        self.squarings = self.squarings.max(exp.squarings);
+        self.min_det = self.min_det.min(exp.folds.min);
+        self.folds_faded += exp.faded;
+    }
 }
 
-/// How a level's exponential came out, for the log.
-fn folds_line<B: Backend>(exp: &Exponential<B>) -> String {
-    let det = format!("min det J {:.3}", exp.folds.min);
-    match exp.faded {
-        0 => det,
-        n => format!("{det} (faded around {n} folded voxels first)"),
+/// The log's line on what level `name` kept and how its exponential came out; a warning where
+/// it still folds after every fade (the finish's unfolding then lifts the folds).
+fn say_kept<B: Backend>(
+    progress: &dyn Progress,
+    name: &str,
+    done: &DenseLevel,
+    exp: &Exponential<B>,
+) {
+    let kept = format!(
+        "iteration {} of {} kept, image term {:.4} -> {:.4}",
+        done.kept_iteration, done.iterations, done.cost_start, done.cost_end
+    );
+    let det = format!("exp(v) min det J {:.4}", exp.folds.min);
+    progress.say(&match exp.fades {
+        0 => format!("{name}: {kept}; {det}"),
+        fades => format!(
+            "{name}: {kept} (before fading); {det} after {fades} fade(s) around folded voxels \
+             ({} before them)",
+            exp.faded
+        ),
+    });
+    if exp.folds.folded > 0 {
+        progress.warn(&format!(
+            "{name}: exp(v) still folds at {} voxels after {} fades (min det J {:.4})",
+            exp.folds.folded, exp.fades, exp.folds.min
+        ));
     }
 }
 
