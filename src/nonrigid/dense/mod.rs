@@ -16,10 +16,10 @@
 //! joining the field has det J > 0 on the grid unless folds outlast every fade (then
 //! report.json's `min_det` is ≤ 0 and the log warns). A sparse set of RBF points cannot follow
 //! the dense, local deformation of real muscle and fat; this can (greedy's and demons' scheme,
-//! with the bones held). Volumes stay
-//! where the backend computes; per iteration one cost and the update's largest vectors per
-//! chunk come back. A level keeps the velocity whose image term is lowest: where the volume
-//! term's steps do not make the scans match better, the level keeps its start.
+//! with the bones held). Volumes stay where the backend computes; per iteration one cost and
+//! the update's largest vectors per chunk come back. A level keeps the velocity whose image
+//! term is lowest: where the volume term's steps do not make the scans match better, the level
+//! keeps its start.
 
 use crate::abi::dense::{CombineParams, ForceParams, ForceTerm};
 use crate::abi::{
@@ -41,6 +41,7 @@ pub use options::DenseOptions;
 
 /// Iterations without progress (see `min_gain`) after which a level stops.
 const PATIENCE: usize = 5;
+
 /// What the stage refines, where the backend computes, on the target's grid.
 pub struct DenseInputs<'a, B: Backend> {
     /// The source scan, on its own grid.
@@ -173,7 +174,8 @@ fn say_kept<B: Backend>(
     });
     if exp.folds.folded > 0 {
         progress.warn(&format!(
-            "{name}: exp(v) still folds at {} voxels after {} fades (min det J {:.4})",
+            "{name}: exp(v) still folds at {} voxels after {} fades (min det J {:.4}); \
+             the finish's unfolding lifts what is left",
             exp.folds.folded, exp.fades, exp.folds.min
         ));
     }
