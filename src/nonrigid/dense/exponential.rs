@@ -63,7 +63,6 @@ pub fn unfolded<B: Backend>(
     let squarings = squarings(bound, grid);
     let nothing_held = backend.zeros("nothing held", grid.len())?;
     let folded = ThresholdParams::new(grid, 0.0);
-    let fade = CombineParams::sum(grid, 1.0, 0.0).faded(FADE_SHARE * bound);
     let mut faded = 0;
     for fades in 0.. {
         let map = DeviceImage {
@@ -86,7 +85,8 @@ pub fn unfolded<B: Backend>(
             grid: grid.clone(),
         };
         let distance = regions::distance_to_nearest(backend, &marked)?;
-        v = backend.field_combine(&fade, &v, &v, &distance)?;
+        let around_folds = Some((distance, FADE_SHARE * bound));
+        v = super::combine(backend, grid, &around_folds, (1.0, &v), (0.0, &v))?;
     }
     unreachable!("the fades end at MOST_FADES")
 }
