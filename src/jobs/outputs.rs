@@ -25,10 +25,19 @@ pub fn write_registration(
 ) -> Result<()> {
     let result = &done.result;
     let out = |name: &str| folder.join(name);
-    save_volume(&out("warped.nii.gz"), &result.warped, DataType::F32)?;
-    save_field(&out("field.nii.gz"), &result.field)?;
-    save_field(&out("inverse_field.nii.gz"), &result.inverse)?;
-    save_volume(&out("jacobian.nii.gz"), &result.jacobian, DataType::F32)?;
+    // The volumes are compressed on one core each (miniz): two at a time, half the wait
+    // (1 mm knee: 0.5 s of a 9 s run written one after another).
+    let (one, other) = rayon::join(
+        || -> Result<()> {
+            save_field(&out("field.nii.gz"), &result.field)?;
+            save_volume(&out("warped.nii.gz"), &result.warped, DataType::F32)
+        },
+        || -> Result<()> {
+            save_field(&out("inverse_field.nii.gz"), &result.inverse)?;
+            save_volume(&out("jacobian.nii.gz"), &result.jacobian, DataType::F32)
+        },
+    );
+    one.and(other)?;
     let transform = result.transforms(options);
     transform.save(&out("transform.json"))?;
     save_bone_tfms(folder, &transform)?;
