@@ -8,6 +8,8 @@ struct RbfGradParams {
     dims: vec4<u32>,          // nx, ny, nz, unused
     lattice_dims: vec4<u32>,  // lx, ly, lz, unused
     lattice_step: vec4<u32>,  // step along x, y, z (voxels), unused
+    moving_dims: vec4<u32>,   // the moving image's nx, ny, nz, unused
+    stride: vec4<u32>,        // target voxel (i, j, k) lies on moving voxel stride * (i, j, k)
     mm_to_index: array<vec4<f32>, 3>,
     gradient_to_world: array<vec4<f32>, 3>,
 }

@@ -28,6 +28,21 @@ impl Grid {
         Ok(grid)
     }
 
+    /// Every `stride`-th voxel per axis from the first: the same origin and extent (to a voxel),
+    /// voxels `stride` times as far apart.
+    pub fn every(&self, stride: usize) -> Grid {
+        let mut affine = self.affine;
+        for c in 0..3 {
+            for r in 0..3 {
+                affine[(r, c)] *= stride as f64;
+            }
+        }
+        Grid {
+            dims: self.dims.map(|n| (n - 1) / stride + 1),
+            affine,
+        }
+    }
+
     /// Why this grid cannot be used, if it cannot.
     pub fn validate(&self) -> Result<()> {
         if self.dims.contains(&0) {

@@ -526,3 +526,28 @@ fn the_inverse_field_undoes_the_field_at_sixty_degrees() {
     assert!(trip.mean_mm <= 0.1, "{trip:?}");
     assert_eq!(result.inverse.grid, source.image.grid);
 }
+
+/// `adaptive.finest_stride` 2 scores the finest level on an eighth of its voxels (the moving
+/// image still sampled at full resolution): on the small phantom at 30° without the dense
+/// refinement (which would amplify any difference in its start) the field ends as close to the
+/// truth as with every voxel, within 0.05 mm (measured 2026-12-07: 0.54 mm with every voxel,
+/// 0.56 with an eighth), and closer than the initial field.
+#[test]
+fn the_finest_level_on_every_other_voxel_ends_as_close_to_the_truth() {
+    let cpu = &posereg::cpu::CpuBackend;
+    let mut options = RegisterOptions::default();
+    options.dense.enabled = false;
+    let every = register_and_score(cpu, PhantomSize::Small, 30.0, &options, "stride 1");
+    options.adaptive.finest_stride = 2;
+    let sampled = register_and_score(cpu, PhantomSize::Small, 30.0, &options, "stride 2");
+    let (e1, e2) = (every.error.mean_mm, sampled.error.mean_mm);
+    let before = sampled.initial_error.as_ref().expect("initialised").mean_mm;
+    assert!(
+        (e2 - e1).abs() <= 0.05,
+        "{e1} mm with every voxel, {e2} with an eighth"
+    );
+    assert!(
+        e2 < before,
+        "the finest level did not improve on {before} mm: {e2}"
+    );
+}

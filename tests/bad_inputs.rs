@@ -610,6 +610,11 @@ fn settings_cases(x: &Inputs) -> Vec<Case> {
             &["radius.toml", "lncc_radius"],
         ),
         case(
+            "finest_stride 5 (file)",
+            with(config("stride.toml", "[adaptive]\nfinest_stride = 5\n")),
+            &["stride.toml", "finest_stride"],
+        ),
+        case(
             "threshold -1 (file)",
             with(config("neg.toml", "[adaptive]\nthreshold = \"-1\"\n")),
             &["neg.toml", "threshold"],

@@ -592,15 +592,18 @@ fn spline_over(grid: &Grid, points: usize) -> Vec<f64> {
     posereg::abi::spline_buffer(&coef.affine, &positions, &coef.lambda)
 }
 
-/// Runs the kernels of one evaluation on `b`, as the adaptive stage chains them.
+/// Runs the kernels of one evaluation on `b`, as the adaptive stage chains them: the moving
+/// image (`images[0]`) on its own grid, the target and the coverage on every `stride`-th of
+/// its voxels.
 fn evaluate<B: Backend>(
     b: &B,
-    grid: &Grid,
+    (moving_grid, stride): (&Grid, usize),
     images: [&Volume; 3],
     step: [usize; 3],
     spline: &[f64],
 ) -> Evaluation {
     use posereg::abi::{lattice_geometry, RbfGradParams, RbfLatticeParams, SplatParams};
+    let grid = &moving_grid.every(stride);
     let ldims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);
     let points = (spline.len() - 12) / 6;
     let shape = RbfLatticeParams::new(ldims, step, points);
@@ -618,9 +621,8 @@ fn evaluate<B: Backend>(
         fixed: &fixed,
         covered: &covered,
     };
-    let (gradient, rows) = b
-        .warp_cost(&RbfGradParams::new(grid, ldims, step), &warp, &images)
-        .unwrap();
+    let params = RbfGradParams::sampling(moving_grid, stride, ldims, step);
+    let (gradient, rows) = b.warp_cost(&params, &warp, &images).unwrap();
     let splat = b
         .lattice_splat(&SplatParams::new(ldims, step, grid.dims), &gradient)
         .unwrap();
@@ -678,15 +680,22 @@ fn close_f64(name: &str, got: &[f64], want: &[f64], rel: f64) {
 #[test]
 fn nonrigid_evaluation_kernels_parity() {
     let Some(gpu) = gpu() else { return };
-    // A coarse lattice of odd size, its step different along each axis; and every voxel a node
+    // A coarse lattice of odd size, its step different along each axis; every voxel a node
     // (as at coarse pyramid levels), over more than 65 535 nodes (llvmpipe ends longer loops:
-    // shaders/nonrigid/rbf_adjoint.wgsl).
-    for (dims, step, points) in [([27, 22, 17], [4, 3, 5], 40), ([41, 64, 27], [1; 3], 23)] {
-        let grid = oblique_grid(dims);
-        let moving = smooth_volume(&grid, 61);
+    // shaders/nonrigid/rbf_adjoint.wgsl); and the target on every other voxel of the moving
+    // image (adaptive.finest_stride), at odd sizes.
+    let cases = [
+        ([27, 22, 17], [4, 3, 5], 40, 1),
+        ([41, 64, 27], [1; 3], 23, 1),
+        ([27, 22, 17], [2, 3, 2], 40, 2),
+    ];
+    for (dims, step, points, stride) in cases {
+        let moving_grid = oblique_grid(dims);
+        let grid = moving_grid.every(stride);
+        let moving = smooth_volume(&moving_grid, 61);
         let fixed = smooth_volume(&grid, 62);
         // Coverage: a slab of slices without source data.
-        let slice = dims[0] * dims[1];
+        let slice = grid.dims[0] * grid.dims[1];
         let covered = posereg::Image::from_data(
             grid.clone(),
             (0..grid.len())
@@ -696,9 +705,10 @@ fn nonrigid_evaluation_kernels_parity() {
         .unwrap();
         let spline = spline_over(&grid, points);
         let images = [&moving, &fixed, &covered];
-        let want = evaluate(&CpuBackend, &grid, images, step, &spline);
-        let got = evaluate(gpu, &grid, images, step, &spline);
-        let name = |k: &str| format!("step {step:?}: {k}");
+        let sampling = (&moving_grid, stride);
+        let want = evaluate(&CpuBackend, sampling, images, step, &spline);
+        let got = evaluate(gpu, sampling, images, step, &spline);
+        let name = |k: &str| format!("step {step:?}, stride {stride}: {k}");
         // The warp is summed in f64 and rounded once to f32: equal up to the last bit.
         close(&name("rbf_lattice"), &got.warp, &want.warp, 1e-5, 1e-6);
         // As rbf_grad: 2 r ∇I0 with r up to ~100, |∇| up to ~10.

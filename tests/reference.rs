@@ -1167,3 +1167,67 @@ fn box_sums_and_the_dense_force_match_closed_forms_on_thin_grids() {
         }
     }
 }
+
+/// A target on every other voxel of the moving image's grid (adaptive.finest_stride) is
+/// measured as the full grid is at those voxels: warp_image and warp_cost at sampled voxel a
+/// give, to the bit, what they give at voxel 2a of the full grid with a lattice twice as many
+/// voxels apart there (the same nodes in the world), at odd and even sizes.
+#[test]
+fn a_strided_target_is_measured_as_the_full_grid_is_at_its_voxels() {
+    use posereg::abi::RbfGradParams;
+    use posereg::backend::CostImages;
+    let b = CpuBackend;
+    let full = oblique_grid([21, 18, 15]);
+    let sampled = full.every(2);
+    assert_eq!(sampled.dims, [11, 9, 8]);
+    let moving = Arc::new(smooth_volume(&full, 5).data);
+    let fixed_full = smooth_volume(&full, 6).data;
+    let on_sampled = |values: &[f32]| -> Vec<f32> {
+        let [sx, sy, sz] = sampled.dims;
+        (0..sz)
+            .flat_map(|k| (0..sy).flat_map(move |j| (0..sx).map(move |i| (i, j, k))))
+            .map(|(i, j, k)| values[full.index(2 * i, 2 * j, 2 * k)])
+            .collect()
+    };
+    let step = [2, 3, 2];
+    let ldims: [usize; 3] = std::array::from_fn(|a| (sampled.dims[a] - 1).div_ceil(step[a]) + 1);
+    let full_step = step.map(|s| 2 * s);
+    let full_ldims: [usize; 3] =
+        std::array::from_fn(|a| (full.dims[a] - 1).div_ceil(full_step[a]) + 1);
+    assert_eq!(ldims, full_ldims);
+    let lattice: Arc<Vec<f32>> = Arc::new(
+        (0..3 * ldims.iter().product::<usize>())
+            .map(|k| ((k * 37) % 23) as f32 * 0.4 - 4.0)
+            .collect(),
+    );
+    let strided = RbfGradParams::sampling(&full, 2, ldims, step);
+    let whole = RbfGradParams::new(&full, full_ldims, full_step);
+    let warped = |params: &RbfGradParams| b.warp_image(params, &lattice, &moving).unwrap();
+    assert_eq!(*warped(&strided), on_sampled(&warped(&whole)));
+
+    let fixed_sampled = Arc::new(on_sampled(&fixed_full));
+    let (covered_sampled, covered_full) = (
+        Arc::new(vec![1.0f32; sampled.len()]),
+        Arc::new(vec![1.0f32; full.len()]),
+    );
+    let fixed_full = Arc::new(fixed_full);
+    let cost = |params, fixed, covered| {
+        let images = CostImages {
+            moving: &moving,
+            fixed,
+            covered,
+        };
+        b.warp_cost(params, &lattice, &images).unwrap().0
+    };
+    let got = cost(&strided, &fixed_sampled, &covered_sampled);
+    let want = cost(&whole, &fixed_full, &covered_full);
+    let per_voxel =
+        |g: &[f32], c: usize| -> Vec<f32> { g.iter().skip(c).step_by(3).copied().collect() };
+    for c in 0..3 {
+        assert_eq!(
+            per_voxel(&got, c),
+            on_sampled(&per_voxel(&want, c)),
+            "component {c}"
+        );
+    }
+}

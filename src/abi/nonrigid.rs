@@ -13,21 +13,41 @@ pub struct RbfGradParams {
     pub lattice_dims: [u32; 4],
     /// Lattice step along x, y, z (voxels: node a sits on voxel a · step), unused.
     pub lattice_step: [u32; 4],
-    /// Rows of the inverse linear part of the grid: a displacement in mm → index delta.
+    /// The moving image's nx, ny, nz, unused: the target's, or the grid it samples.
+    pub moving_dims: [u32; 4],
+    /// Target voxel (i, j, k) lies on the moving image's voxel stride · (i, j, k); 1 where the
+    /// two share a grid. unused last.
+    pub stride: [u32; 4],
+    /// Rows of the inverse linear part of the moving image's grid: a displacement in mm →
+    /// index delta.
     pub mm_to_index: [[f32; 4]; 3],
-    /// Index-space gradient → world gradient ((L⁻¹)ᵀ).
+    /// Index-space gradient of the moving image → world gradient ((L⁻¹)ᵀ).
     pub gradient_to_world: [[f32; 4]; 3],
 }
 
 impl RbfGradParams {
-    /// For a target `grid` with a lattice of `lattice_dims` nodes every `steps` voxels.
+    /// For a target `grid` with a lattice of `lattice_dims` nodes every `steps` voxels, the
+    /// moving image on the same grid.
     pub fn new(grid: &Grid, lattice_dims: [usize; 3], steps: [usize; 3]) -> Self {
+        RbfGradParams::sampling(grid, 1, lattice_dims, steps)
+    }
+
+    /// For a target grid taking every `stride`-th voxel of the moving image's `grid` per axis,
+    /// from its first, with a lattice of `lattice_dims` nodes every `steps` target voxels.
+    pub fn sampling(
+        grid: &Grid,
+        stride: usize,
+        lattice_dims: [usize; 3],
+        steps: [usize; 3],
+    ) -> Self {
         let l: nalgebra::Matrix3<f64> = grid.affine.fixed_view::<3, 3>(0, 0).into_owned();
         let inv = l.try_inverse().expect("validated grids are invertible");
         RbfGradParams {
-            dims: dims4(grid, 0),
+            dims: padded(grid.dims.map(|n| (n - 1) / stride + 1), 0),
             lattice_dims: padded(lattice_dims, 0),
             lattice_step: padded(steps, 0),
+            moving_dims: dims4(grid, 0),
+            stride: padded([stride; 3], 0),
             mm_to_index: linear_rows(&inv),
             gradient_to_world: linear_rows(&inv.transpose()),
         }

@@ -93,8 +93,8 @@ pub fn warp_at(params: &RbfGradParams, lattice: &[f32], taps: &LatticeTaps, c: [
     taps.row(params, lattice, c[1], c[2]).warp_at(taps, c[0])
 }
 
-/// Where voxel (i, j, k) samples I0 through the warp of `row`, in I0's index space: x + R(x)
-/// (warped_position in shaders/warp_sample.wgsl).
+/// Where voxel (i, j, k) samples I0 through the warp of `row`, in I0's index space: x + R(x),
+/// x on I0's voxel stride · (i, j, k) (warped_position in shaders/warp_sample.wgsl).
 #[inline(always)]
 fn warped_position(
     params: &RbfGradParams,
@@ -103,10 +103,11 @@ fn warped_position(
     [i, j, k]: [u32; 3],
 ) -> [f32; 3] {
     let r = row.warp_at(taps, i).to_array();
+    let s = params.stride;
     [
-        i as f32 + linear_row(params.mm_to_index[0], r),
-        j as f32 + linear_row(params.mm_to_index[1], r),
-        k as f32 + linear_row(params.mm_to_index[2], r),
+        (i * s[0]) as f32 + linear_row(params.mm_to_index[0], r),
+        (j * s[1]) as f32 + linear_row(params.mm_to_index[1], r),
+        (k * s[2]) as f32 + linear_row(params.mm_to_index[2], r),
     ]
 }
 
@@ -163,8 +164,12 @@ fn sample_row(
     moving: &[f32],
     [j, k]: [u32; 2],
 ) {
-    let d = [params.dims[0], params.dims[1], params.dims[2]];
-    let nx = d[0] as usize;
+    let nx = params.dims[0] as usize;
+    let d = [
+        params.moving_dims[0],
+        params.moving_dims[1],
+        params.moving_dims[2],
+    ];
     samples.resize(nx);
     taps.fill_row(params, lattice, [j, k], &mut samples.row);
     for i in 0..nx {

@@ -19,13 +19,14 @@ use crate::images::pyramid;
 /// Gains are kept within this factor of 1: a wider ratio is anatomy, not bias.
 const MOST_GAIN: f32 = 2.0;
 
-/// `moving` (on `target`'s grid) times the smooth gain g with g·`warped` ≈ `target` at
-/// `scale_mm`, `warped` being the moving image through the warp found so far.
+/// `moving` times the smooth gain g with g·`warped` ≈ `target` at `scale_mm`, `warped` being
+/// the moving image through the warp found so far, on `target`'s grid (`moving` on that grid
+/// or one it samples).
 pub fn gain<B: Backend>(
     backend: &B,
     warped: &B::Buffer<f32>,
     target: &DeviceImage<B>,
-    moving: &B::Buffer<f32>,
+    moving: &DeviceImage<B>,
     scale_mm: f64,
 ) -> Result<B::Buffer<f32>> {
     let grid = &target.grid;
@@ -51,11 +52,11 @@ pub fn gain<B: Backend>(
         &product.data,
         &energy.data,
     )?;
-    // Back onto the level's grid, trilinear, clamped at the coarse grid's edge.
+    // Back onto the moving image's grid, trilinear, clamped at the coarse grid's edge.
     backend.gain_apply(
-        &GainParams::new(grid, coarse, floor, MOST_GAIN),
+        &GainParams::new(&moving.grid, coarse, floor, MOST_GAIN),
         &ratio,
-        moving,
+        &moving.data,
     )
 }
 
@@ -99,7 +100,11 @@ mod tests {
             // The moving image is aligned: it is its own warped image.
             let target = DeviceImage::upload(&CpuBackend, "target", target).unwrap();
             let moving_data = std::sync::Arc::new(moving.data.clone());
-            let gained = gain(&CpuBackend, &moving_data, &target, &moving_data, 20.0).unwrap();
+            let moving_image = DeviceImage {
+                grid: moving.grid.clone(),
+                data: moving_data.clone(),
+            };
+            let gained = gain(&CpuBackend, &moving_data, &target, &moving_image, 20.0).unwrap();
             let g: Vec<f32> = gained
                 .iter()
                 .zip(&moving.data)

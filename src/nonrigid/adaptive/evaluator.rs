@@ -26,15 +26,18 @@ pub(super) struct Lattice<B: Backend> {
 }
 
 impl<B: Backend> Lattice<B> {
-    pub(super) fn new(backend: &B, grid: &Grid, step: [usize; 3]) -> Result<Self> {
+    /// A lattice over every `stride`-th voxel of `moving` (the moving image's grid), nodes
+    /// every `step` of those voxels.
+    pub(super) fn new(backend: &B, moving: &Grid, stride: usize, step: [usize; 3]) -> Result<Self> {
+        let grid = moving.every(stride);
         let dims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1).div_ceil(step[a]) + 1);
         let spacing = grid.spacing();
         Ok(Lattice {
             dims,
             step,
             spacing_mm: std::array::from_fn(|a| spacing[a] * step[a] as f64),
-            geometry: backend.upload("lattice geometry", lattice_geometry(grid))?,
-            voxel_params: RbfGradParams::new(grid, dims, step),
+            geometry: backend.upload("lattice geometry", lattice_geometry(&grid))?,
+            voxel_params: RbfGradParams::sampling(moving, stride, dims, step),
         })
     }
 
@@ -71,8 +74,11 @@ pub(super) struct NodeWarp<B: Backend> {
 
 /// One pyramid level's images where the backend computes.
 pub(super) struct Level<B: Backend> {
+    /// The target, on every `stride`-th voxel of the moving image's grid.
     pub(super) fixed: DeviceImage<B>,
     pub(super) moving: DeviceImage<B>,
+    /// 1 but at a finest level measured on fewer voxels (AdaptiveOptions::finest_stride).
+    pub(super) stride: usize,
     pub(super) covered: DeviceImage<B>,
     /// [`Moving::mask_share`].
     pub(super) mask_share: f64,

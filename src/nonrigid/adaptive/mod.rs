@@ -23,8 +23,8 @@ pub use options::AdaptiveOptions;
 
 use evaluator::{Evaluator, Lattice, Level};
 
-use crate::abi::{RbfGradParams, SsdParams, SumParams};
-use crate::backend::{total, Backend, DeviceImage, Traffic};
+use crate::abi::{Interpolation, RbfGradParams, SsdParams, SumParams};
+use crate::backend::{resample_onto, total, Backend, DeviceImage, Traffic};
 use crate::error::Result;
 use crate::images::metric::{check_cells, fold_ssd_partials, CellSsd};
 use crate::images::pyramid;
@@ -238,20 +238,31 @@ fn levels<B: Backend>(
     backend: &B,
     moving: &Moving<B>,
     target: &DeviceImage<B>,
-    count: usize,
+    (count, finest_stride): (usize, usize),
 ) -> Result<Vec<Level<B>>> {
-    let fixed = pyramid::build(backend, target.clone(), count)?;
+    let mut fixed = pyramid::build(backend, target.clone(), count)?;
     let count = fixed.len();
     let moving_levels = pyramid::build(backend, moving.image.clone(), count)?;
-    let covered = pyramid::build(backend, moving.coverage.clone(), count)?;
+    let mut covered = pyramid::build(backend, moving.coverage.clone(), count)?;
+    // The finest level's target and coverage on every finest_stride-th voxel: the voxels
+    // themselves, not smoothed (the moving image keeps its full resolution).
+    if finest_stride > 1 {
+        let sampled = target.grid.every(finest_stride);
+        let nearest = |image: &DeviceImage<B>| {
+            resample_onto(backend, image, &sampled, Interpolation::Nearest)
+        };
+        (fixed[0], covered[0]) = (nearest(&fixed[0])?, nearest(&covered[0])?);
+    }
     let share = moving.mask_share;
     Ok(fixed
         .into_iter()
         .zip(moving_levels)
         .zip(covered)
-        .map(|((fixed, moving), covered)| Level {
+        .enumerate()
+        .map(|(index, ((fixed, moving), covered))| Level {
             fixed,
             moving,
+            stride: if index == 0 { finest_stride } else { 1 },
             covered,
             mask_share: share,
         })
@@ -271,14 +282,19 @@ pub fn register<B: Backend>(
     crate::backend::check_grids(&moving.image.grid, &target.grid)?;
     crate::backend::check_grids(&moving.coverage.grid, &target.grid)?;
     options.check()?;
-    let levels = levels(backend, moving, target, options.levels)?;
+    let levels = levels(
+        backend,
+        moving,
+        target,
+        (options.levels, options.finest_stride),
+    )?;
     let mut points = pinned_points(pins);
     let mut stages = Vec::new();
     let evaluations = std::cell::Cell::new(Evaluations::default());
     progress.begin("adaptive RBF", levels.len() * options.cell_levels.len());
     for (index, level) in levels.iter().enumerate().rev() {
         let step = lattice_steps(&level.fixed.grid, options, moving.prealigned);
-        let lattice = Lattice::new(backend, &level.fixed.grid, step)?;
+        let lattice = Lattice::new(backend, &level.moving.grid, level.stride, step)?;
         let target_variance = variance(backend, &level.fixed)?;
         let weights = energy_weights(target_variance, index, moving.prealigned, options);
         // Once the moving image is aligned, its smooth brightness difference to the target is
@@ -319,11 +335,10 @@ pub fn register<B: Backend>(
         points,
         coefficients,
         lattice: {
-            let finest = &levels[0].fixed.grid;
-            (
-                finest.clone(),
-                lattice_steps(finest, options, moving.prealigned),
-            )
+            // Nodes every `step` sampled voxels are every stride · step voxels of the grid.
+            let (finest, stride) = (&levels[0], levels[0].stride);
+            let step = lattice_steps(&finest.fixed.grid, options, moving.prealigned);
+            (finest.moving.grid.clone(), step.map(|s| s * stride))
         },
         stages,
         evaluations: evaluations.get(),
@@ -351,13 +366,18 @@ fn matched_gain<B: Backend>(
     points: &[ControlPoint],
     options: &AdaptiveOptions,
 ) -> Result<B::Buffer<f32>> {
-    let moving = &level.moving.data;
-    let warped = warp_moving(backend, points, options.smoothing, lattice, moving)?;
+    let warped = warp_moving(
+        backend,
+        points,
+        options.smoothing,
+        lattice,
+        &level.moving.data,
+    )?;
     gain(
         backend,
         &warped.image,
         &level.fixed,
-        moving,
+        &level.moving,
         options.gain_scale_mm,
     )
 }
@@ -458,7 +478,11 @@ impl<'a, B: Backend> LevelRun<'a, B> {
 
     /// `wanted` cells per axis, fewer where an axis has too few voxels.
     fn cells(&self, wanted: usize) -> [usize; 3] {
-        cells_on(&self.level.fixed.grid, wanted, self.options.min_cell_voxels)
+        cells_on(
+            &self.level.moving.grid,
+            wanted,
+            self.options.min_cell_voxels,
+        )
     }
 
     /// Adds a control point at the centre of each cell that fits poorly (every cell at the
@@ -494,7 +518,7 @@ impl<'a, B: Backend> LevelRun<'a, B> {
                 (k / cells[0]) % cells[1],
                 k / (cells[0] * cells[1]),
             ];
-            let centre = cell_centre(grid, cells, c);
+            let centre = cell_centre(&self.level.moving.grid, cells, c);
             let poor = *mean > options.threshold.at_level(self.index) * overall
                 || wanted == options.cell_levels[0];
             let crowded = points
@@ -564,7 +588,7 @@ impl Adaptive {
     /// there. Only the lattice passes the host, to be scaled.
     pub fn warp_field<B: Backend>(&self, backend: &B, scale: f64) -> Result<DeviceImage<B>> {
         let (grid, step) = &self.lattice;
-        let lattice = Lattice::new(backend, grid, *step)?;
+        let lattice = Lattice::new(backend, grid, 1, *step)?;
         let centres: Vec<Vector3<f64>> = self
             .points
             .iter()

@@ -6,6 +6,8 @@ use crate::error::{Error, Result};
 use crate::images::similarity::Similarity;
 use crate::levels::{PerLevel, MAX_LEVELS};
 
+/// Most voxels the finest level may step between the ones it measures (finest_stride).
+const MAX_STRIDE: usize = 4;
 /// Default weight of the membrane energy (AdaptiveOptions::membrane).
 const MEMBRANE_DEFAULT: f64 = 3.0;
 /// Default weight of the bending energy (AdaptiveOptions::bending).
@@ -65,6 +67,10 @@ pub struct AdaptiveOptions {
     pub similarity: PerLevel<Similarity>,
     /// Radius (voxels) of LNCC's windows: (2 r + 1)³ voxels.
     pub lncc_radius: usize,
+    /// The finest level's image term is measured on every `finest_stride`-th voxel of the
+    /// target per axis (the moving image still sampled at full resolution through the warp),
+    /// as elastix samples: 2 takes an eighth of the voxels. 1 measures every voxel.
+    pub finest_stride: usize,
 }
 
 /// The cell threshold's default: 8, and 4 at the finest level (AdaptiveOptions::threshold).
@@ -88,6 +94,7 @@ impl Default for AdaptiveOptions {
             gain_scale_mm: 20.0,
             similarity: PerLevel::all(Similarity::Ssd),
             lncc_radius: 2,
+            finest_stride: 1,
         }
     }
 }
@@ -123,6 +130,7 @@ impl AdaptiveOptions {
             r("smoothing", one(self.smoothing), (0.0, many), ""),
             r("gain_scale_mm", one(self.gain_scale_mm), (0.0, many), " (mm)"),
             r("lncc_radius", one(self.lncc_radius as f64), (1.0, MAX_LNCC_RADIUS as f64), " (voxels)"),
+            r("finest_stride", one(self.finest_stride as f64), (1.0, MAX_STRIDE as f64), " (voxels)"),
             // Below 1 nearly every cell would get a point: the RBF system grows unbounded.
             r("threshold", self.threshold.values().to_vec(), (1.0, many), ""),
             r("tolerance", self.tolerance.values().to_vec(), (0.0, MAX_TOLERANCE), ""),
