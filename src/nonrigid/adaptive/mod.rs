@@ -476,13 +476,13 @@ impl<'a, B: Backend> LevelRun<'a, B> {
         }))
     }
 
-    /// `wanted` cells per axis, fewer where an axis has too few voxels.
+    /// `wanted` cells per axis, fewer where an axis has too few voxels: counted on the moving
+    /// image's grid (a finest level measured on fewer voxels places its points as without),
+    /// and at most one per measured voxel.
     fn cells(&self, wanted: usize) -> [usize; 3] {
-        cells_on(
-            &self.level.moving.grid,
-            wanted,
-            self.options.min_cell_voxels,
-        )
+        let (grid, measured) = (&self.level.moving.grid, self.level.fixed.grid.dims);
+        let cells = cells_on(grid, wanted, self.options.min_cell_voxels);
+        std::array::from_fn(|a| cells[a].min(measured[a]))
     }
 
     /// Adds a control point at the centre of each cell that fits poorly (every cell at the
