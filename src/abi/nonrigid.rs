@@ -43,7 +43,7 @@ impl RbfGradParams {
         let l: nalgebra::Matrix3<f64> = grid.affine.fixed_view::<3, 3>(0, 0).into_owned();
         let inv = l.try_inverse().expect("validated grids are invertible");
         RbfGradParams {
-            dims: padded(grid.dims.map(|n| (n - 1) / stride + 1), 0),
+            dims: dims4(&grid.every(stride), 0),
             lattice_dims: padded(lattice_dims, 0),
             lattice_step: padded(steps, 0),
             moving_dims: dims4(grid, 0),
