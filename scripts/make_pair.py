@@ -339,6 +339,18 @@ def blended_step(x, weights, twists, h):
     return apply_twists(omega, vel, x)
 
 
+def polyrigid_flow(x, s, h, steps, distance, twists, index_of, falloff, sample=trilinear):
+    """Points x moved along the polyrigid flow from time s by `steps` steps of h (midpoint rule,
+    an exact exponential per step; flow_weights at each step's start and middle)."""
+    for k in range(steps):
+        w, _ = flow_weights(x, s + k * h, distance, twists, index_of, falloff, sample)
+        middle = blended_step(x, w, twists, h / 2)
+        w, _ = flow_weights(middle, s + (k + 0.5) * h, distance, twists, index_of, falloff,
+                            sample)
+        x = blended_step(x, w, twists, h)
+    return x
+
+
 def bent_bones(labels_hi, grid, motions):
     """The bones in the bent pose on `grid`: each one's distance map (mm, 0 inside), the twist
     log M⁻¹ of its target -> source motion, and the label image (z, y, x)."""
@@ -365,12 +377,7 @@ def pull_back(labels_hi, grid, motions, rng, bump_mm, body_mask, steps, falloff)
     p = grid_points(grid)
     distance, twists, bone_labels = bent_bones(labels_hi, grid, motions)
     index_of = world_to_index(grid)
-    x, h = p.copy(), 1.0 / steps
-    for k in range(steps):
-        w, _ = flow_weights(x, k * h, distance, twists, index_of, falloff)
-        middle = blended_step(x, w, twists, h / 2)
-        w, _ = flow_weights(middle, (k + 0.5) * h, distance, twists, index_of, falloff)
-        x = blended_step(x, w, twists, h)
+    x = polyrigid_flow(p, 0.0, 1.0 / steps, steps, distance, twists, index_of, falloff)
     _, d0 = flow_weights(p, 0.0, distance, twists, index_of, falloff)
     body = body_mask & (bone_labels == 0)
     x += smooth_bumps(p, body, d0.min(-1), bump_mm, rng)
@@ -600,13 +607,8 @@ def straight_body(body_source, source_grid, spacing, distance, twists, index_of,
     band = max(1, int(round(SKIN_BAND_MM / min(spacing))))
 
     def body_at(s, points):
-        x, h = points.copy(), (1.0 - s) / substeps
-        for k in range(substeps):
-            t = s + k * h
-            w, _ = flow_weights(x, t, distance, twists, index_of, falloff, sampled)
-            middle = blended_step(x, w, twists, h / 2)
-            w, _ = flow_weights(middle, t + h / 2, distance, twists, index_of, falloff, sampled)
-            x = blended_step(x, w, twists, h)
+        x = polyrigid_flow(points, s, (1.0 - s) / substeps, substeps, distance, twists, index_of,
+                           falloff, sampled)
         inside = sampled(body, to_source(x)) >= 0.5
         return ndimage.binary_dilation(inside, iterations=band)
 
