@@ -214,6 +214,61 @@ fn cell_grids_finer_than_the_volume_are_refused() {
     assert!(check_cells([4, 4, 4], [4, 1, 2]).is_ok());
 }
 
+/// jacobian.wgsl read voxel by voxel: central differences (one-sided at the faces, 0 along an
+/// axis one voxel long), the rows of I + du/dx and their determinant, in the shader's order.
+fn jacobian_voxel_by_voxel(grid: &Grid, field: &[f32]) -> Vec<f32> {
+    let m = posereg::abi::JacobianParams::new(grid).mm_to_index;
+    let [nx, ny, nz] = grid.dims;
+    let u = |i: usize, j: usize, k: usize| {
+        let n = 3 * (i + nx * (j + ny * k));
+        [field[n], field[n + 1], field[n + 2]]
+    };
+    let difference = |lo: [f32; 3], hi: [f32; 3], c: usize, n: usize| -> [f32; 3] {
+        match n {
+            1 => [0.0; 3],
+            _ if c == 0 || c == n - 1 => std::array::from_fn(|a| hi[a] - lo[a]),
+            _ => std::array::from_fn(|a| (hi[a] - lo[a]) * 0.5),
+        }
+    };
+    let mut det = Vec::with_capacity(grid.len());
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let dx = difference(u(i.max(1) - 1, j, k), u((i + 1).min(nx - 1), j, k), i, nx);
+                let dy = difference(u(i, j.max(1) - 1, k), u(i, (j + 1).min(ny - 1), k), j, ny);
+                let dz = difference(u(i, j, k.max(1) - 1), u(i, j, (k + 1).min(nz - 1)), k, nz);
+                let r: [[f32; 3]; 3] = std::array::from_fn(|r| {
+                    std::array::from_fn(|s| {
+                        let identity = if r == s { 1.0 } else { 0.0 };
+                        dx[r] * m[0][s] + dy[r] * m[1][s] + dz[r] * m[2][s] + identity
+                    })
+                });
+                det.push(
+                    r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
+                        - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+                        + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]),
+                );
+            }
+        }
+    }
+    det
+}
+
+#[test]
+fn jacobian_rows_give_the_shaders_voxels_to_the_bit() {
+    // The twin takes a row's differences at once; each voxel must still be the shader's
+    // operations in its order, faces and axes one voxel long included.
+    for dims in [[13usize, 11, 7], [5, 1, 3], [1, 4, 2], [2, 2, 9]] {
+        let grid = oblique_grid(dims);
+        let field = smooth_field(&grid, 7, 5.0);
+        let flat: Vec<f32> = field.data.iter().flatten().copied().collect();
+        let want = jacobian_voxel_by_voxel(&grid, &flat);
+        let got = host_determinant(&CpuBackend, &field).unwrap();
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&got), bits(&want), "{dims:?}");
+    }
+}
+
 #[test]
 fn jacobian_of_a_linear_field_is_its_determinant() {
     // u(x) = B x in world mm has x + u(x) = (I + B) x: det(I + B) at every voxel, borders

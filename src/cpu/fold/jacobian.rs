@@ -1,45 +1,101 @@
-//! CPU twin of shaders/fold/jacobian.wgsl: one slice per rayon task.
+//! CPU twin of shaders/fold/jacobian.wgsl, a row of voxels at a time: the row's differences
+//! along each axis are taken over its three floats per voxel at once, then each voxel's rows
+//! of I + du/dx and their determinant. Each voxel's operations are the shader's, in its order,
+//! so the values are the same bits (a one-sided difference is the shader's hi − lo times 1).
 
 use crate::abi::JacobianParams;
-use crate::cpu::common::{det3, voxel_index};
-use glam::Vec3;
 use rayon::prelude::*;
 
-fn displacement(params: &JacobianParams, field: &[f32], i: u32, j: u32, k: u32) -> Vec3 {
-    let dims = [params.dims[0], params.dims[1], params.dims[2]];
-    let n = 3 * voxel_index(i, j, k, dims) as usize;
-    Vec3::new(field[n], field[n + 1], field[n + 2])
-}
-
-fn difference(lo: Vec3, hi: Vec3, c: u32, n: u32) -> Vec3 {
-    if n == 1 {
-        return Vec3::ZERO;
-    }
-    if c == 0 || c == n - 1 {
-        return hi - lo;
-    }
-    (hi - lo) * 0.5
-}
+/// A row's differences along x, y and z, 3 floats per voxel like the field.
+#[derive(Default)]
+struct Differences([Vec<f32>; 3]);
 
 /// Fills `det` (one value per voxel) with det(I + du/dx).
 pub fn jacobian(params: &JacobianParams, field: &[f32], det: &mut [f32]) {
-    let [nx, ny, nz, _] = params.dims;
-    let m = params.mm_to_index.map(|r| Vec3::new(r[0], r[1], r[2]));
-    let u = |i, j, k| displacement(params, field, i, j, k);
-    det.par_chunks_mut((nx * ny) as usize)
-        .enumerate()
-        .for_each(|(zl, out)| {
-            let k = zl as u32;
-            for j in 0..ny {
-                for i in 0..nx {
-                    let dx = difference(u(i.max(1) - 1, j, k), u((i + 1).min(nx - 1), j, k), i, nx);
-                    let dy = difference(u(i, j.max(1) - 1, k), u(i, (j + 1).min(ny - 1), k), j, ny);
-                    let dz = difference(u(i, j, k.max(1) - 1), u(i, j, (k + 1).min(nz - 1)), k, nz);
-                    let r0 = dx.x * m[0] + dy.x * m[1] + dz.x * m[2] + Vec3::X;
-                    let r1 = dx.y * m[0] + dy.y * m[1] + dz.y * m[2] + Vec3::Y;
-                    let r2 = dx.z * m[0] + dy.z * m[1] + dz.z * m[2] + Vec3::Z;
-                    out[voxel_index(i, j, 0, [nx, ny, 1]) as usize] = det3(r0, r1, r2);
-                }
+    let [nx, ny, _, _] = params.dims.map(|n| n as usize);
+    det.par_chunks_mut(nx * ny).enumerate().for_each_init(
+        Differences::default,
+        |differences, (k, slice)| {
+            for (j, out) in slice.chunks_exact_mut(nx).enumerate() {
+                jacobian_row(params, field, [j, k], differences, out);
             }
-        });
+        },
+    );
+}
+
+/// The factor of a difference at coordinate c of n voxels: ½ for a central one, 1 at the
+/// faces (one-sided).
+fn factor(c: usize, n: usize) -> f32 {
+    if c == 0 || c + 1 >= n {
+        1.0
+    } else {
+        0.5
+    }
+}
+
+/// Row (j, k) of [`jacobian`] into `out`; also compiled for AVX2 (crate::cpu's notes).
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn jacobian_row(
+    params: &JacobianParams,
+    field: &[f32],
+    [j, k]: [usize; 2],
+    differences: &mut Differences,
+    out: &mut [f32],
+) {
+    let [nx, ny, nz, _] = params.dims.map(|n| n as usize);
+    let row = |j: usize, k: usize| &field[3 * nx * (j + ny * k)..][..3 * nx];
+    let [dx, dy, dz] = &mut differences.0;
+    for lanes in [&mut *dx, &mut *dy, &mut *dz] {
+        lanes.resize(3 * nx, 0.0);
+    }
+    // Along x the neighbours are the voxels beside, 3 floats away (one-sided at the ends).
+    let here = row(j, k);
+    for (i, d) in dx.chunks_exact_mut(3).enumerate() {
+        let (lo, hi) = (3 * (i.max(1) - 1), 3 * (i + 1).min(nx - 1));
+        let half = factor(i, nx);
+        for c in 0..3 {
+            d[c] = (here[hi + c] - here[lo + c]) * half;
+        }
+    }
+    let beside = [
+        (
+            row(j.max(1) - 1, k),
+            row((j + 1).min(ny - 1), k),
+            factor(j, ny),
+        ),
+        (
+            row(j, k.max(1) - 1),
+            row(j, (k + 1).min(nz - 1)),
+            factor(k, nz),
+        ),
+    ];
+    for (d, (lo, hi, half)) in [&mut *dy, &mut *dz].into_iter().zip(beside) {
+        for ((d, hi), lo) in d.iter_mut().zip(hi).zip(lo) {
+            *d = (hi - lo) * half;
+        }
+    }
+    // Along an axis one voxel long the shader's difference is 0.
+    for (d, n) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip([nx, ny, nz]) {
+        if n == 1 {
+            d.fill(0.0);
+        }
+    }
+    let m = params.mm_to_index;
+    let voxels = dx
+        .chunks_exact(3)
+        .zip(dy.chunks_exact(3))
+        .zip(dz.chunks_exact(3));
+    for (det, ((a, b), c)) in out.iter_mut().zip(voxels) {
+        // Row r of du/dx: component r's index derivatives times d(index)/dx, plus row r of I.
+        let entry = |r: usize, s: usize| {
+            let identity = if r == s { 1.0 } else { 0.0 };
+            a[r] * m[0][s] + b[r] * m[1][s] + c[r] * m[2][s] + identity
+        };
+        let (r0x, r0y, r0z) = (entry(0, 0), entry(0, 1), entry(0, 2));
+        let (r1x, r1y, r1z) = (entry(1, 0), entry(1, 1), entry(1, 2));
+        let (r2x, r2y, r2z) = (entry(2, 0), entry(2, 1), entry(2, 2));
+        // common::det3's order.
+        *det = r0x * (r1y * r2z - r1z * r2y) - r0y * (r1x * r2z - r1z * r2x)
+            + r0z * (r1x * r2y - r1y * r2x);
+    }
 }
