@@ -1,8 +1,11 @@
-//! CPU twin of shaders/dense/field_combine.wgsl.
+//! CPU twin of shaders/dense/field_combine.wgsl, a block of voxels per rayon task.
 
 use crate::abi::dense::CombineParams;
 use crate::cpu::fade::fade_at;
 use rayon::prelude::*;
+
+/// Voxels per rayon task: enough that a task's work outweighs handing it out.
+const BLOCK: usize = 4096;
 
 /// Fills `out` (3 floats per voxel) with fade · (a_scale · a + b_scale · b).
 pub fn field_combine(
@@ -12,10 +15,31 @@ pub fn field_combine(
     distance: &[f32],
     out: &mut [f32],
 ) {
-    out.par_chunks_mut(3).enumerate().for_each(|(v, r)| {
-        let fade = fade_at(distance, v, params.faded, params.margin_mm);
+    out.par_chunks_mut(3 * BLOCK)
+        .enumerate()
+        .for_each(|(block, out)| {
+            let first = block * BLOCK;
+            let (a, b) = (&a[3 * first..][..out.len()], &b[3 * first..][..out.len()]);
+            combine_block(params, (a, b), (distance, first), out);
+        });
+}
+
+/// The voxels of one block, the first `first`. Also compiled for AVX2 (crate::cpu's notes).
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn combine_block(
+    params: &CombineParams,
+    (a, b): (&[f32], &[f32]),
+    (distance, first): (&[f32], usize),
+    out: &mut [f32],
+) {
+    let (a_scale, b_scale) = (params.a_scale, params.b_scale);
+    let voxels = out
+        .chunks_exact_mut(3)
+        .zip(a.chunks_exact(3).zip(b.chunks_exact(3)));
+    for (v, (r, (a, b))) in voxels.enumerate() {
+        let fade = fade_at(distance, first + v, params.faded, params.margin_mm);
         for c in 0..3 {
-            r[c] = fade * (params.a_scale * a[3 * v + c] + params.b_scale * b[3 * v + c]);
+            r[c] = fade * (a_scale * a[c] + b_scale * b[c]);
         }
-    });
+    }
 }
