@@ -42,45 +42,60 @@ fn jacobian_row(
     differences: &mut Differences,
     out: &mut [f32],
 ) {
-    let [nx, ny, nz, _] = params.dims.map(|n| n as usize);
-    let row = |j: usize, k: usize| &field[3 * nx * (j + ny * k)..][..3 * nx];
-    let [dx, dy, dz] = &mut differences.0;
-    for lanes in [&mut *dx, &mut *dy, &mut *dz] {
-        lanes.resize(3 * nx, 0.0);
-    }
-    // Along x the neighbours are the voxels beside, 3 floats away (one-sided at the ends).
-    let here = row(j, k);
-    for (i, d) in dx.chunks_exact_mut(3).enumerate() {
-        let (lo, hi) = (3 * (i.max(1) - 1), 3 * (i + 1).min(nx - 1));
-        let half = factor(i, nx);
-        for c in 0..3 {
-            d[c] = (here[hi + c] - here[lo + c]) * half;
+    differences.take(params, field, [j, k]);
+    determinants(params.mm_to_index, differences, out);
+}
+
+impl Differences {
+    /// Row (j, k)'s differences along each axis: central, one-sided at the faces, 0 along an
+    /// axis one voxel long (the shader's `difference`).
+    #[inline(always)]
+    fn take(&mut self, params: &JacobianParams, field: &[f32], [j, k]: [usize; 2]) {
+        let [nx, ny, nz, _] = params.dims.map(|n| n as usize);
+        let row = |j: usize, k: usize| &field[3 * nx * (j + ny * k)..][..3 * nx];
+        let [dx, dy, dz] = &mut self.0;
+        for lanes in [&mut *dx, &mut *dy, &mut *dz] {
+            lanes.resize(3 * nx, 0.0);
+        }
+        // Along x the neighbours are the voxels beside, 3 floats away.
+        let here = row(j, k);
+        for (i, d) in dx.chunks_exact_mut(3).enumerate() {
+            let (lo, hi) = (3 * (i.max(1) - 1), 3 * (i + 1).min(nx - 1));
+            let half = factor(i, nx);
+            for c in 0..3 {
+                d[c] = (here[hi + c] - here[lo + c]) * half;
+            }
+        }
+        let beside = [
+            (
+                row(j.max(1) - 1, k),
+                row((j + 1).min(ny - 1), k),
+                factor(j, ny),
+            ),
+            (
+                row(j, k.max(1) - 1),
+                row(j, (k + 1).min(nz - 1)),
+                factor(k, nz),
+            ),
+        ];
+        for (d, (lo, hi, half)) in [&mut *dy, &mut *dz].into_iter().zip(beside) {
+            for ((d, hi), lo) in d.iter_mut().zip(hi).zip(lo) {
+                *d = (hi - lo) * half;
+            }
+        }
+        for (d, n) in [dx, dy, dz].into_iter().zip([nx, ny, nz]) {
+            if n == 1 {
+                d.fill(0.0);
+            }
         }
     }
-    let beside = [
-        (
-            row(j.max(1) - 1, k),
-            row((j + 1).min(ny - 1), k),
-            factor(j, ny),
-        ),
-        (
-            row(j, k.max(1) - 1),
-            row(j, (k + 1).min(nz - 1)),
-            factor(k, nz),
-        ),
-    ];
-    for (d, (lo, hi, half)) in [&mut *dy, &mut *dz].into_iter().zip(beside) {
-        for ((d, hi), lo) in d.iter_mut().zip(hi).zip(lo) {
-            *d = (hi - lo) * half;
-        }
-    }
-    // Along an axis one voxel long the shader's difference is 0.
-    for (d, n) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip([nx, ny, nz]) {
-        if n == 1 {
-            d.fill(0.0);
-        }
-    }
-    let m = params.mm_to_index;
+}
+
+/// det(I + du/dx) of each voxel of a row from its `differences` (du/d(index)), with
+/// d(index)/dx the rows `m`.
+#[inline(always)]
+fn determinants(m: [[f32; 4]; 3], differences: &Differences, out: &mut [f32]) {
+    let [dx, dy, dz] = &differences.0;
     let voxels = dx
         .chunks_exact(3)
         .zip(dy.chunks_exact(3))
