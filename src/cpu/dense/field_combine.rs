@@ -24,7 +24,8 @@ pub fn field_combine(
         });
 }
 
-/// The voxels of one block, the first `first`. Also compiled for AVX2 (crate::cpu's notes).
+/// One block of voxels, the first of them voxel `first` (its index in `distance`). Also
+/// compiled for AVX2 (crate::cpu's notes).
 #[multiversion::multiversion(targets("x86_64+avx2"))]
 fn combine_block(
     params: &CombineParams,
