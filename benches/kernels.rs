@@ -607,7 +607,7 @@ fn kernels(c: &mut Criterion) {
             },
         );
         // Weights on the skinning grid (~2.5 mm), as the pipeline keeps them.
-        let (weight_grid, _) = posereg::init::skinning::skinning_grid(&g);
+        let weight_grid = posereg::init::skinning::skinning_grid(&g);
         let weights = resident(
             &CpuBackend,
             &[&synthetic_distances(weight_grid.len())],

@@ -31,14 +31,19 @@ impl Grid {
     /// Every `stride`-th voxel per axis from the first: the same origin and extent (to a voxel),
     /// voxels `stride` times as far apart.
     pub fn every(&self, stride: usize) -> Grid {
+        self.every_along([stride; 3])
+    }
+
+    /// Every `strides[a]`-th voxel along each axis a from the first (each stride at least 1).
+    pub fn every_along(&self, strides: [usize; 3]) -> Grid {
         let mut affine = self.affine;
-        for c in 0..3 {
+        for (c, &stride) in strides.iter().enumerate() {
             for r in 0..3 {
                 affine[(r, c)] *= stride as f64;
             }
         }
         Grid {
-            dims: self.dims.map(|n| (n - 1) / stride + 1),
+            dims: std::array::from_fn(|a| (self.dims[a] - 1) / strides[a] + 1),
             affine,
         }
     }

@@ -73,19 +73,11 @@ pub fn reach_scale(volume: f64, largest: f64, limit: f64) -> f32 {
 }
 
 /// A grid sampling every k-th voxel of `grid` per axis, k chosen for about 2.5 mm spacing.
-pub fn skinning_grid(grid: &Grid) -> (Grid, [usize; 3]) {
+pub fn skinning_grid(grid: &Grid) -> Grid {
     let spacing = grid.spacing();
-    let stride: [usize; 3] =
-        std::array::from_fn(|a| ((SKIN_SPACING_MM / spacing[a]).round() as usize).max(1));
-    let dims: [usize; 3] = std::array::from_fn(|a| (grid.dims[a] - 1) / stride[a] + 1);
-    let mut scale = Affine::identity();
-    for a in 0..3 {
-        scale[(a, a)] = stride[a] as f64;
-    }
-    (
-        Grid::new(dims, grid.affine * scale).expect("a stride of a valid grid"),
-        stride,
-    )
+    grid.every_along(std::array::from_fn(|a| {
+        ((SKIN_SPACING_MM / spacing[a]).round() as usize).max(1)
+    }))
 }
 
 /// For each bone, the first bone of the segment it moves in: bones whose `motions` agree within
@@ -182,7 +174,7 @@ pub fn distances<B: Backend>(
     motions: Option<&[Affine]>,
 ) -> Result<BoneDistances<B>> {
     crate::abi::check_bone_count(bones.len())?;
-    let (grid, _) = skinning_grid(&labels.grid);
+    let grid = skinning_grid(&labels.grid);
     // The skinning grid's voxels are source voxels: nearest-voxel sampling picks their labels.
     let on_grid = ResampleParams::new(&labels.grid, &grid, 0.0, Interpolation::Nearest);
     let still = backend.zeros("zero displacement", 3 * grid.len())?;

@@ -177,7 +177,7 @@ pub fn initialise<B: Backend>(
     let found = Initialisation {
         motions,
         axis,
-        weight_grid: skinning::skinning_grid(&pair.labels.grid).0,
+        weight_grid: skinning::skinning_grid(&pair.labels.grid),
         bones,
         repair: initial.repair,
         reach,
