@@ -16,6 +16,20 @@ pub fn cell_start(c: u32, n: u32, cells: u32) -> u32 {
     (c * n + cells - 1) / cells
 }
 
+/// Central difference between a voxel's neighbours `lo` and `hi` along an axis, at coordinate
+/// c of n: one-sided at the ends, 0 along an axis one voxel long (jacobian.wgsl's `difference`,
+/// dense_force.wgsl's `slope`).
+#[inline(always)]
+pub fn difference(lo: f32, hi: f32, c: u32, n: u32) -> f32 {
+    if n == 1 {
+        return 0.0;
+    }
+    if c == 0 || c == n - 1 {
+        return hi - lo;
+    }
+    (hi - lo) * 0.5
+}
+
 /// Determinant of the 3×3 matrix with rows r0, r1, r2 (cofactors of the first row).
 #[inline]
 pub fn det3(r0: glam::Vec3, r1: glam::Vec3, r2: glam::Vec3) -> f32 {

@@ -2,22 +2,10 @@
 
 use crate::abi::dense::{ForceParams, ForceTerm, VOLUME_DET_FLOOR};
 use crate::backend::dense::ForceImages;
-use crate::cpu::common::{is_covered, voxel_index};
+use crate::cpu::common::{difference, is_covered, voxel_index};
 use crate::cpu::window::window_at;
 use glam::Vec3;
 use rayon::prelude::*;
-
-/// Central difference of W along one axis at coordinate c of n (one-sided at the ends).
-#[inline(always)]
-fn slope(lo: f32, hi: f32, c: u32, n: u32) -> f32 {
-    if n == 1 {
-        return 0.0;
-    }
-    if c == 0 || c == n - 1 {
-        return hi - lo;
-    }
-    (hi - lo) * 0.5
-}
 
 /// The force's factor along ∇W and the cost at voxel v (index `ijk`).
 #[inline(always)]
@@ -127,8 +115,8 @@ fn slopes_along_row(w: &[f32], out: &mut [f32]) {
     for i in 1..n.saturating_sub(1) {
         out[i] = (w[i + 1] - w[i - 1]) * 0.5;
     }
-    out[0] = slope(w[0], w[1.min(n - 1)], 0, n as u32);
-    out[n - 1] = slope(w[n.saturating_sub(2)], w[n - 1], n as u32 - 1, n as u32);
+    out[0] = difference(w[0], w[1.min(n - 1)], 0, n as u32);
+    out[n - 1] = difference(w[n.saturating_sub(2)], w[n - 1], n as u32 - 1, n as u32);
 }
 
 /// ∂W/∂j (or ∂k) along a row at coordinate c of n on that axis, from the rows `below` and
@@ -136,6 +124,6 @@ fn slopes_along_row(w: &[f32], out: &mut [f32]) {
 #[inline(always)]
 fn slopes_across(below: &[f32], above: &[f32], [c, n]: [u32; 2], out: &mut [f32]) {
     for ((o, &lo), &hi) in out.iter_mut().zip(below).zip(above) {
-        *o = slope(lo, hi, c, n);
+        *o = difference(lo, hi, c, n);
     }
 }

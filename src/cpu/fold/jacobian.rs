@@ -1,9 +1,10 @@
 //! CPU twin of shaders/fold/jacobian.wgsl, a row of voxels at a time: the row's differences
 //! along each axis are taken over its three floats per voxel at once, then each voxel's rows
 //! of I + du/dx and their determinant. Each voxel's operations are the shader's, in its order,
-//! so the values are the same bits (a one-sided difference is the shader's hi − lo times 1).
+//! so the values are the same bits.
 
 use crate::abi::JacobianParams;
+use crate::cpu::common::difference;
 use rayon::prelude::*;
 
 /// A row's differences along x, y and z, 3 floats per voxel like the field.
@@ -21,16 +22,6 @@ pub fn jacobian(params: &JacobianParams, field: &[f32], det: &mut [f32]) {
             }
         },
     );
-}
-
-/// The factor of a difference at coordinate c of n voxels: ½ for a central one, 1 at the
-/// faces (one-sided).
-fn factor(c: usize, n: usize) -> f32 {
-    if c == 0 || c + 1 >= n {
-        1.0
-    } else {
-        0.5
-    }
 }
 
 /// Row (j, k) of [`jacobian`] into `out`; also compiled for AVX2 (crate::cpu's notes).
@@ -61,31 +52,17 @@ impl Differences {
         let here = row(j, k);
         for (i, d) in dx.chunks_exact_mut(3).enumerate() {
             let (lo, hi) = (3 * (i.max(1) - 1), 3 * (i + 1).min(nx - 1));
-            let half = factor(i, nx);
             for c in 0..3 {
-                d[c] = (here[hi + c] - here[lo + c]) * half;
+                d[c] = difference(here[lo + c], here[hi + c], i as u32, nx as u32);
             }
         }
         let beside = [
-            (
-                row(j.max(1) - 1, k),
-                row((j + 1).min(ny - 1), k),
-                factor(j, ny),
-            ),
-            (
-                row(j, k.max(1) - 1),
-                row(j, (k + 1).min(nz - 1)),
-                factor(k, nz),
-            ),
+            (row(j.max(1) - 1, k), row((j + 1).min(ny - 1), k), [j, ny]),
+            (row(j, k.max(1) - 1), row(j, (k + 1).min(nz - 1)), [k, nz]),
         ];
-        for (d, (lo, hi, half)) in [&mut *dy, &mut *dz].into_iter().zip(beside) {
-            for ((d, hi), lo) in d.iter_mut().zip(hi).zip(lo) {
-                *d = (hi - lo) * half;
-            }
-        }
-        for (d, n) in [dx, dy, dz].into_iter().zip([nx, ny, nz]) {
-            if n == 1 {
-                d.fill(0.0);
+        for (d, (lo, hi, [c, n])) in [dy, dz].into_iter().zip(beside) {
+            for ((d, &hi), &lo) in d.iter_mut().zip(hi).zip(lo) {
+                *d = difference(lo, hi, c as u32, n as u32);
             }
         }
     }
